@@ -1,0 +1,37 @@
+"""The ``guidebelt`` command: registers one small module per sub-command.
+
+Command modules import only typer and the standard library at the top; their heavy
+imports (zenoh, pydantic, matplotlib, cupy) happen inside the command, so
+``python -m daemon.cli.app bench`` runs on the GPU machine, which lacks zenoh.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import typer
+
+app = typer.Typer(
+    name="guidebelt",
+    help="Real-time navigation for blind pedestrians: planner, daemon, drivers, simulation.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+
+# Each module defines ``register(app: typer.Typer) -> None``.
+COMMAND_MODULES = [
+    "daemon.cli.bench",
+    "daemon.cli.render",
+    "daemon.cli.demo",
+]
+
+for _name in COMMAND_MODULES:
+    importlib.import_module(_name).register(app)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,121 @@
+"""The planner interface every backend implements (cpu ``fast``/``paper``, cuda, …).
+
+Terms follow Díaz-Toro et al. 2022: ``g`` is the cost-to-goal field, ``pred`` the
+predecessor (next cell towards the goal), ``incon`` the cells whose ``g`` may be wrong.
+
+- **DSS** (``plan``/``replan``): the field from scratch.
+- **EDS** (``update``): from the cells whose blocked state changed, set
+  inconsistencies, propagate them, relax until nothing changes.
+
+After every call ``costs()`` equals ``dijkstra.dijkstra_field`` cell for cell, and
+``path(start)`` follows the fixed neighbour order of ``grid.py``, so every backend
+walks the same cells.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from .grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, Cell, in_bounds
+
+
+@dataclass(frozen=True)
+class UpdateStats:
+    """What one planning call cost."""
+
+    iterations: int
+    """Relaxation rounds (whole-grid sweeps for ``paper``, queue pops for ``fast``…)."""
+    cells_touched: int
+    """Cells whose g was read and relaxed (or written), a backend-independent effort measure."""
+    ms: float
+    """Wall time of the call, including any device synchronisation."""
+
+
+class Planner(ABC):
+    """Keeps the cost-to-goal field ``g`` of one map and one goal up to date."""
+
+    name: str = "planner"
+
+    @abstractmethod
+    def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
+        """DSS: take a copy of ``blocked`` (``bool``, (h, w)) and ``goal``; compute g from scratch."""
+
+    @abstractmethod
+    def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        """EDS: set ``blocked[cells] = blocked`` (flat ``int64`` indices) and repair g incrementally."""
+
+    @abstractmethod
+    def replan(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        """DSS after a change: apply the same change as ``update``, then recompute from scratch."""
+
+    @abstractmethod
+    def costs(self) -> np.ndarray:
+        """A host copy of g (``int32``, (h, w))."""
+
+    @abstractmethod
+    def blocked(self) -> np.ndarray:
+        """A host copy of the planner's blocked map."""
+
+    @abstractmethod
+    def cost_at(self, cell: Cell) -> int:
+        """g at one cell (INF if unreachable, blocked or out of the map)."""
+
+    @abstractmethod
+    def path(self, start: Cell) -> np.ndarray:
+        """Cells from ``start`` to the goal, ``(k, 2) int32``; empty (0, 2) if none."""
+
+    @property
+    @abstractmethod
+    def goal(self) -> Cell: ...
+
+    @property
+    @abstractmethod
+    def shape(self) -> tuple[int, int]: ...
+
+
+def reference_path(g: np.ndarray, blocked: np.ndarray, start: Cell) -> np.ndarray:
+    """Follow predecessors through ``g`` with the fixed neighbour order (pure Python).
+
+    The first neighbour ``n`` in ``grid.NEIGHBOUR_*`` order with ``g[n] + cost == g[cur]``
+    is the predecessor. Backends implement the same rule compiled; tests compare with this.
+    """
+    h, w = g.shape
+    if not in_bounds((h, w), start) or blocked[start] or g[start] >= INF:
+        return np.empty((0, 2), dtype=np.int32)
+    out = [start]
+    r, c = start
+    while g[r, c] != 0:
+        for dr, dc, cost in zip(NEIGHBOUR_DR, NEIGHBOUR_DC, NEIGHBOUR_COST, strict=True):
+            nr, nc = r + int(dr), c + int(dc)
+            if (
+                0 <= nr < h
+                and 0 <= nc < w
+                and not blocked[nr, nc]
+                and int(g[nr, nc]) + int(cost) == int(g[r, c])
+            ):
+                r, c = nr, nc
+                break
+        else:
+            raise RuntimeError(f"g is not a consistent cost field at {(r, c)}")
+        out.append((r, c))
+    return np.array(out, dtype=np.int32)
+
+
+def reference_pred(g: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+    """``pred`` map (``int8`` neighbour index, -1 for goal/blocked/unreachable) from g."""
+    h, w = g.shape
+    pred = np.full((h, w), -1, dtype=np.int8)
+    gp = np.pad(g.astype(np.int64), 1, constant_values=int(INF))
+    bp = np.pad(blocked, 1, constant_values=True)
+    undecided = (~blocked) & (g < INF) & (g > 0)
+    for k in range(8):
+        dr, dc = int(NEIGHBOUR_DR[k]), int(NEIGHBOUR_DC[k])
+        gn = gp[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
+        bn = bp[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
+        hit = undecided & ~bn & (gn + int(NEIGHBOUR_COST[k]) == g)
+        pred[hit] = k
+        undecided &= ~hit
+    return pred
