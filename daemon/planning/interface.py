@@ -41,11 +41,11 @@ class Planner(ABC):
 
     @abstractmethod
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
-        """DSS: take a copy of ``blocked`` (``bool``, (h, w)) and ``goal``; compute g from scratch."""
+        """DSS: copy ``blocked`` (``bool``, (h, w)) and ``goal``; compute g from scratch."""
 
     @abstractmethod
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
-        """EDS: set ``blocked[cells] = blocked`` (flat ``int64`` indices) and repair g incrementally."""
+        """EDS: set ``blocked[cells] = blocked`` (flat int64 indices); repair g incrementally."""
 
     @abstractmethod
     def replan(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
