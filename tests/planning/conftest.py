@@ -1,0 +1,30 @@
+"""The planners under test: every backend and variant runs the same tests.
+
+``cuda-*`` cases are marked ``gpu`` and skipped where no CUDA device answers, so the GPU
+machine runs exactly these tests with ``pytest -m gpu``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+
+from daemon.planning import cuda_available, make_planner
+from daemon.planning.interface import Planner
+
+PLANNERS = [
+    pytest.param(("cpu", "fast"), id="cpu-fast"),
+    pytest.param(("cpu", "paper"), id="cpu-paper"),
+    pytest.param(("cuda", "fast"), id="cuda-fast", marks=pytest.mark.gpu),
+    pytest.param(("cuda", "paper"), id="cuda-paper", marks=pytest.mark.gpu),
+]
+
+
+@pytest.fixture(params=PLANNERS)
+def make(request) -> Callable[[], Planner]:
+    """A factory of fresh planners of one backend and variant."""
+    backend, variant = request.param
+    if backend == "cuda" and not cuda_available():
+        pytest.skip("no usable CUDA device")
+    return lambda: make_planner(backend, variant)
