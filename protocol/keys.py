@@ -33,6 +33,12 @@ def map_snapshot(user: str) -> str:
     return _user_key(user, "map/snapshot")
 
 
+def map_source(user: str) -> str:
+    """Queryable of the map's producer (mapper or sim): the daemon asks it for a snapshot
+    when it sees a gap in the delta sequence. ``map_snapshot`` is the daemon's own map."""
+    return _user_key(user, "map/source")
+
+
 def pose(user: str) -> str:
     return _user_key(user, "pose")
 
@@ -51,6 +57,11 @@ def status(user: str) -> str:
 
 def belt(user: str) -> str:
     return _user_key(user, "belt")
+
+
+def belt_health(user: str) -> str:
+    """The belt driver's link health (``BeltHealth``), published by ``guidebelt belt``."""
+    return _user_key(user, "belt/health")
 
 
 def voice(user: str) -> str:

@@ -7,10 +7,12 @@ Units: metres, radians (0 = east, counter-clockwise), seconds since the Unix epo
 
 from __future__ import annotations
 
+import zlib
 from enum import StrEnum
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 MOTORS = ("front", "right", "back", "left")
 """Belt motor order, clockwise from the front, in every message and frame."""
@@ -78,6 +80,28 @@ class BeltPattern(Message):
     stamp: float = Field(ge=0, allow_inf_nan=False)
 
 
+class BeltHealth(Message):
+    """The belt driver's view of its serial link and of the firmware's own counters."""
+
+    port: str
+    connected: bool
+    belt_state: str = Field(description="boot, active, idle, watchdog, stopped or unknown")
+    frames_sent: int = Field(ge=0)
+    acks: int = Field(ge=0)
+    refused: int = Field(ge=0, description="acks saying the belt refused a frame's content")
+    dropped: int = Field(ge=0, description="frames not written: port full or gone")
+    reconnects: int = Field(ge=0)
+    rx_errors: int = Field(ge=0, description="bad frames from the belt seen by the driver")
+    belt_crc_errors: int = Field(ge=0, description="the firmware's counters, from heartbeats")
+    belt_oversized: int = Field(ge=0)
+    belt_truncated: int = Field(ge=0)
+    belt_malformed: int = Field(ge=0)
+    watchdog_trips: int = Field(ge=0)
+    latency_ms: float | None = Field(default=None, ge=0, description="median ack round trip")
+    heartbeat_age_s: float | None = Field(default=None, ge=0)
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+
+
 class CuePriority(StrEnum):
     SAFETY = "safety"  # spoken at once, pre-empts routine cues
     ROUTINE = "routine"  # rate limited
@@ -109,6 +133,12 @@ class NavStatus(Message):
     distance_m: float | None = Field(default=None, ge=0)
     rejected: int = Field(default=0, ge=0, description="messages rejected for this user so far")
     backend: str = ""
+    replans: int = Field(default=0, ge=0, description="times a new obstacle cut the path")
+    code: str = Field(
+        default="",
+        max_length=32,
+        description="machine-readable cause, e.g. goal_off_map, stale_pose (see daemon docs)",
+    )
 
 
 class Health(Message):
@@ -118,3 +148,109 @@ class Health(Message):
     backend: str
     rejected: int = Field(ge=0)
     stamp: float = Field(ge=0)
+
+
+MAX_SIDE = 4096
+"""Largest map side (cells) any message may describe."""
+
+MAX_DELTA_CELLS = 65536
+"""A delta changing more cells than this is rejected whole; send a snapshot instead."""
+
+OCCUPANCY_VALUES = (0, 1, 2)
+"""FREE, OCCUPIED, UNKNOWN — as in ``daemon.planning.grid``."""
+
+
+class MapDelta(Message):
+    """Changed occupancy cells since delta ``seq - 1``; binary on the wire (``codec.py``).
+
+    ``cells`` holds little-endian ``uint32`` flat indices (``row * width + col``),
+    ``values`` one ``uint8`` occupancy per cell. A delta is applied whole or not at all.
+    """
+
+    seq: int = Field(ge=0, lt=2**32, description="consecutive per user, from 0")
+    height: int = Field(ge=1, le=MAX_SIDE)
+    width: int = Field(ge=1, le=MAX_SIDE)
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+    cells: bytes = Field(description="uint32 little-endian flat indices")
+    values: bytes = Field(description="uint8 occupancy: 0 free, 1 occupied, 2 unknown")
+
+    @model_validator(mode="after")
+    def _check_cells(self) -> Self:
+        n = len(self.values)
+        if n > MAX_DELTA_CELLS:
+            raise ValueError(f"delta of {n} cells exceeds the limit of {MAX_DELTA_CELLS}")
+        if len(self.cells) != 4 * n:
+            raise ValueError("cells must hold one uint32 per value")
+        if n and int(self.cell_array().max()) >= self.height * self.width:
+            raise ValueError("cell index outside the map")
+        if n and int(self.value_array().max()) > max(OCCUPANCY_VALUES):
+            raise ValueError("occupancy value not in {0, 1, 2}")
+        return self
+
+    def cell_array(self) -> np.ndarray:
+        return np.frombuffer(self.cells, dtype="<u4").astype(np.int64)
+
+    def value_array(self) -> np.ndarray:
+        return np.frombuffer(self.values, dtype=np.uint8)
+
+    @classmethod
+    def from_arrays(
+        cls, seq: int, shape: tuple[int, int], cells: np.ndarray, values: np.ndarray, stamp: float
+    ) -> MapDelta:
+        return cls(
+            seq=seq,
+            height=shape[0],
+            width=shape[1],
+            stamp=stamp,
+            cells=np.ascontiguousarray(cells, dtype="<u4").tobytes(),
+            values=np.ascontiguousarray(values, dtype=np.uint8).tobytes(),
+        )
+
+
+class MapSnapshot(Message):
+    """The whole occupancy map as of delta ``seq``, zlib-compressed ``uint8`` in C order."""
+
+    seq: int = Field(ge=0, lt=2**32, description="the last delta this snapshot includes")
+    height: int = Field(ge=1, le=MAX_SIDE)
+    width: int = Field(ge=1, le=MAX_SIDE)
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+    occupancy: bytes = Field(description="zlib-compressed uint8 occupancy, height * width bytes")
+
+    @classmethod
+    def from_array(cls, seq: int, occupancy: np.ndarray, stamp: float) -> MapSnapshot:
+        occ = np.ascontiguousarray(occupancy, dtype=np.uint8)
+        return cls(
+            seq=seq,
+            height=occ.shape[0],
+            width=occ.shape[1],
+            stamp=stamp,
+            occupancy=zlib.compress(occ.tobytes(), level=1),
+        )
+
+    def array(self) -> np.ndarray:
+        """The occupancy map; refuses anything but exactly height * width valid bytes."""
+        n = self.height * self.width
+        inflater = zlib.decompressobj()
+        try:
+            raw = inflater.decompress(self.occupancy, n + 1)  # + 1: detect an oversized body
+        except zlib.error as exc:
+            raise ValueError(f"snapshot occupancy is not zlib data: {exc}") from exc
+        if len(raw) != n or inflater.unconsumed_tail or not inflater.eof:
+            raise ValueError(f"snapshot occupancy must inflate to exactly {n} bytes")
+        occ = np.frombuffer(raw, dtype=np.uint8).reshape(self.height, self.width)
+        if n and int(occ.max()) > max(OCCUPANCY_VALUES):
+            raise ValueError("occupancy value not in {0, 1, 2}")
+        return occ.copy()
+
+
+class NavPath(Message):
+    """The planned path of one user, from the cell of the pose it was planned for."""
+
+    cells: list[tuple[int, int]] = Field(description="(row, col) from the user to the goal")
+    cost: int = Field(ge=0, description="sum of 10/14 step costs")
+    cell_m: float = Field(gt=0)
+    height: int = Field(ge=1, le=MAX_SIDE)
+    width: int = Field(ge=1, le=MAX_SIDE)
+    pose_stamp: float = Field(ge=0, description="stamp of the pose this path starts from")
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+    map_seq: int = Field(default=-1, ge=-1, description="last map delta this path reflects")

@@ -1,0 +1,147 @@
+"""Bytes on the wire for every message: JSON for the small ones, binary for maps.
+
+Map deltas and snapshots are a fixed little-endian header and raw arrays, so a
+400 × 400 map update costs a ``memcpy``, not a JSON list of numbers:
+
+    MapDelta     "GBMD" u16 version, u16 flags, u32 seq, u32 height, u32 width,
+                 f64 stamp, u32 count | count × u32 flat cell index | count × u8 value
+    MapSnapshot  "GBMS" u16 version, u16 flags, u32 seq, u32 height, u32 width,
+                 f64 stamp, u32 nbytes | nbytes of zlib-compressed uint8 occupancy
+
+``decode`` never lets an exception other than ``DecodeError`` out; its ``code`` says
+which kind of bad input it was (``malformed``, ``unknown_field``, ``wrong_type``,
+``invalid``, ``oversized``), so the daemon can count and report each kind.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import TypeVar
+
+from pydantic import ValidationError
+
+from .messages import MAX_DELTA_CELLS, MapDelta, MapSnapshot, Message
+
+M = TypeVar("M", bound=Message)
+
+DELTA_MAGIC = b"GBMD"
+SNAPSHOT_MAGIC = b"GBMS"
+VERSION = 1
+HEADER = struct.Struct("<4sHHIIIdI")
+"""magic, version, flags, seq, height, width, stamp, count (delta) or nbytes (snapshot)."""
+
+MAX_SNAPSHOT_BYTES = 64 * 1024 * 1024
+
+
+class DecodeError(ValueError):
+    """A message rejected whole; ``code`` names the kind of bad input."""
+
+    def __init__(self, code: str, reason: str) -> None:
+        super().__init__(f"{code}: {reason}")
+        self.code = code
+        self.reason = reason
+
+
+def encode(msg: Message) -> bytes:
+    if isinstance(msg, MapDelta):
+        return _encode_delta(msg)
+    if isinstance(msg, MapSnapshot):
+        return _encode_snapshot(msg)
+    return msg.model_dump_json().encode()
+
+
+def decode(kind: type[M], data: bytes) -> M:
+    """Parse and validate ``data`` as a ``kind``; raise ``DecodeError`` if it is not one."""
+    if kind is MapDelta:
+        return _decode_delta(data)  # type: ignore[return-value]
+    if kind is MapSnapshot:
+        return _decode_snapshot(data)  # type: ignore[return-value]
+    try:
+        return kind.model_validate_json(data)
+    except ValidationError as exc:
+        raise _classify(exc) from None
+
+
+def _classify(exc: ValidationError) -> DecodeError:
+    errors = exc.errors(include_url=False, include_input=False)
+    first = errors[0] if errors else {"type": "", "msg": str(exc), "loc": ()}
+    kinds = {e["type"] for e in errors}
+    where = ".".join(str(p) for p in first.get("loc", ())) or "message"
+    reason = f"{where}: {first['msg']}"
+    if kinds & {"json_invalid", "json_type"}:
+        return DecodeError("malformed", reason)
+    if "extra_forbidden" in kinds:
+        extra = next(e for e in errors if e["type"] == "extra_forbidden")
+        return DecodeError("unknown_field", f"unknown field {'.'.join(map(str, extra['loc']))}")
+    if any(k.endswith(("_type", "_parsing")) or k == "union_tag_invalid" for k in kinds):
+        return DecodeError("wrong_type", reason)
+    return DecodeError("invalid", reason)
+
+
+def _encode_delta(msg: MapDelta) -> bytes:
+    n = len(msg.values)
+    head = HEADER.pack(
+        DELTA_MAGIC, VERSION, 0, msg.seq, msg.height, msg.width, msg.stamp, n
+    )
+    return b"".join((head, msg.cells, msg.values))
+
+
+def _header(data: bytes, magic: bytes) -> tuple[int, int, int, float, int]:
+    if len(data) < HEADER.size:
+        raise DecodeError("malformed", f"{len(data)} bytes is shorter than the header")
+    got_magic, version, _flags, seq, height, width, stamp, count = HEADER.unpack_from(data)
+    if got_magic != magic:
+        raise DecodeError("malformed", f"bad magic {got_magic!r}, expected {magic!r}")
+    if version != VERSION:
+        raise DecodeError("malformed", f"unsupported version {version}")
+    return seq, height, width, stamp, count
+
+
+def _validated(kind: type[M], fields: dict) -> M:
+    try:
+        return kind.model_validate(fields)
+    except ValidationError as exc:
+        raise _classify(exc) from None
+
+
+def _decode_delta(data: bytes) -> MapDelta:
+    seq, height, width, stamp, n = _header(data, DELTA_MAGIC)
+    # Before touching the body: an oversized delta is refused whatever it holds.
+    if n > MAX_DELTA_CELLS:
+        raise DecodeError("oversized", f"delta of {n} cells exceeds {MAX_DELTA_CELLS}")
+    if len(data) != HEADER.size + 5 * n:
+        raise DecodeError("malformed", f"{len(data)} bytes for {n} cells")
+    body = memoryview(data)[HEADER.size :]
+    fields = dict(
+        seq=seq,
+        height=height,
+        width=width,
+        stamp=stamp,
+        cells=bytes(body[: 4 * n]),
+        values=bytes(body[4 * n :]),
+    )
+    return _validated(MapDelta, fields)
+
+
+def _encode_snapshot(msg: MapSnapshot) -> bytes:
+    head = HEADER.pack(
+        SNAPSHOT_MAGIC, VERSION, 0, msg.seq, msg.height, msg.width, msg.stamp, len(msg.occupancy)
+    )
+    return head + msg.occupancy
+
+
+def _decode_snapshot(data: bytes) -> MapSnapshot:
+    seq, height, width, stamp, nbytes = _header(data, SNAPSHOT_MAGIC)
+    if nbytes > MAX_SNAPSHOT_BYTES:
+        raise DecodeError("oversized", f"snapshot of {nbytes} bytes exceeds {MAX_SNAPSHOT_BYTES}")
+    if len(data) != HEADER.size + nbytes:
+        raise DecodeError("malformed", f"{len(data)} bytes for a {nbytes}-byte body")
+    fields = dict(
+        seq=seq, height=height, width=width, stamp=stamp, occupancy=data[HEADER.size :]
+    )
+    snap = _validated(MapSnapshot, fields)
+    try:
+        snap.array()
+    except ValueError as exc:
+        raise DecodeError("invalid", str(exc)) from None
+    return snap

@@ -1,0 +1,67 @@
+"""JSON Schema of every wire message, with the binary layout where the wire is binary."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .messages import (
+    MAX_DELTA_CELLS,
+    BeltPattern,
+    Goal,
+    Health,
+    MapDelta,
+    MapSnapshot,
+    Message,
+    NavPath,
+    NavStatus,
+    Pose,
+    VoiceCue,
+)
+
+MESSAGES: tuple[type[Message], ...] = (
+    Pose,
+    Goal,
+    MapDelta,
+    MapSnapshot,
+    NavPath,
+    NavStatus,
+    BeltPattern,
+    VoiceCue,
+    Health,
+)
+
+BINARY_LAYOUT = {
+    "MapDelta": {
+        "encoding": "binary, little-endian",
+        "header": "magic 'GBMD', u16 version=1, u16 flags=0, u32 seq, u32 height, u32 width, "
+        "f64 stamp, u32 count",
+        "body": "count x u32 flat cell index (row * width + col), then count x u8 value",
+        "max_count": MAX_DELTA_CELLS,
+    },
+    "MapSnapshot": {
+        "encoding": "binary, little-endian",
+        "header": "magic 'GBMS', u16 version=1, u16 flags=0, u32 seq, u32 height, u32 width, "
+        "f64 stamp, u32 nbytes",
+        "body": "nbytes of zlib-compressed uint8 occupancy, height * width bytes in C order",
+    },
+}
+
+
+def schemas() -> dict[str, dict]:
+    out = {}
+    for model in MESSAGES:
+        sch = model.model_json_schema()
+        sch["x-wire"] = BINARY_LAYOUT.get(model.__name__, {"encoding": "JSON, UTF-8"})
+        out[model.__name__] = sch
+    return out
+
+
+def write_schemas(folder: Path) -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, sch in schemas().items():
+        path = folder / f"{name}.schema.json"
+        path.write_text(json.dumps(sch, indent=2, sort_keys=True) + "\n")
+        paths.append(path)
+    return paths

@@ -1,0 +1,164 @@
+"""Every message survives encode → decode; bad bytes are refused whole, with the right code."""
+
+from __future__ import annotations
+
+import json
+import struct
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from protocol import codec, keys
+from protocol.messages import (
+    MAX_DELTA_CELLS,
+    BeltPattern,
+    Goal,
+    GoalCell,
+    GoalLandmark,
+    GoalMetres,
+    Health,
+    MapDelta,
+    MapSnapshot,
+    NavPath,
+    NavState,
+    NavStatus,
+    PatternKind,
+    Pose,
+    VoiceCue,
+)
+from protocol.schema import MESSAGES
+
+ROOT = Path(__file__).resolve().parents[2]
+NOW = 1_790_000_000.25
+
+EXAMPLES = [
+    Pose(x=1.5, y=2.25, heading=-0.5, stamp=NOW, quality=0.8),
+    Goal(target=GoalCell(row=3, col=4), stamp=NOW),
+    Goal(target=GoalMetres(x=1.0, y=9.5), stamp=NOW),
+    Goal(target=GoalLandmark(name="fountain"), stamp=NOW),
+    BeltPattern(seq=7, kind=PatternKind.GUIDE, motors=(200, 0, 0, 55), ttl_ms=700, stamp=NOW),
+    VoiceCue(text="Turn right, 3 metres", kind="direction", stamp=NOW),
+    NavStatus(state=NavState.NO_PATH, reason="walled in", code="no_path", stamp=NOW, rejected=2),
+    Health(daemon_id="d", uptime_s=3.0, users=["a"], backend="cpu", rejected=0, stamp=NOW),
+    NavPath(cells=[(5, 5), (4, 5)], cost=10, cell_m=0.1, height=9, width=9, pose_stamp=NOW,
+            stamp=NOW),
+    MapDelta.from_arrays(9, (200, 300), np.array([0, 59_999]), np.array([1, 2]), NOW),
+    MapSnapshot.from_array(4, np.eye(30, dtype=np.uint8), NOW),
+]
+
+
+@pytest.mark.parametrize("msg", EXAMPLES, ids=lambda m: type(m).__name__)
+def test_round_trip(msg):
+    assert codec.decode(type(msg), codec.encode(msg)) == msg
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    h=st.integers(1, 300),
+    w=st.integers(1, 300),
+    n=st.integers(0, 500),
+    seq=st.integers(0, 2**32 - 1),
+    seed=st.integers(0, 2**16),
+)
+def test_delta_binary_round_trip_keeps_every_cell(h, w, n, seq, seed):
+    rng = np.random.default_rng(seed)
+    cells = rng.integers(0, h * w, n)
+    values = rng.integers(0, 3, n).astype(np.uint8)
+    data = codec.encode(MapDelta.from_arrays(seq, (h, w), cells, values, NOW))
+    assert len(data) == codec.HEADER.size + 5 * n  # compact: 5 bytes a cell, no JSON
+    back = codec.decode(MapDelta, data)
+    assert (back.seq, back.height, back.width) == (seq, h, w)
+    assert np.array_equal(back.cell_array(), cells)
+    assert np.array_equal(back.value_array(), values)
+
+
+def header(magic=b"GBMD", version=1, seq=0, h=10, w=10, n=0) -> bytes:
+    return struct.pack("<4sHHIIIdI", magic, version, 0, seq, h, w, NOW, n)
+
+
+@pytest.mark.parametrize(
+    ("data", "code"),
+    [
+        (b"", "malformed"),
+        (b"GBMD", "malformed"),
+        (header(magic=b"XXXX"), "malformed"),
+        (header(version=9), "malformed"),
+        (header(n=2) + b"\x00" * 9, "malformed"),  # one byte short
+        (header(n=MAX_DELTA_CELLS + 1), "oversized"),  # refused before reading the body
+        (header(n=1) + struct.pack("<I", 100) + b"\x01", "invalid"),  # cell 100 of a 10 x 10 map
+        (header(n=1) + struct.pack("<I", 5) + b"\x07", "invalid"),  # occupancy 7
+        (header(h=0), "invalid"),
+    ],
+)
+def test_bad_deltas_are_refused_with_a_code(data, code):
+    with pytest.raises(codec.DecodeError) as err:
+        codec.decode(MapDelta, data)
+    assert err.value.code == code
+
+
+def test_snapshot_refuses_wrong_sizes_and_zip_bombs():
+    def snap(body: bytes, h=10, w=10) -> bytes:
+        return struct.pack("<4sHHIIIdI", b"GBMS", 1, 0, 0, h, w, NOW, len(body)) + body
+
+    assert codec.decode(MapSnapshot, snap(zlib.compress(bytes(100)))).array().shape == (10, 10)
+    for body in (zlib.compress(bytes(99)), zlib.compress(bytes(10**7)), b"not zlib"):
+        with pytest.raises(codec.DecodeError) as err:
+            codec.decode(MapSnapshot, snap(body))
+        assert err.value.code == "invalid"
+
+
+@pytest.mark.parametrize(
+    ("kind", "payload", "code"),
+    [
+        (Pose, b"\xff\xfe", "malformed"),
+        (Pose, b'{"x": 1,', "malformed"),
+        (Pose, b"[1, 2]", "wrong_type"),
+        (Pose, json.dumps({"x": "1m", "y": 0, "heading": 0, "stamp": 1}).encode(), "wrong_type"),
+        (Pose, json.dumps({"x": 1, "y": 0, "heading": 0, "stamp": 1, "z": 0}).encode(),
+         "unknown_field"),
+        (Pose, json.dumps({"x": 1, "y": 0, "heading": 0}).encode(), "invalid"),
+        (Pose, json.dumps({"x": 1, "y": 0, "heading": 0, "stamp": -5}).encode(), "invalid"),
+        (Goal, json.dumps({"target": {"kind": "gps", "lat": 1}, "stamp": 1}).encode(),
+         "wrong_type"),
+        (Goal, json.dumps({"target": {"kind": "cell", "row": 1, "col": 1, "x": 1},
+                           "stamp": 1}).encode(), "unknown_field"),
+    ],
+)
+def test_bad_json_is_refused_with_a_code(kind, payload, code):
+    with pytest.raises(codec.DecodeError) as err:
+        codec.decode(kind, payload)
+    assert err.value.code == code
+
+
+def test_keys_stay_under_the_user():
+    assert keys.map_source("ann") == "guidebelt/ann/map/source"
+    assert keys.user_of(keys.status("bo-1")) == "bo-1"
+    for bad in ("", "Ann", "-x", "a/b", "a" * 33):
+        with pytest.raises(ValueError):
+            keys.check_user(bad)
+
+
+@pytest.mark.timeout(60)
+def test_schema_command_writes_one_schema_per_message(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "daemon.cli.app", "schema", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=50,
+    )
+    assert out.returncode == 0, out.stderr
+    files = sorted(p.name for p in tmp_path.glob("*.schema.json"))
+    assert files == sorted(f"{m.__name__}.schema.json" for m in MESSAGES)
+    delta = json.loads((tmp_path / "MapDelta.schema.json").read_text())
+    assert delta["additionalProperties"] is False
+    assert delta["x-wire"]["max_count"] == MAX_DELTA_CELLS
+    pose = json.loads((tmp_path / "Pose.schema.json").read_text())
+    assert set(pose["required"]) == {"x", "y", "heading", "stamp"}
+
