@@ -40,8 +40,12 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def make_planner(backend: str = "auto", variant: str = "fast") -> Planner:
-    """A new planner. ``variant`` picks ``fast`` (default) or the paper's Figure 4 form."""
+def make_planner(backend: str = "auto", variant: str = "fast", raw: bool = False) -> Planner:
+    """A new planner. ``variant`` picks ``fast`` (default) or the paper's Figure 4 form.
+
+    A cuda planner comes wrapped in ``fallback.FallbackPlanner``, which moves the session to
+    the CPU on a CUDA error; ``raw=True`` gives the bare ``CudaPlanner`` (tests, benchmarks).
+    """
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
     chosen = resolve_backend(backend)
@@ -59,4 +63,9 @@ def make_planner(backend: str = "auto", variant: str = "fast") -> Planner:
         return FastCpuPlanner()
     from .cuda_planner import CudaPlanner
 
-    return CudaPlanner(variant=variant)
+    planner = CudaPlanner(variant=variant)
+    if raw:
+        return planner
+    from .fallback import FallbackPlanner
+
+    return FallbackPlanner(planner)

@@ -1,0 +1,118 @@
+"""The CUDA side of the cuda backend: sources, compilation, launches and host transfers.
+
+CUDA C lives in ``kernels/*.cu`` and is compiled once per process and option set (cupy also
+keeps the binaries in its on-disk cache). Everything here is thin: it sizes launches, moves
+bytes through pinned host buffers (so a transfer is one asynchronous copy on the stream and
+one synchronisation, with no pageable staging) and leaves the algorithms to the kernels.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+from pathlib import Path
+
+import cupy as cp
+import numpy as np
+
+KERNELS = Path(__file__).with_name("kernels")
+TILE = 32
+THREADS = 1024
+
+# ctrl slots of fast.cu read back after each call: C_BAR (the barrier count the next launch
+# starts from) and the statistics C_ROUNDS .. C_CHANGED.
+CTRL_READ = 13
+C_BAR, C_ROUNDS, C_TILES, C_SWEEPS, C_RAISED, C_CHANGED = 0, 8, 9, 10, 11, 12
+
+DEVICE_LOCK = threading.Lock()
+"""One planning call on the device at a time: the persistent kernel's grid barrier needs every
+one of its blocks resident, which a second concurrent launch could prevent."""
+
+
+@functools.cache
+def module(name: str, defines: tuple[str, ...] = ()) -> cp.RawModule:
+    """``kernels/<name>.cu`` compiled with ``-D`` ``defines`` (cached for the process)."""
+    code = (KERNELS / f"{name}.cu").read_text()
+    options = ("--std=c++17", *(f"-D{d}" for d in defines))
+    return cp.RawModule(code=code, options=options)
+
+
+@functools.cache
+def kernel(name: str, function: str, defines: tuple[str, ...] = ()) -> cp.RawKernel:
+    return module(name, defines).get_function(function)
+
+
+def resident_blocks(k: cp.RawKernel, threads: int = THREADS) -> int:
+    """Blocks of ``k`` that fit on the device at once (registers, threads, shared memory)."""
+    dev = cp.cuda.Device()
+    attrs = dev.attributes
+    sms = int(attrs["MultiProcessorCount"])
+    regs = math.ceil(max(int(k.num_regs), 1) / 8) * 8 * threads
+    by_regs = int(attrs["MaxRegistersPerMultiprocessor"]) // regs
+    by_threads = int(attrs["MaxThreadsPerMultiProcessor"]) // threads
+    smem = int(k.shared_size_bytes) + 1024  # the driver reserves 1 KB per block
+    by_smem = int(attrs["MaxSharedMemoryPerMultiprocessor"]) // smem
+    return max(1, sms * min(by_regs, by_threads, by_smem))
+
+
+class Pinned:
+    """A page-locked host buffer and the copies between it and device arrays."""
+
+    def __init__(self, count: int, dtype: type = np.int32) -> None:
+        self.dtype = np.dtype(dtype)
+        self.count = 0
+        self._mem = None
+        self.array = np.empty(0, dtype=self.dtype)
+        self.reserve(count)
+
+    def reserve(self, count: int) -> None:
+        if count <= self.count:
+            return
+        count = max(count, 2 * self.count)
+        self._mem = cp.cuda.alloc_pinned_memory(count * self.dtype.itemsize)
+        self.array = np.frombuffer(self._mem, dtype=self.dtype, count=count)
+        self.count = count
+
+    def to_device(self, dst: cp.ndarray, count: int) -> None:
+        """Copy the first ``count`` items to ``dst`` (asynchronous on the current stream)."""
+        nbytes = count * self.dtype.itemsize
+        if nbytes:
+            stream = cp.cuda.get_current_stream().ptr
+            cp.cuda.runtime.memcpyAsync(
+                dst.data.ptr, self.array.ctypes.data, nbytes,
+                cp.cuda.runtime.memcpyHostToDevice, stream,
+            )  # fmt: skip
+
+    def from_device(self, src: cp.ndarray, count: int, offset: int = 0) -> None:
+        """Copy ``count`` items of ``src`` (from item ``offset``) here, at the same offset."""
+        nbytes = count * self.dtype.itemsize
+        if nbytes:
+            stream = cp.cuda.get_current_stream().ptr
+            start = offset * self.dtype.itemsize
+            cp.cuda.runtime.memcpyAsync(
+                self.array.ctypes.data + start, src.data.ptr + start, nbytes,
+                cp.cuda.runtime.memcpyDeviceToHost, stream,
+            )  # fmt: skip
+
+
+def synchronize() -> None:
+    """Wait for the stream; an asynchronous CUDA fault surfaces here as a cupy error."""
+    cp.cuda.get_current_stream().synchronize()
+
+
+def encode_delta(cells: np.ndarray, values: np.ndarray, n_cells: int) -> np.ndarray:
+    """``cell * 2 + blocked`` per changed cell, one entry per cell (the last value wins)."""
+    cells = np.asarray(cells, dtype=np.int64).ravel()
+    values = np.broadcast_to(np.asarray(values, dtype=bool).ravel(), cells.shape)
+    if cells.size == 0:
+        return np.empty(0, dtype=np.int32)
+    if cells.size == 1 or np.all(cells[1:] > cells[:-1]):  # sorted and unique, as inflation gives
+        lo, hi = int(cells[0]), int(cells[-1])
+    else:
+        rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
+        cells, values = rev_unique, values[::-1][rev_idx]
+        lo, hi = int(cells[0]), int(cells[-1])
+    if lo < 0 or hi >= n_cells:
+        raise IndexError(f"a cell index is outside the map of {n_cells} cells")
+    return (cells * 2 + values).astype(np.int32)

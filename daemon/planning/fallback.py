@@ -1,0 +1,146 @@
+"""A planner that keeps guiding when the GPU fails: cuda first, the CPU for the rest of the session.
+
+``FallbackPlanner`` wraps a device planner and mirrors, on the host, the blocked map and goal
+it was last given successfully. When a call raises a device error (cupy's CUDA runtime or
+driver errors, an out-of-memory, or ``DeviceFault`` from a test hook), it logs a warning,
+builds a CPU planner from the mirror, replays the failed call there and stays on the CPU.
+The user keeps being guided; the session's status can report ``active_backend``.
+
+``GUIDEBELT_CUDA_STRICT=1`` turns the fallback off for planners built with the default error
+set, so GPU test runs (``scripts/gpu_check.sh``) see device errors instead of CPU results.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .grid import Cell
+from .interface import Planner, UpdateStats
+
+log = logging.getLogger(__name__)
+
+
+class DeviceFault(RuntimeError):
+    """A device failure raised on purpose by tests (see ``CudaPlanner.inject_fault``)."""
+
+
+def device_errors() -> tuple[type[BaseException], ...]:
+    """The exception types that mean "the device failed", cupy's where cupy imports."""
+    errors: list[type[BaseException]] = [DeviceFault]
+    try:
+        import cupy
+    except Exception:  # no cupy: only the injected fault can occur
+        return tuple(errors)
+    errors += [cupy.cuda.runtime.CUDARuntimeError, cupy.cuda.driver.CUDADriverError]
+    errors.append(cupy.cuda.memory.OutOfMemoryError)
+    return tuple(errors)
+
+
+def _cpu_planner() -> Planner:
+    from .backends import make_planner
+
+    return make_planner("cpu")
+
+
+class FallbackPlanner(Planner):
+    """``primary`` until it raises a device error, then a CPU planner from the host mirror."""
+
+    def __init__(
+        self,
+        primary: Planner,
+        cpu_factory: Callable[[], Planner] = _cpu_planner,
+        errors: tuple[type[BaseException], ...] | None = None,
+    ) -> None:
+        self.primary = primary
+        self._cpu_factory = cpu_factory
+        if errors is None:
+            strict = os.environ.get("GUIDEBELT_CUDA_STRICT") == "1"
+            errors = () if strict else device_errors()
+        self._errors = errors
+        self._active: Planner = primary
+        self._blocked: np.ndarray | None = None
+        self._goal: Cell = (0, 0)
+        self.fallback_reason: str | None = None
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return self._active.name
+
+    @property
+    def active_backend(self) -> str:
+        """``cuda`` while the device planner runs, ``cpu`` after a fallback."""
+        return "cuda" if self._active is self.primary else "cpu"
+
+    @property
+    def fell_back(self) -> bool:
+        return self._active is not self.primary
+
+    def _switch(self, exc: BaseException) -> None:
+        self.fallback_reason = f"{type(exc).__name__}: {exc}"
+        log.warning(
+            "CUDA planner failed (%s); this session continues on the CPU", self.fallback_reason
+        )
+        cpu = self._cpu_factory()
+        if self._blocked is not None:
+            cpu.plan(self._blocked, self._goal)
+        self._active = cpu
+
+    def _call(self, method: str, *args: object) -> Any:
+        if self._active is self.primary:
+            try:
+                return getattr(self.primary, method)(*args)
+            except self._errors as exc:
+                self._switch(exc)
+        return getattr(self._active, method)(*args)
+
+    # -- changes: mirrored on the host after they succeed ------------------------------------
+
+    def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
+        stats = self._call("plan", blocked, goal)
+        self._blocked = np.array(blocked, dtype=bool, copy=True)
+        self._goal = (int(goal[0]), int(goal[1]))
+        return stats
+
+    def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        stats = self._call("update", cells, blocked)
+        self._mirror(cells, blocked)
+        return stats
+
+    def replan(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        stats = self._call("replan", cells, blocked)
+        self._mirror(cells, blocked)
+        return stats
+
+    def _mirror(self, cells: np.ndarray, blocked: np.ndarray) -> None:
+        if self._blocked is None:
+            return
+        cells = np.asarray(cells, dtype=np.int64).ravel()
+        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
+        self._blocked.reshape(-1)[cells] = values
+
+    # -- queries ---------------------------------------------------------------------------------
+
+    def costs(self) -> np.ndarray:
+        return self._call("costs")
+
+    def blocked(self) -> np.ndarray:
+        return self._call("blocked")
+
+    def cost_at(self, cell: Cell) -> int:
+        return self._call("cost_at", cell)
+
+    def path(self, start: Cell) -> np.ndarray:
+        return self._call("path", start)
+
+    @property
+    def goal(self) -> Cell:
+        return self._active.goal
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._active.shape

@@ -1,0 +1,142 @@
+"""A device error mid-session moves the session to the CPU, which replays the failed call.
+
+The first tests run everywhere (CI has no GPU): the wrapped planner is a CPU planner that
+raises an injected ``DeviceFault``. The last runs on the GPU machine with a real cupy planner
+and a real cupy error type.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from daemon.planning import cuda_available, make_planner
+from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.fallback import DeviceFault, FallbackPlanner, device_errors
+from daemon.planning.interface import reference_path
+from daemon.planning.reference import ReferencePlanner
+
+
+class FlakyPlanner(ReferencePlanner):
+    """A stand-in device planner: raises ``fault`` on the n-th call of ``method``."""
+
+    name = "flaky"
+
+    def __init__(self, method: str, nth: int, fault: BaseException) -> None:
+        super().__init__()
+        self.method, self.left, self.fault = method, nth, fault
+
+    def _tick(self, method: str) -> None:
+        if method == self.method:
+            self.left -= 1
+            if self.left == 0:
+                raise self.fault
+
+    def plan(self, blocked, goal):
+        self._tick("plan")
+        return super().plan(blocked, goal)
+
+    def update(self, cells, blocked):
+        self._tick("update")
+        return super().update(cells, blocked)
+
+    def replan(self, cells, blocked):
+        self._tick("replan")
+        return super().update(cells, blocked)
+
+    def path(self, start):
+        self._tick("path")
+        return super().path(start)
+
+    def costs(self):
+        self._tick("costs")
+        return super().costs()
+
+
+@pytest.fixture(autouse=True)
+def _fallback_on(monkeypatch):
+    """GPU runs export GUIDEBELT_CUDA_STRICT=1; these tests are about the fallback itself."""
+    monkeypatch.delenv("GUIDEBELT_CUDA_STRICT", raising=False)
+
+
+def scenario(seed: int = 0):
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((30, 40)) < 0.25
+    goal, start = (2, 3), (27, 35)
+    blocked[goal] = blocked[start] = False
+    deltas = []
+    for _ in range(6):
+        cells = rng.choice(30 * 40, size=25, replace=False)
+        deltas.append((cells, rng.random(25) < 0.5))
+    return blocked, goal, start, deltas
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("method,nth", [("update", 1), ("update", 4), ("replan", 2), ("plan", 1),
+                                        ("path", 3), ("costs", 2)])  # fmt: skip
+def test_fault_switches_to_cpu_and_replays_the_call(method, nth, caplog):
+    blocked, goal, start, deltas = scenario()
+    flaky = FlakyPlanner(method, nth, DeviceFault("injected"))
+    planner = FallbackPlanner(flaky, cpu_factory=lambda: make_planner("reference"))
+    assert planner.active_backend == "cuda"
+    truth = blocked.copy()
+    with caplog.at_level(logging.WARNING, logger="daemon.planning.fallback"):
+        planner.plan(blocked, goal)
+        for i, (cells, values) in enumerate(deltas):
+            truth.reshape(-1)[cells] = values
+            (planner.replan if i % 3 == 1 else planner.update)(cells, values)
+            g = dijkstra_field(truth, goal)
+            assert np.array_equal(planner.costs(), g)
+            assert np.array_equal(planner.path(start), reference_path(g, truth, start))
+    assert planner.active_backend == "cpu"
+    assert planner.fell_back and "injected" in planner.fallback_reason
+    assert any("continues on the CPU" in r.message for r in caplog.records)
+    assert planner.goal == goal and planner.shape == blocked.shape
+
+
+def test_other_errors_are_not_swallowed():
+    planner = FallbackPlanner(ReferencePlanner(), cpu_factory=lambda: make_planner("reference"))
+    planner.plan(np.zeros((4, 4), bool), (0, 0))
+    with pytest.raises(IndexError):
+        planner.update(np.array([99]), np.array([True]))
+    assert planner.active_backend == "cuda"
+
+
+def test_strict_mode_lets_device_errors_through(monkeypatch):
+    monkeypatch.setenv("GUIDEBELT_CUDA_STRICT", "1")
+    planner = FallbackPlanner(FlakyPlanner("plan", 1, DeviceFault("boom")))
+    with pytest.raises(DeviceFault):
+        planner.plan(np.zeros((4, 4), bool), (0, 0))
+
+
+def test_device_errors_always_include_the_injected_fault():
+    assert DeviceFault in device_errors()
+
+
+@pytest.mark.gpu
+@pytest.mark.timeout(120)
+@pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device")
+@pytest.mark.parametrize("variant", ["fast", "paper"])
+def test_real_cuda_planner_falls_back_on_a_cupy_error(variant):
+    import cupy
+
+    from daemon.planning.cuda_planner import CudaPlanner
+
+    blocked, goal, start, deltas = scenario(1)
+    cuda = CudaPlanner(variant)
+    planner = FallbackPlanner(cuda, errors=device_errors())
+    wrapped = make_planner("cuda", variant)
+    assert isinstance(wrapped, FallbackPlanner) and wrapped.active_backend == "cuda"
+    truth = blocked.copy()
+    planner.plan(blocked, goal)
+    for i, (cells, values) in enumerate(deltas):
+        if i == 2:  # an illegal address, as a faulting kernel would report it
+            cuda.inject_fault(cupy.cuda.runtime.CUDARuntimeError(700))
+        truth.reshape(-1)[cells] = values
+        planner.update(cells, values)
+        assert planner.active_backend == ("cuda" if i < 2 else "cpu")
+        g = dijkstra_field(truth, goal)
+        assert np.array_equal(planner.costs(), g)
+        assert np.array_equal(planner.path(start), reference_path(g, truth, start))
