@@ -1,0 +1,103 @@
+"""``guidebelt bench``: the paper's closed-loop walk as a benchmark (Tables 1 and 2, Figure 9).
+
+Runs on the GPU machine too, which has no zenoh or pydantic: only typer and the standard
+library are imported at the top; rich, numpy, the planners and matplotlib inside.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def _split(text: str, kind: type) -> list:
+    try:
+        return [kind(x) for x in text.split(",") if x.strip()]
+    except ValueError as exc:
+        raise typer.BadParameter(f"{text!r}: {exc}") from exc
+
+
+def bench(
+    grid: Annotated[str, typer.Option(help="Grid sides, comma separated (100: 10 cm).")] = (
+        "100,200,400"
+    ),
+    unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
+    backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
+    variant: Annotated[str, typer.Option(help="fast, or paper (its Figure 4 form).")] = "fast",
+    modes: Annotated[str, typer.Option(help="Which of eds, dss to run.")] = "eds,dss",
+    seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
+    repeats: Annotated[int, typer.Option(min=1, help="Walks per table cell, times pooled.")] = 1,
+    fov: Annotated[float, typer.Option(help="Sensor field of view, degrees.")] = 80.0,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+    plot: Annotated[Path | None, typer.Option(help="Save a Figure 9-like plot.")] = None,
+) -> None:
+    """Walk the simulated courtyard with EDS and DSS; print Steps, Iter_avg and ms per step."""
+    from rich import box
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from drivers.sim.benchmark import BenchConfig, run_bench, table_rows
+
+    mode_list = [m.strip() for m in modes.split(",") if m.strip()]
+    if not mode_list or any(m not in ("eds", "dss") for m in mode_list):
+        raise typer.BadParameter(f"{modes!r}: choose from eds, dss", param_hint="--modes")
+    config = BenchConfig(
+        grids=_split(grid, int),
+        unknowns=_split(unknown, float),
+        backend=backend,
+        variant=variant,
+        modes=mode_list,
+        seed=seed,
+        repeats=repeats,
+        fov_deg=fov,
+    )
+    console = Console()
+    columns = (
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+    )
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task("walks", total=config.total_walks())
+        result = run_bench(
+            config,
+            on_walk=lambda label: progress.update(task, advance=1, description=label),
+            on_start=lambda label: progress.update(task, description=label),
+        )
+
+    t1, t2 = table_rows(result.rows)
+    table1 = Table(
+        title=f"Steps and Iter_avg ({result.rows[0]['backend']}, {variant})", box=box.SIMPLE_HEAD
+    )
+    for name in ("grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps", "EDS Iter_avg"):
+        table1.add_column(name, justify="right")
+    table2 = Table(title="ms per replanning step (update or replan + path)", box=box.SIMPLE_HEAD)
+    for name in ("grid", "unknown", "DSS\nmedian", "DSS\nmean", "DSS\np95",
+                 "EDS\nmedian", "EDS\nmean", "EDS\np95", "DSS/\nEDS"):  # fmt: skip
+        table2.add_column(name, justify="right", no_wrap=True)
+    for cells in t1:
+        table1.add_row(*cells)
+    for cells in t2:
+        table2.add_row(*cells)
+    console.print(table1)
+    console.print(table2)
+    console.print(f"device: {result.device}")
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(result.rows, indent=1) + "\n")
+        console.print(f"rows written to {json_out}")
+    if plot is not None:
+        from drivers.sim.benchmark import plot_steps
+
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        plot_steps(result, plot)
+        console.print(f"plot written to {plot}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("bench")(bench)

@@ -1,0 +1,279 @@
+"""The paper's benchmark: closed-loop walks over grids x unknown fractions, EDS against DSS.
+
+For every grid side and unknown fraction one seeded courtyard is walked with each mode
+(``repeats`` times); a row per (grid, unknown, mode) holds Steps and Iter_avg (the paper's
+Table 1) and the milliseconds per replanning step (its Table 2: update or replan plus the
+path from the user's cell, wall clock). The per-step times feed a Figure 9-like plot.
+
+numpy only (plus the chosen planner backend); matplotlib is imported only to plot.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from daemon.planning.backends import resolve_backend
+
+from .courtyard import make_courtyard
+from .walk import walk
+
+ROW_FIELDS = (
+    "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
+    "ms_median", "ms_mean", "ms_p95", "inflate_ms_median", "device",
+)  # fmt: skip
+"""The documented fields of every JSON row (rows carry a few more, see ``run_bench``)."""
+
+
+@dataclass
+class BenchConfig:
+    grids: list[int]
+    unknowns: list[float]
+    backend: str = "cpu"
+    variant: str = "fast"
+    modes: list[str] = field(default_factory=lambda: ["eds", "dss"])
+    seed: int = 0
+    repeats: int = 1
+    fov_deg: float = 80.0
+
+    def total_walks(self) -> int:
+        return len(self.grids) * len(self.unknowns) * len(self.modes) * self.repeats
+
+
+@dataclass
+class BenchResult:
+    rows: list[dict]
+    series: dict[tuple[int, float, str], np.ndarray]
+    """Per-step ms along the walk (median over repeats) for each (grid, unknown, mode)."""
+    device: str
+
+
+def device_name(backend: str) -> str:
+    """The GPU's name for cuda, else the CPU model and how many cores this process may use."""
+    if backend == "cuda":
+        import cupy
+
+        props = cupy.cuda.runtime.getDeviceProperties(cupy.cuda.Device().id)
+        name = props["name"]
+        return name.decode() if isinstance(name, bytes) else str(name)
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return f"{model}, {cores} cores"
+
+
+def warm_up(backend: str, variant: str, modes: list[str]) -> None:
+    """Compile kernels and JIT code on a tiny walk so no timed step pays for it."""
+    scenario = make_courtyard(grid=50, unknown=0.2, seed=0)
+    for mode in modes:
+        walk(scenario, backend=backend, variant=variant, mode=mode, max_steps=3)
+
+
+def run_bench(
+    config: BenchConfig,
+    on_walk: Callable[[str], None] | None = None,
+    on_start: Callable[[str], None] | None = None,
+) -> BenchResult:
+    """Walk every (grid, unknown, mode) ``repeats`` times; one row per (grid, unknown, mode)."""
+    backend = resolve_backend(config.backend)
+    device = device_name(backend)
+    if on_start is not None:
+        on_start("warming up")
+    warm_up(backend, config.variant, config.modes)
+    rows: list[dict] = []
+    series: dict[tuple[int, float, str], np.ndarray] = {}
+    for grid in config.grids:
+        for unknown in config.unknowns:
+            scenario = make_courtyard(grid=grid, unknown=unknown, seed=config.seed)
+            walked: dict[str, np.ndarray] = {}
+            for mode in config.modes:
+                label = f"{grid}x{grid} {unknown:.0%} {mode.upper()}"
+                runs = []
+                for _ in range(config.repeats):
+                    if on_start is not None:
+                        on_start(label)
+                    runs.append(walk(scenario, backend=backend, variant=config.variant,
+                                     mode=mode, fov_deg=config.fov_deg))
+                    if on_walk is not None:
+                        on_walk(label)
+                first = runs[0]
+                walked[mode] = first.walked
+                step_ms = np.concatenate([r.step_ms for r in runs])
+                series[(grid, unknown, mode)] = np.median(np.stack([r.step_ms for r in runs]),
+                                                          axis=0)
+                rows.append({
+                    "grid": grid,
+                    "unknown": unknown,
+                    "coverage": round(scenario.coverage, 4),
+                    "seed": config.seed,
+                    "backend": backend,
+                    "variant": config.variant,
+                    "mode": mode,
+                    "planner": first.planner,
+                    "steps": first.steps,
+                    "arrived": first.arrived,
+                    "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
+                    "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
+                    "ms_median": float(np.median(step_ms)),
+                    "ms_mean": float(np.mean(step_ms)),
+                    "ms_p95": float(np.percentile(step_ms, 95)),
+                    "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
+                    "inflate_ms_median": float(
+                        np.median(np.concatenate([r.inflate_ms for r in runs]))
+                    ),
+                    "init_ms": float(np.median([r.init_ms for r in runs])),
+                    "repeats": config.repeats,
+                    "fov_deg": config.fov_deg,
+                    "device": device,
+                })
+            if len(walked) == 2:
+                same = bool(np.array_equal(walked["eds"], walked["dss"]))
+                for row in rows[-2:]:
+                    row["same_walk"] = same
+    return BenchResult(rows=rows, series=series, device=device)
+
+
+def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
+    """The paper's two tables as text cells, one line per (grid, unknown).
+
+    Table 1: Steps and Iter_avg for DSS and EDS. Table 2: ms per replanning step (median,
+    mean, p95) for DSS and EDS, and the DSS/EDS ratio of medians.
+    """
+    by_key: dict[tuple[int, float], dict[str, dict]] = {}
+    for row in rows:
+        by_key.setdefault((row["grid"], row["unknown"]), {})[row["mode"]] = row
+    t1: list[list[str]] = []
+    t2: list[list[str]] = []
+    for (grid, unknown), modes in by_key.items():
+        head = [f"{grid}", f"{unknown:.0%}"]
+        cells1, cells2 = list(head), list(head)
+        for mode in ("dss", "eds"):
+            r = modes.get(mode)
+            if r is None:
+                cells1 += ["-", "-"]
+                cells2 += ["-", "-", "-"]
+                continue
+            steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
+            cells1 += [steps, f"{r['iter_avg']:.1f}"]
+            cells2 += [f"{r['ms_median']:.3f}", f"{r['ms_mean']:.3f}", f"{r['ms_p95']:.3f}"]
+        if "dss" in modes and "eds" in modes and modes["eds"]["ms_median"] > 0:
+            cells2.append(f"{modes['dss']['ms_median'] / modes['eds']['ms_median']:.1f}x")
+        else:
+            cells2.append("-")
+        t1.append(cells1)
+        t2.append(cells2)
+    return t1, t2
+
+
+def plot_steps(result: BenchResult, out: Path | str) -> Path:
+    """Time per replanning step along each walk, DSS against EDS (like the paper's Figure 9)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    grids = sorted({k[0] for k in result.series})
+    unknowns = sorted({k[1] for k in result.series})
+    fig, axes = plt.subplots(
+        len(grids), len(unknowns), figsize=(4.2 * len(unknowns), 3.0 * len(grids)),
+        squeeze=False, sharex="row",
+    )
+    colours = {"dss": (0.85, 0.3, 0.1), "eds": (0.1, 0.35, 0.9)}
+    for i, grid in enumerate(grids):
+        for j, unknown in enumerate(unknowns):
+            ax = axes[i][j]
+            for mode in ("dss", "eds"):
+                ms = result.series.get((grid, unknown, mode))
+                if ms is not None and ms.size:
+                    ax.plot(np.arange(1, ms.size + 1), ms, color=colours[mode], linewidth=0.9,
+                            label=f"{mode.upper()} (median {np.median(ms):.3g} ms)")
+            ax.set_yscale("log")
+            ax.set_title(f"{grid}x{grid}, {unknown:.0%} unknown", fontsize=9)
+            ax.set_xlabel("step")
+            ax.set_ylabel("ms per replanning step")
+            ax.legend(fontsize=7)
+            ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"Time per step along the walk — {result.device}", fontsize=10)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def format_tables(rows: list[dict]) -> str:
+    """Both tables as plain text, for machines without rich."""
+    t1, t2 = table_rows(rows)
+    heads1 = ["grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps", "EDS Iter_avg"]
+    heads2 = ["grid", "unknown", "DSS med", "DSS mean", "DSS p95", "EDS med", "EDS mean",
+              "EDS p95", "DSS/EDS"]  # fmt: skip
+    out = []
+    for title, heads, body in (("Steps and Iter_avg", heads1, t1),
+                               ("ms per replanning step", heads2, t2)):  # fmt: skip
+        widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(heads)]
+        out.append(title)
+        for line in (heads, *body):
+            out.append("  ".join(c.rjust(w) for c, w in zip(line, widths, strict=True)))
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m drivers.sim.benchmark``: the same benchmark with only numpy and argparse.
+
+    For machines that lack typer and its pydantic dependency (the lent GPU machine); the
+    options mirror ``guidebelt bench``.
+    """
+    import argparse
+    import json
+
+    p = argparse.ArgumentParser(prog="python -m drivers.sim.benchmark", description=main.__doc__)
+    p.add_argument("--grid", default="100,200,400")
+    p.add_argument("--unknown", default="0.2,0.4,0.6")
+    p.add_argument("--backend", default="cpu")
+    p.add_argument("--variant", default="fast")
+    p.add_argument("--modes", default="eds,dss")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=1)
+    p.add_argument("--fov", type=float, default=80.0)
+    p.add_argument("--json", dest="json_out", type=Path)
+    p.add_argument("--plot", type=Path)
+    a = p.parse_args(argv)
+    modes = [m for m in a.modes.split(",") if m]
+    if not modes or any(m not in ("eds", "dss") for m in modes):
+        p.error(f"--modes {a.modes!r}: choose from eds, dss")
+    config = BenchConfig(
+        grids=[int(x) for x in a.grid.split(",") if x],
+        unknowns=[float(x) for x in a.unknown.split(",") if x],
+        backend=a.backend, variant=a.variant, modes=modes, seed=a.seed,
+        repeats=max(1, a.repeats), fov_deg=a.fov,
+    )  # fmt: skip
+    done = [0]
+
+    def tick(label: str) -> None:
+        done[0] += 1
+        print(f"[{done[0]}/{config.total_walks()}] {label}", flush=True)
+
+    result = run_bench(config, on_walk=tick)
+    print(format_tables(result.rows))
+    print(f"device: {result.device}")
+    if a.json_out is not None:
+        a.json_out.parent.mkdir(parents=True, exist_ok=True)
+        a.json_out.write_text(json.dumps(result.rows, indent=1) + "\n")
+    if a.plot is not None:
+        plot_steps(result, a.plot)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,286 @@
+"""The paper's experiment as a seeded scenario: a courtyard, unknown obstacles, start and goal.
+
+Díaz-Toro et al. 2022 walk a user across a 10 m x 10 m courtyard mapped at 10 cm
+(100 x 100 cells): outer walls, boxes and a garden are KNOWN; small unknown obstacles
+are found on the way by a 3 m, 80° sensor. Finer grids (200, 400, 1000, 2000) are the
+same physical courtyard at finer cells, so the user's radius and the sensor range scale
+in cells while the walk stays the same walk.
+
+Everything is built at the base 100 x 100 resolution and then resampled:
+- blobs (small rectangles, 10-30 cm) are placed one at a time in random order until they
+  cover the asked fraction of the free area; a blob that would cut the start from the goal
+  (checked with the user's radius plus one cell of margin) is skipped;
+- at the target resolution the true map is inflated by the user's radius and checked
+  again; should a discretisation corner still cut it, the latest blobs are removed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from daemon.planning.grid import CELL_M, FREE, OCCUPIED, UNKNOWN, Cell
+from daemon.planning.inflation import InflatedMap, radius_in_cells
+
+BASE = 100
+"""Cells per side of the paper's courtyard at 10 cm."""
+USER_RADIUS_M = 0.30
+SENSOR_RANGE_M = 3.0
+BLOB_MAX_CELLS = 3
+"""Largest blob side at the base resolution (30 cm): "small" unknown obstacles."""
+
+# Base-resolution layout, (row0, row1, col0, col1) inclusive. Row 0 is north (the goal side).
+GARDEN = (46, 53, 1, 60)
+"""A garden strip from the west wall across most of the courtyard: the straight line is shut."""
+BOXES = (
+    (44, 55, 78, 84),
+    (17, 24, 18, 29),
+    (14, 21, 64, 72),
+    (70, 78, 28, 39),
+    (69, 76, 68, 77),
+)
+BASE_START: Cell = (93, 50)
+BASE_GOAL: Cell = (6, 50)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One courtyard walk: what the user knows, what is really there, where to go."""
+
+    known: np.ndarray
+    """``uint8`` occupancy the walk starts from: known obstacles OCCUPIED, the rest UNKNOWN."""
+    true: np.ndarray
+    """``uint8`` occupancy of the world: known obstacles and unknown blobs OCCUPIED, rest FREE."""
+    start: Cell
+    goal: Cell
+    cell_m: float
+    radius_cells: int
+    sensor_range_cells: float
+    unknown: float
+    """The fraction of free area asked to be covered by unknown obstacles."""
+    coverage: float
+    """The fraction actually covered (blobs that would cut start from goal are skipped)."""
+    seed: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.known.shape[0]), int(self.known.shape[1]))
+
+    @property
+    def grid(self) -> int:
+        return self.shape[0]
+
+
+def base_courtyard() -> np.ndarray:
+    """The known 100 x 100 map: walls, garden strip and boxes OCCUPIED, the rest UNKNOWN."""
+    known = np.full((BASE, BASE), UNKNOWN, dtype=np.uint8)
+    known[0, :] = known[-1, :] = known[:, 0] = known[:, -1] = OCCUPIED
+    for r0, r1, c0, c1 in (GARDEN, *BOXES):
+        known[r0 : r1 + 1, c0 : c1 + 1] = OCCUPIED
+    return known
+
+
+def dilate(occupied: np.ndarray, radius_cells: int) -> np.ndarray:
+    """Cells within ``radius_cells`` of an occupied cell: exactly ``InflatedMap.blocked``.
+
+    Row by row: the disc's row ``dr`` spans ``|dc| <= isqrt(r² - dr²)``, a window sum over
+    a cumulative row count. O(r·h·w) with no per-cell discs, so 2000 x 2000 stays cheap.
+    """
+    occ = np.asarray(occupied, dtype=bool)
+    h, w = occ.shape
+    r = int(radius_cells)
+    cs = np.zeros((h, w + 1), dtype=np.int32)
+    np.cumsum(occ, axis=1, out=cs[:, 1:])
+    cols = np.arange(w)
+    windows: dict[int, np.ndarray] = {}
+    out = np.zeros((h, w), dtype=bool)
+    for dr in range(-r, r + 1):
+        half = math.isqrt(r * r - dr * dr)
+        if half not in windows:
+            lo = np.clip(cols - half, 0, w)
+            hi = np.clip(cols + half + 1, 0, w)
+            windows[half] = (cs[:, hi] - cs[:, lo]) > 0
+        win = windows[half]
+        if dr >= 0:
+            out[: h - dr] |= win[dr:]
+        else:
+            out[-dr:] |= win[: h + dr]
+    return out
+
+
+@njit(cache=True)
+def _bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
+    """Flat cells of some 8-connected path start → goal avoiding blocked; empty if none."""
+    h, w = blocked.shape
+    flat = blocked.ravel()
+    n = h * w
+    parent = np.full(n, -2, dtype=np.int64)
+    if flat[start] or flat[goal]:
+        return np.empty(0, dtype=np.int64)
+    queue = np.empty(n, dtype=np.int64)
+    head, tail = 0, 1
+    queue[0] = start
+    parent[start] = -1
+    while head < tail:
+        cur = queue[head]
+        head += 1
+        if cur == goal:
+            break
+        r, c = cur // w, cur % w
+        for dr in range(-1, 2):
+            for dc in range(-1, 2):
+                nr, nc = r + dr, c + dc
+                if (dr != 0 or dc != 0) and 0 <= nr < h and 0 <= nc < w:
+                    nxt = nr * w + nc
+                    if parent[nxt] == -2 and not flat[nxt]:
+                        parent[nxt] = cur
+                        queue[tail] = nxt
+                        tail += 1
+    if parent[goal] == -2:
+        return np.empty(0, dtype=np.int64)
+    length = 0
+    cur = goal
+    while cur != -1:
+        length += 1
+        cur = parent[cur]
+    out = np.empty(length, dtype=np.int64)
+    cur = goal
+    for i in range(length - 1, -1, -1):
+        out[i] = cur
+        cur = parent[cur]
+    return out
+
+
+def connected(blocked: np.ndarray, start: Cell, goal: Cell) -> bool:
+    """True when an 8-connected path of unblocked cells joins start and goal."""
+    w = blocked.shape[1]
+    path = _bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
+                     goal[0] * w + goal[1])
+    return path.size > 0
+
+
+def _place_blobs(
+    rng: np.random.Generator,
+    known: np.ndarray,
+    fraction: float,
+    margin: int,
+    ends: tuple[Cell, Cell],
+    blob_max: int,
+) -> list[np.ndarray]:
+    """Blobs (flat base cells each) covering ``fraction`` of the free area, start ↔ goal kept.
+
+    A blob is tested only when its inflation touches the current start → goal path: a path
+    that it misses stays open, so most blobs need no search at all.
+    """
+    h, w = known.shape
+    free = known != OCCUPIED
+    reserve = np.zeros_like(free)
+    span = margin + 1
+    for r, c in ends:
+        reserve[max(0, r - span) : r + span + 1, max(0, c - span) : c + span + 1] = True
+    allowed = (free & ~reserve).ravel()
+    target = round(fraction * int(free.sum()))
+    inflated = InflatedMap(known, margin)
+    start = ends[0][0] * w + ends[0][1]
+    goal = ends[1][0] * w + ends[1][1]
+    on_path = np.zeros(h * w, dtype=bool)
+    on_path[_bfs_path(inflated.blocked, start, goal)] = True
+    covered = np.zeros(h * w, dtype=bool)
+    n_covered = 0
+    blobs: list[np.ndarray] = []
+    for anchor in rng.permutation(np.flatnonzero(allowed)):
+        if n_covered >= target:
+            break
+        bh, bw = rng.integers(1, blob_max + 1, size=2)
+        if covered[anchor]:
+            continue
+        r0, c0 = divmod(int(anchor), w)
+        rr, cc = np.mgrid[r0 : min(h, r0 + bh), c0 : min(w, c0 + bw)]
+        cells = (rr * w + cc).ravel()
+        cells = cells[allowed[cells] & ~covered[cells]]
+        flipped, _ = inflated.apply(cells, np.full(cells.size, OCCUPIED))
+        if on_path[flipped].any():
+            path = _bfs_path(inflated.blocked, start, goal)
+            if path.size == 0:
+                inflated.apply(cells, np.full(cells.size, UNKNOWN))
+                continue
+            on_path[:] = False
+            on_path[path] = True
+        covered[cells] = True
+        n_covered += cells.size
+        blobs.append(cells)
+    return blobs
+
+
+def _resample(base: np.ndarray, grid: int) -> np.ndarray:
+    """The base map at ``grid`` cells per side: repeat (finer) or any-occupied pooling."""
+    if grid % BASE == 0:
+        k = grid // BASE
+        return np.repeat(np.repeat(base, k, axis=0), k, axis=1)
+    m = BASE // grid
+    pooled = base.reshape(grid, m, grid, m)
+    occupied = (pooled == OCCUPIED).any(axis=(1, 3))
+    unknown = (pooled == UNKNOWN).any(axis=(1, 3))
+    return np.where(occupied, OCCUPIED, np.where(unknown, UNKNOWN, FREE)).astype(np.uint8)
+
+
+def _scale_cell(cell: Cell, grid: int) -> Cell:
+    if grid % BASE == 0:
+        k = grid // BASE
+        return (cell[0] * k + k // 2, cell[1] * k + k // 2)
+    m = BASE // grid
+    return (cell[0] // m, cell[1] // m)
+
+
+def make_courtyard(
+    grid: int = BASE,
+    unknown: float = 0.4,
+    seed: int = 0,
+    radius_m: float = USER_RADIUS_M,
+    sensor_range_m: float = SENSOR_RANGE_M,
+) -> Scenario:
+    """The courtyard at ``grid`` cells per side (a multiple or divisor of 100), seeded."""
+    if grid <= 0 or (grid % BASE != 0 and BASE % grid != 0):
+        raise ValueError(f"grid must be a multiple or a divisor of {BASE}, got {grid}")
+    if not 0.0 <= unknown < 1.0:
+        raise ValueError(f"unknown must be in [0, 1), got {unknown}")
+    cell_m = CELL_M * BASE / grid
+    radius = radius_in_cells(radius_m, cell_m)
+    known = _resample(base_courtyard(), grid)
+    start, goal = _scale_cell(BASE_START, grid), _scale_cell(BASE_GOAL, grid)
+    # Each fraction its own layout, not a superset of the smaller one's.
+    rng = np.random.default_rng([seed, round(unknown * 1000)])
+    if grid >= BASE:
+        # Placed at 10 cm, with one cell of margin: fine cells near a blob's corner are
+        # inflated a little further than the base cell centres the check sees.
+        place_known, ends = base_courtyard(), (BASE_START, BASE_GOAL)
+        margin, blob_max = radius_in_cells(radius_m, CELL_M) + 1, BLOB_MAX_CELLS
+    else:
+        place_known, ends = known, (start, goal)
+        margin, blob_max = radius, max(1, round(BLOB_MAX_CELLS * grid / BASE))
+    blobs = _place_blobs(rng, place_known, unknown, margin, ends, blob_max)
+    while True:
+        placed = np.where(place_known == OCCUPIED, OCCUPIED, FREE).astype(np.uint8)
+        for cells in blobs:
+            placed.reshape(-1)[cells] = OCCUPIED
+        true = _resample(placed, grid) if grid >= BASE else placed
+        if connected(dilate(true == OCCUPIED, radius), start, goal) or not blobs:
+            break
+        blobs.pop()  # deterministic: the latest blob goes first
+    free = known != OCCUPIED
+    coverage = float(np.count_nonzero(free & (true == OCCUPIED)) / max(1, np.count_nonzero(free)))
+    return Scenario(
+        known=known,
+        true=true,
+        start=start,
+        goal=goal,
+        cell_m=cell_m,
+        radius_cells=radius,
+        sensor_range_cells=sensor_range_m / cell_m,
+        unknown=float(unknown),
+        coverage=coverage,
+        seed=int(seed),
+    )
