@@ -23,6 +23,15 @@ COMMAND_MODULES = [
     "daemon.cli.bench",
     "daemon.cli.render",
     "daemon.cli.demo",
+    "daemon.cli.walks",
+    "daemon.cli.voice",
+    "daemon.cli.rfid",
+    "daemon.cli.belt",
+    "daemon.cli.run",
+    "daemon.cli.goal",
+    "daemon.cli.status",
+    "daemon.cli.sim",
+    "daemon.cli.schema",
 ]
 
 for _name in COMMAND_MODULES:

@@ -1,0 +1,137 @@
+"""The daemon-backed demo: daemon, simulated world and mock drivers, each its own zenoh node.
+
+All in this process, on separate zenoh sessions joined over 127.0.0.1 (no multicast): the
+daemon on its uvloop thread listening on a free port, the world (``SimNode``) and the
+recording belt and voice drivers connecting to it — the same messages a deployment sends.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from drivers.sim.courtyard import USER_RADIUS_M, Scenario, dilate, make_courtyard
+from drivers.sim.node import SimResult
+
+
+def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
+    """The picture of a walk over zenoh, drawn by the same code as the in-process walk."""
+    from drivers.sim.render import render_walk
+    from drivers.sim.walk import WalkResult
+
+    known = result.known if result.known is not None else scenario.known
+    empty = np.zeros(0)
+    walk = WalkResult(
+        mode="eds",
+        planner="daemon",
+        arrived=result.arrived,
+        reason=result.reason,
+        walked=np.array(result.walked, dtype=np.int32).reshape(-1, 2),
+        iterations=empty.astype(np.int64),
+        cells_touched=empty.astype(np.int64),
+        plan_ms=empty,
+        step_ms=np.array(result.step_ms),
+        inflate_ms=empty,
+        changed=empty.astype(np.int64),
+        init_ms=0.0,
+        known=known,
+        blocked=dilate(known == 1, scenario.radius_cells),
+        cell_m=scenario.cell_m,
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return render_walk(scenario, walk, out)
+
+
+def run_with_daemon(
+    grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
+    belt_kind: str = "none",
+) -> bool:
+    """One user guided across the courtyard by the real daemon; True when they arrived."""
+    import threading
+    import time
+
+    from rich.console import Console
+    from zenoh import CongestionControl
+
+    from daemon.service.embedded import DaemonThread
+    from daemon.service.logs import setup_logging
+    from drivers.belt.hil import belt_in_loop
+    from drivers.belt.hil import summary as belt_summary
+    from drivers.belt.recorder import BeltRecorder
+    from drivers.sim.node import SimNode
+    from drivers.voice.recorder import VoiceRecorder
+    from protocol import codec, keys
+    from protocol.messages import Goal, GoalCell
+
+    setup_logging("WARNING")
+    console = Console()
+    scenario = make_courtyard(grid=grid, unknown=unknown, seed=seed)
+    console.print(
+        f"courtyard {grid}x{grid} ({scenario.cell_m * 100:g} cm cells), {unknown:.0%} unknown "
+        f"obstacles, seed {seed}; daemon on zenoh, backend {backend}, walker follows {follow}"
+    )
+    user = "demo"
+    with DaemonThread(
+        backend=backend, cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M
+    ) as daemon:
+        drivers, world, client = daemon.peer(), daemon.peer(), daemon.peer()
+        belt, voice = BeltRecorder(drivers, user), VoiceRecorder(drivers, user)
+        node = SimNode(world, user, scenario, walker=follow)
+        box: dict[str, SimResult] = {}
+        stop = threading.Event()
+        try:
+            # --belt simavr|mock: the belt firmware (simulated Nano) and its driver in the loop.
+            with (
+                belt_in_loop(belt_kind, user, daemon.port) as nano,
+                console.status("starting") as line,
+            ):
+
+                def progress(r: SimResult) -> None:
+                    r0, c0 = r.walked[-1]
+                    left = math.hypot(r0 - scenario.goal[0], c0 - scenario.goal[1])
+                    line.update(
+                        f"step {r.steps}: at {r.walked[-1]}, {left * scenario.cell_m:.1f} m to "
+                        f"the goal, {r.step_ms[-1]:.1f} ms pose → path, "
+                        f"{len(belt.received)} belt patterns, {len(voice.received)} cues"
+                    )
+
+                walker = threading.Thread(
+                    target=lambda: box.setdefault("r", node.run(stop, on_step=progress))
+                )
+                walker.start()
+                time.sleep(0.3)
+                goal = Goal(
+                    target=GoalCell(row=scenario.goal[0], col=scenario.goal[1]), stamp=time.time()
+                )
+                client.put(
+                    keys.goal(user), codec.encode(goal), congestion_control=CongestionControl.BLOCK
+                )
+                walker.join()
+        except KeyboardInterrupt:
+            stop.set()
+            walker.join(5)
+            raise
+        finally:
+            for closable in (belt, voice, drivers, world, client):
+                closable.close()
+    result = box["r"]
+    status = result.last_status
+    ms = np.array(result.step_ms) if result.step_ms else np.array([math.nan])
+    console.print(
+        f"{'arrived' if result.arrived else 'did not arrive (' + result.reason + ')'}: "
+        f"{result.steps} steps, {status.replans if status else 0} replans (a new obstacle cut "
+        f"the path), {np.median(ms):.1f} ms per step (median pose → path, p95 "
+        f"{np.percentile(ms, 95):.1f}), backend {status.backend if status else '?'}"
+    )
+    console.print(
+        f"belt driver got {len(belt.received)} patterns "
+        f"({', '.join(sorted(set(belt.kinds())))}); voice driver got "
+        f"{len(voice.received)} cues, last: {voice.texts()[-1] if voice.received else '-'!r}"
+    )
+    if nano is not None:
+        console.print(belt_summary(nano), soft_wrap=True)
+    render_sim(scenario, result, out)
+    console.print(f"picture: {out}")
+    return result.arrived

@@ -1,0 +1,24 @@
+"""Options shared by the commands that talk to a running daemon as a zenoh peer."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+Connect = Annotated[
+    list[str] | None,
+    typer.Option("--connect", help="zenoh endpoint of the daemon (repeatable)"),
+]
+Scout = Annotated[
+    bool, typer.Option("--scout/--no-scout", help="find the daemon by multicast scouting")
+]
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+
+
+def open_peer(connect: list[str] | None, scout: bool):  # -> zenoh.Session, imported lazily
+    from daemon.service.bridge import open_session
+    from daemon.service.config import ZenohSettings
+
+    endpoints = connect if connect else ([] if scout else [DEFAULT_ENDPOINT])
+    return open_session(ZenohSettings(connect=endpoints, multicast_scouting=scout))

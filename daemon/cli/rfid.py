@@ -1,0 +1,162 @@
+"""``guidebelt rfid`` (the RFID node), ``rfid-eval`` (its accuracy), ``rfid-tags`` (a tag map)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+METHODS = ("centroid", "lsq")
+LAYOUTS = ("none", "corners", "floor")
+
+
+def rfid_eval(
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+    seeds: Annotated[int, typer.Option(min=1, help="Courtyards (seeds 0..n-1).")] = 5,
+    walks: Annotated[int, typer.Option(min=1, help="Walks per courtyard, each shifted.")] = 4,
+    unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
+    speed: Annotated[float, typer.Option(help="Walking speed, m/s.")] = 1.0,
+) -> None:
+    """Position error walking the simulated courtyard: both methods, with and without LF tags."""
+    import numpy as np
+    from rich.console import Console
+    from rich.table import Table
+
+    from drivers.rfid.evaluate import evaluate, tags_for, true_route
+    from drivers.sim.courtyard import make_courtyard
+
+    console = Console()
+    pooled: dict[tuple[str, str], list] = {}
+    for seed in range(seeds):
+        scenario = make_courtyard(100, unknown, seed)
+        route = true_route(scenario)
+        # Each walk is shifted by up to half an LF tag spacing, so the walks pass the
+        # floor lattice at every phase and not only along its lines.
+        offsets = np.random.default_rng(seed).uniform(-0.1, 0.1, size=(walks, 2))
+        for layout in LAYOUTS:
+            tag_map = tags_for(scenario, layout, seed)
+            for w, offset in enumerate(offsets):
+                for method in METHODS:
+                    res = evaluate(tag_map, route, method=method, lf_layout=layout,
+                                   seed=seed * 1000 + w, speed_mps=speed,
+                                   offset=(float(offset[0]), float(offset[1])))
+                    pooled.setdefault((method, layout), []).append(res)
+    rows = []
+    for (method, layout), results in pooled.items():
+        errors = np.concatenate([r.errors for r in results])
+        n = max(1, errors.size)
+        lf = sum(r.lf_fraction * r.errors.size for r in results) / n
+        held = sum(r.held_fraction * r.errors.size for r in results) / n
+        rows.append({
+            "method": method,
+            "lf_tags": layout != "none",
+            "lf_layout": layout,
+            "median_m": round(float(np.median(errors)), 3),
+            "p95_m": round(float(np.percentile(errors, 95)), 3),
+            "samples": int(errors.size),
+            "lf_fraction": round(float(lf), 3),
+            "held_fraction": round(float(held), 3),
+        })
+    title = f"RFID position error, {seeds} courtyards x {walks} walks at {speed} m/s"
+    table = Table(title=title)
+    for col in ("method", "LF tags", "median m", "p95 m", "samples", "LF read", "LF held"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(r["method"], r["lf_layout"], f"{r['median_m']:.3f}", f"{r['p95_m']:.3f}",
+                      str(r["samples"]), f"{r['lf_fraction'] - r['held_fraction']:.0%}",
+                      f"{r['held_fraction']:.0%}")
+    console.print(table)
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(rows, indent=1) + "\n")
+        console.print(f"rows written to {json_out}")
+
+
+def rfid_tags(
+    out: Annotated[Path, typer.Option(help="Tag map file to write (JSON).")],
+    seed: Annotated[int, typer.Option(help="Courtyard seed.")] = 0,
+    lf_layout: Annotated[str, typer.Option(help="none, corners or floor.")] = "floor",
+) -> None:
+    """Write the tag map of the simulated courtyard (UHF on corners, LF floor tags)."""
+    from drivers.rfid.evaluate import tags_for
+    from drivers.sim.courtyard import make_courtyard
+
+    tag_map = tags_for(make_courtyard(100, 0.4, seed), lf_layout, seed)
+    tag_map.dump(out)
+    typer.echo(f"{out}: {len(tag_map.uhf_ids)} UHF tags, {len(tag_map.lf_ids)} LF tags")
+
+
+def rfid(
+    user: Annotated[str, typer.Option(help="User whose pose this reader gives.")],
+    port: Annotated[str | None, typer.Option(help="Serial port of the reader.")] = None,
+    tags: Annotated[Path | None, typer.Option(help="Tag map file (default: the sim's).")] = None,
+    method: Annotated[str, typer.Option(help="lsq (default) or centroid (the paper's).")] = "lsq",
+    rate: Annotated[float, typer.Option(min=10.0, help="Poses per second.")] = 20.0,
+    listen: Annotated[list[str] | None, typer.Option(help="Zenoh listen endpoint.")] = None,
+    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to join.")] = None,
+    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = True,
+    mock: Annotated[bool, typer.Option(help="A mock reader on a pty walks the sim.")] = False,
+    duration: Annotated[float, typer.Option(help="Stop after this many s (0: never).")] = 0.0,
+) -> None:
+    """Run the RFID node: reader on PORT → localiser → Pose on zenoh."""
+    import asyncio
+    import contextlib
+    import logging
+    import signal
+    import time
+
+    from drivers.rfid.node import RfidNode, open_session
+    from drivers.rfid.tags import TagMap
+
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if port is None and not mock:
+        raise typer.BadParameter("give --port, or --mock for a simulated reader")
+    mock_reader = None
+    if mock or tags is None:
+        from drivers.rfid.evaluate import along, tags_for, true_route
+        from drivers.sim.courtyard import make_courtyard
+
+        scenario = make_courtyard(100, 0.4, 0)
+        tag_map = TagMap.load(tags) if tags else tags_for(scenario, "floor")
+    else:
+        tag_map = TagMap.load(tags)
+    if mock:
+        from drivers.rfid.mock_reader import MockReader
+        from drivers.rfid.rssi import ReadModel
+
+        route, t0 = true_route(scenario), time.time()
+        mock_reader = MockReader(
+            ReadModel.for_tags(tag_map),
+            lambda t: tuple(along(route, [(t - t0) * 1.0])[0]),
+        ).start()
+        port = mock_reader.path
+        typer.echo(f"mock reader on {port}, walking the courtyard route")
+    session = open_session(listen, connect, scouting)
+    node = RfidNode(session, user, tag_map, port, method=method, rate_hz=rate)
+
+    async def main() -> None:
+        task = asyncio.create_task(node.run())
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, task.cancel)
+        if duration > 0:
+            loop.call_later(duration, task.cancel)
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+    try:
+        asyncio.run(main())
+    finally:
+        typer.echo(json.dumps(node.stats()))
+        node.close()
+        session.close()
+        if mock_reader is not None:
+            mock_reader.stop()
+
+
+def register(app: typer.Typer) -> None:
+    app.command("rfid-eval")(rfid_eval)
+    app.command("rfid-tags")(rfid_tags)
+    app.command("rfid")(rfid)

@@ -1,0 +1,149 @@
+"""``guidebelt walks``: courtyard walks by a simulated user who follows the belt.
+
+Only typer and the standard library at the top; numpy, the planner, guidance and matplotlib
+are imported inside the command.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def _split(text: str, kind: type) -> list:
+    try:
+        return [kind(x) for x in text.split(",") if x.strip()]
+    except ValueError as exc:
+        raise typer.BadParameter(f"{text!r}: {exc}") from exc
+
+
+def walks(
+    follow: Annotated[
+        str, typer.Option(help="Who walks: belt (the walker that feels the belt).")
+    ] = "belt",
+    runs: Annotated[int, typer.Option(min=1, help="Seeded courtyards per grid and density.")] = 100,
+    grid: Annotated[str, typer.Option(help="Grid sides, comma separated.")] = "100,200",
+    unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
+    backend: Annotated[str, typer.Option(help="Planner: cpu, cuda, auto or reference.")] = "cpu",
+    smooth: Annotated[bool, typer.Option(help="Rubber-band smoothing before guidance.")] = False,
+    seed: Annotated[int, typer.Option(help="First seed; run i uses seed + i.")] = 0,
+    jobs: Annotated[int, typer.Option(min=1, help="Worker processes.")] = 1,
+    perception_sd: Annotated[
+        float, typer.Option(help="Walker's error reading the belt direction, degrees (σ).")
+    ] = 8.0,
+    gait_sd: Annotated[float, typer.Option(help="Walker's veer per step, degrees (σ).")] = 4.0,
+    step_m: Annotated[float, typer.Option(help="Walker's mean step length, metres.")] = 0.5,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+    table: Annotated[
+        bool, typer.Option(help="Run the walks table (--no-table: only the smoothing study).")
+    ] = True,
+    crossing: Annotated[
+        bool,
+        typer.Option(help="Instead: the moving-obstacle doorway, with and without the hold."),
+    ] = False,
+    smoothing_plot: Annotated[
+        Path | None,
+        typer.Option(help="Also measure smoothing: turning-angle histograms saved here (PNG)."),
+    ] = None,
+) -> None:
+    """Walk seeded courtyards by feel; print success, length ratio, collisions, cues."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from drivers.sim.belt_walker import WalkerParams
+    from drivers.sim.walks import run_table
+
+    if follow != "belt":
+        raise typer.BadParameter(f"{follow!r}: only 'belt' is a walker here", param_hint="--follow")
+    console = Console()
+    if crossing:
+        _crossing(console, runs, seed, json_out)
+        return
+    grids, unknowns = _split(grid, int), _split(unknown, float)
+    if table:
+        t0 = time.perf_counter()
+        with console.status("walking…") as status:
+            rows = run_table(
+                grids, unknowns, runs, backend=backend, smooth=smooth, first_seed=seed, jobs=jobs,
+                params=WalkerParams(
+                    step_m=step_m, perception_sd_deg=perception_sd, gait_sd_deg=gait_sd
+                ),
+                on_row=lambda r: status.update(f"done {r['grid']} @ {r['unknown']:.0%}"),
+            )
+        shown = Table(title=f"walks that follow the belt ({runs} runs each, {backend})")
+        for name in ("grid", "unknown", "runs", "success", "length ratio", "max ratio",
+                     "collisions", "cues/walk", "holds"):  # fmt: skip
+            shown.add_column(name, justify="right")
+        for r in rows:
+            shown.add_row(
+                str(r["grid"]), f"{r['unknown']:.0%}", str(r["runs"]), f"{r['success_rate']:.1%}",
+                f"{r['length_ratio']:.3f}", f"{r['length_ratio_max']:.3f}", str(r["collisions"]),
+                f"{r['cues_per_walk']:.1f}", str(r["holds"]),
+            )
+        console.print(shown)
+        took = time.perf_counter() - t0
+        console.print(f"{took:.1f} s on {platform.node()} ({platform.machine()})")
+        if json_out is not None:
+            json_out.parent.mkdir(parents=True, exist_ok=True)
+            json_out.write_text(json.dumps(rows, indent=1) + "\n")
+            console.print(f"rows written to {json_out}")
+    if smoothing_plot is not None:
+        from drivers.sim.smoothing_study import plot_study, smoothing_study
+
+        study = smoothing_study(grids, unknowns, runs=min(runs, 20), first_seed=seed)
+        smoothing_plot.parent.mkdir(parents=True, exist_ok=True)
+        plot_study(study, smoothing_plot)
+        if json_out is not None and not table:
+            json_out.parent.mkdir(parents=True, exist_ok=True)
+            json_out.write_text(json.dumps(study, indent=1) + "\n")
+        lengths = Table(title="path length (m), mean over courtyards")
+        columns = ("raw", "band", "turning", "walk_raw", "walk_band")
+        for name in ("grid", "unknown", "grid path", "rubber band", "turning points",
+                     "walked (grid path)", "walked (rubber band)"):  # fmt: skip
+            lengths.add_column(name, justify="right")
+        for r in study["rows"]:
+            lengths.add_row(
+                str(r["grid"]), f"{r['unknown']:.0%}", *(f"{r[c + '_m']:.2f}" for c in columns)
+            )
+        console.print(lengths)
+        console.print(f"plot written to {smoothing_plot}")
+
+
+def _crossing(console, runs: int, seed: int, json_out: Path | None) -> None:
+    """Hold against detour in the doorway scenario (``drivers/sim/crossing.py``)."""
+    import numpy as np
+    from rich.table import Table
+
+    from drivers.sim.crossing import crossing_walk
+
+    rows = []
+    for hold in (True, False):
+        done = [crossing_walk(hold=hold, seed=seed + i) for i in range(runs)]
+        rows.append({
+            "hold": hold,
+            "runs": runs,
+            "arrived": sum(w.arrived for w in done),
+            "walked_m": round(float(np.mean([w.walked_m for w in done])), 2),
+            "time_s": round(float(np.mean([w.time_s for w in done])), 1),
+            "backtrack_m": round(float(np.mean([w.backtrack_m for w in done])), 2),
+            "collisions": sum(w.collisions for w in done),
+            "holds": sum(w.holds for w in done),
+        })
+    table = Table(title=f"a person stands in the doorway ahead ({runs} walks each)")
+    for name in rows[0]:
+        table.add_column(name, justify="right")
+    for r in rows:
+        table.add_row(*(str(v) for v in r.values()))
+    console.print(table)
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("walks")(walks)

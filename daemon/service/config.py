@@ -1,0 +1,101 @@
+"""The daemon's configuration: a TOML file, overridden by ``GUIDEBELT_…`` environment variables.
+
+Nested keys use ``__`` in the environment, e.g. ``GUIDEBELT_ZENOH__LISTEN='["tcp/0.0.0.0:7447"]'``
+or ``GUIDEBELT_BACKEND=cpu``. Unknown keys are an error, so a typo never goes unnoticed.
+An example with every key is ``systemd/guidebelt.toml``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic_settings import (
+    BaseSettings,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    TomlConfigSettingsSource,
+)
+
+DEFAULT_CONFIG_FILE = Path("/etc/guidebelt/guidebelt.toml")
+
+
+class ZenohSettings(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["peer", "client"] = "peer"
+    listen: list[str] = Field(default_factory=list, description="e.g. tcp/127.0.0.1:7447")
+    connect: list[str] = Field(default_factory=list, description="routers or peers to join")
+    multicast_scouting: bool = True
+
+    def to_json5(self) -> str:
+        return json.dumps(
+            {
+                "mode": self.mode,
+                "listen": {"endpoints": self.listen},
+                "connect": {"endpoints": self.connect},
+                "scouting": {
+                    "multicast": {"enabled": self.multicast_scouting},
+                    # Gossip would reach peers the config did not name; tests must not.
+                    "gossip": {"enabled": self.multicast_scouting},
+                },
+            }
+        )
+
+
+class DaemonConfig(BaseSettings):
+    model_config = SettingsConfigDict(
+        env_prefix="GUIDEBELT_", env_nested_delimiter="__", extra="forbid"
+    )
+
+    daemon_id: str = Field(default_factory=socket.gethostname)
+    zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
+    backend: Literal["auto", "cpu", "cuda", "reference"] = "auto"
+    variant: Literal["fast", "paper"] = "fast"
+    cell_m: float = Field(default=0.10, gt=0)
+    user_radius_m: float = Field(default=0.3, ge=0, description="obstacles grow by this")
+    lang: Literal["en", "es"] = "en"
+    stale_pose_s: float = Field(default=1.0, gt=0, description="older poses are refused")
+    max_users: int = Field(default=16, ge=1)
+    user_idle_s: float = Field(default=600.0, gt=0, description="forget a silent, idle user")
+    tick_s: float = Field(default=0.25, gt=0, description="staleness checks and watchdog")
+    snapshot_timeout_s: float = Field(default=1.0, gt=0)
+    landmarks: dict[str, tuple[float, float]] = Field(
+        default_factory=dict, description="named goals: name = [x, y] in metres"
+    )
+    log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
+    log_format: Literal["journal", "json"] = "journal"
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        # Arguments beat the environment, which beats the file.
+        return (init_settings, env_settings, TomlConfigSettingsSource(settings_cls))
+
+
+def load_config(path: str | Path | None = None, **overrides: object) -> DaemonConfig:
+    """The config from ``path`` (or $GUIDEBELT_CONFIG, or /etc/guidebelt/guidebelt.toml if
+    present), the environment and ``overrides``. A named file that is missing is an error."""
+    if path is None:
+        env_path = os.environ.get("GUIDEBELT_CONFIG")
+        if env_path:
+            path = env_path
+        elif DEFAULT_CONFIG_FILE.is_file():
+            path = DEFAULT_CONFIG_FILE
+    if path is not None and not Path(path).is_file():
+        raise FileNotFoundError(f"config file {path} not found")
+
+    class _FromFile(DaemonConfig):
+        model_config = SettingsConfigDict(toml_file=path)
+
+    return _FromFile(**overrides)

@@ -1,0 +1,232 @@
+"""The guidebelt service: one zenoh peer, one asyncio loop (uvloop), one runner per user.
+
+Lifecycle: open the zenoh session → declare subscribers, queryables and the liveliness
+token → READY=1 → tick (WATCHDOG=1, staleness) until SIGTERM/SIGINT → STOPPING=1 →
+every user gets a STOP pattern and a final status → close the session. The whole stop
+takes well under a second: nothing in it waits on the network.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import signal
+import threading
+import time
+
+import zenoh
+
+from protocol import codec, keys
+from protocol.messages import Goal, Health, MapDelta, NavState, NavStatus, Pose
+
+from .bridge import Bridge, open_session
+from .config import DaemonConfig
+from .runner import UserRunner
+from .sdnotify import Notifier
+from .session import UserSession
+
+log = logging.getLogger("guidebelt.daemon")
+
+MESSAGE_OF_LEAF = {"map/delta": MapDelta, "pose": Pose, "goal": Goal}
+ACTIVE = (NavState.PLANNING, NavState.GUIDING, NavState.REROUTING)
+STOP_BUDGET_S = 0.6
+
+
+class Daemon:
+    def __init__(self, config: DaemonConfig, notifier: Notifier | None = None) -> None:
+        self.config = config
+        self.notifier = notifier if notifier is not None else Notifier()
+        self.runners: dict[str, UserRunner] = {}
+        self.rejected_unrouted = 0
+        """Messages refused before reaching a user (bad key, too many users)."""
+        self.started = time.time()
+        self._stop: asyncio.Event | None = None
+        self._bridge: Bridge | None = None
+        self._zenoh: zenoh.Session | None = None
+        self.ready = threading.Event()
+        """Set once the daemon listens; for whoever started it on another thread."""
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    def stop(self) -> None:
+        if self._stop is not None:
+            self._stop.set()
+
+    async def run(self, install_signals: bool = True) -> None:
+        loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        self._zenoh = open_session(self.config.zenoh)
+        self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
+        self._bridge.start()
+        if install_signals:
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                loop.add_signal_handler(sig, self.stop)
+        self.notifier.ready(f"serving, backend {self.config.backend}")
+        self.ready.set()
+        log.info(
+            "ready",
+            extra={"fields": {"zid": str(self._zenoh.zid()), "backend": self.config.backend}},
+        )
+        ticker = loop.create_task(self._tick())
+        try:
+            await self._stop.wait()
+        finally:
+            ticker.cancel()
+            await self._shutdown()
+            if install_signals:
+                for sig in (signal.SIGTERM, signal.SIGINT):
+                    loop.remove_signal_handler(sig)
+
+    async def _shutdown(self) -> None:
+        t0 = time.perf_counter()
+        self.notifier.stopping()
+        runners = list(self.runners.values())
+        if runners:
+            _done, pending = await asyncio.wait(
+                [asyncio.ensure_future(r.close()) for r in runners], timeout=STOP_BUDGET_S
+            )
+            for fut in pending:
+                fut.cancel()
+        if self._bridge is not None:
+            self._bridge.close()
+        if self._zenoh is not None:
+            self._zenoh.close()
+        self.notifier.close()
+        log.info("stopped", extra={"fields": {"ms": round((time.perf_counter() - t0) * 1e3, 1)}})
+
+    async def _tick(self) -> None:
+        period = self.config.tick_s
+        watchdog = self.notifier.watchdog_interval_s()
+        if watchdog is not None:
+            period = min(period, watchdog)
+        while True:
+            await asyncio.sleep(period)
+            self.notifier.watchdog()
+            now = asyncio.get_running_loop().time()
+            for user, runner in list(self.runners.items()):
+                active = runner.session.goal_cell is not None and runner.session.state in ACTIVE
+                if active:
+                    runner.tick()  # refreshes the belt; a pose gone stale stops the user
+                elif now - runner.last_input > self.config.user_idle_s:
+                    self._forget(user)
+
+    def _forget(self, user: str) -> None:
+        """A user silent for ``user_idle_s`` and not being guided: free the session."""
+        runner = self.runners.pop(user)
+        log.info("idle user forgotten", extra={"fields": {"user": user}})
+        bridge = self._bridge
+        task = asyncio.get_running_loop().create_task(
+            runner.close("idle", f"nothing heard for {self.config.user_idle_s:g} s")
+        )
+        if bridge is not None:
+            task.add_done_callback(lambda _t: bridge.forget_user(user))
+
+    # -- inputs (loop thread) -------------------------------------------------------------
+
+    def _runner(self, user: str) -> UserRunner | None:
+        runner = self.runners.get(user)
+        if runner is not None:
+            return runner
+        if len(self.runners) >= self.config.max_users:
+            return None
+        assert self._bridge is not None
+        session = UserSession(user, self.config)
+        runner = UserRunner(
+            session, self._bridge.publish, self._bridge.request, self.config.snapshot_timeout_s
+        )
+        self.runners[user] = runner
+        log.info("new user", extra={"fields": {"user": user, "backend": session.planner.name}})
+        return runner
+
+    def _on_sample(self, leaf: str, key: str, payload: bytes) -> None:
+        try:
+            user = keys.user_of(key)
+        except ValueError as exc:
+            self.rejected_unrouted += 1
+            log.warning("rejected", extra={"fields": {"key": key, "reason": str(exc)}})
+            return
+        runner = self._runner(user)
+        if runner is None:
+            self._refuse_user(user)
+            return
+        try:
+            msg = codec.decode(MESSAGE_OF_LEAF[leaf], payload)
+        except codec.DecodeError as exc:
+            runner.reject(exc.code, f"{leaf}: {exc.reason}")
+            return
+        if leaf == "map/delta":
+            runner.put_delta(msg)
+        elif leaf == "pose":
+            runner.put_pose(msg)
+        else:
+            runner.put_goal(msg)
+
+    def _refuse_user(self, user: str) -> None:
+        self.rejected_unrouted += 1
+        assert self._bridge is not None
+        status = NavStatus(
+            state=NavState.ERROR,
+            code="too_many_users",
+            reason=f"this daemon serves at most {self.config.max_users} users",
+            stamp=time.time(),
+        )
+        self._bridge.publish(keys.status(user), codec.encode(status))
+        self._bridge.forget_user(user)
+
+    # -- queries (loop thread) ------------------------------------------------------------
+
+    def health(self) -> Health:
+        return Health(
+            daemon_id=self.config.daemon_id,
+            uptime_s=time.time() - self.started,
+            users=sorted(self.runners),
+            backend=self.config.backend,
+            rejected=self.rejected_unrouted
+            + sum(r.session.rejected for r in self.runners.values()),
+            stamp=time.time(),
+        )
+
+    def _on_query(self, key: str, query: zenoh.Query) -> None:
+        try:
+            if key == keys.HEALTH:
+                query.reply(keys.HEALTH, codec.encode(self.health()))
+            elif key.endswith("/status"):
+                self._reply_per_user(query, "status")
+            else:
+                self._reply_snapshots(query)
+                return  # those replies come later, from the workers
+        except zenoh.ZError as exc:
+            log.warning("query reply failed", extra={"fields": {"key": key, "err": str(exc)}})
+        query.drop()
+
+    def _matching_users(self, query: zenoh.Query, leaf: str) -> list[str]:
+        asked = query.key_expr
+        return [
+            u for u in self.runners if asked.intersects(zenoh.KeyExpr(f"{keys.ROOT}/{u}/{leaf}"))
+        ]
+
+    def _reply_per_user(self, query: zenoh.Query, leaf: str) -> None:
+        for user in self._matching_users(query, leaf):
+            runner = self.runners[user]
+            payload = runner.last_status or codec.encode(runner.session.status(time.time()))
+            query.reply(keys.status(user), payload)
+
+    def _reply_snapshots(self, query: zenoh.Query) -> None:
+        users = self._matching_users(query, "map/snapshot")
+        if not users:
+            query.drop()
+            return
+        # One query, one user: wildcard snapshot queries are answered for the first match.
+        runner = self.runners[users[0]]
+        task = asyncio.get_running_loop().create_task(
+            runner.reply_snapshot(query, keys.map_snapshot(users[0]))
+        )
+        task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
+
+
+async def serve(config: DaemonConfig) -> None:
+    """Run until SIGTERM or SIGINT."""
+    daemon = Daemon(config)
+    with contextlib.suppress(asyncio.CancelledError):
+        await daemon.run()

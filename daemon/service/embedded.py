@@ -1,0 +1,100 @@
+"""The daemon on a thread of this process, for the demo, the tests and the benchmark.
+
+The same ``Daemon`` as ``guidebelt run``, on its own uvloop loop in a thread, listening
+on a free 127.0.0.1 port with multicast scouting off; other nodes connect to it there.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import threading
+from collections.abc import Callable
+from typing import TypeVar
+
+import uvloop
+import zenoh
+
+from .config import DaemonConfig, ZenohSettings
+from .daemon import Daemon
+
+T = TypeVar("T")
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def loopback(listen_port: int | None = None, connect_port: int | None = None) -> ZenohSettings:
+    return ZenohSettings(
+        listen=[f"tcp/127.0.0.1:{listen_port}"] if listen_port else [],
+        connect=[f"tcp/127.0.0.1:{connect_port}"] if connect_port else [],
+        multicast_scouting=False,
+    )
+
+
+def open_peer(port: int) -> zenoh.Session:
+    """A zenoh session connected to the daemon listening on ``port``."""
+    return zenoh.open(zenoh.Config.from_json5(loopback(connect_port=port).to_json5()))
+
+
+class DaemonThread:
+    """``with DaemonThread(config) as d:`` runs the daemon until the block ends."""
+
+    def __init__(self, config: DaemonConfig | None = None, **overrides: object) -> None:
+        self.port = free_port()
+        base = config or DaemonConfig(**overrides)
+        self.config = base.model_copy(update={"zenoh": loopback(listen_port=self.port)})
+        self.daemon = Daemon(self.config)
+        self._loop = uvloop.new_event_loop()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._main, name="guidebelt-daemon", daemon=True)
+
+    def _main(self) -> None:
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._loop.run_until_complete(self.daemon.run(install_signals=False))
+        except BaseException as exc:  # reported by __enter__/__exit__
+            self._error = exc
+            self.daemon.ready.set()
+        finally:
+            self._loop.close()
+
+    def __enter__(self) -> DaemonThread:
+        self._thread.start()
+        if not self.daemon.ready.wait(10.0) or self._error is not None:
+            raise RuntimeError(f"daemon did not start: {self._error!r}")
+        return self
+
+    def peer(self) -> zenoh.Session:
+        return open_peer(self.port)
+
+    def call(self, fn: Callable[..., T], *args: object) -> T | None:
+        """Run ``fn(*args)`` on the daemon's loop and return its result."""
+        done = threading.Event()
+        box: dict = {}
+
+        def run() -> None:
+            try:
+                box["v"] = fn(*args)
+            except BaseException as exc:
+                box["e"] = exc
+            done.set()
+
+        self._loop.call_soon_threadsafe(run)
+        done.wait(5.0)
+        if "e" in box:
+            raise box["e"]
+        return box.get("v")
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        if self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self.daemon.stop)
+            self._thread.join(timeout_s)
+        if self._thread.is_alive():
+            raise RuntimeError("daemon thread did not stop")
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,61 @@
+"""What goes into one step of a user's session, and what comes out of it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from protocol.messages import (
+    BeltPattern,
+    Goal,
+    MapDelta,
+    MapSnapshot,
+    NavPath,
+    NavStatus,
+    Pose,
+    VoiceCue,
+)
+
+from .rejections import Rejection
+
+
+@dataclass
+class Inbox:
+    """What arrived for one user since the last step (filled on the loop thread)."""
+
+    rejections: list[Rejection] = field(default_factory=list)
+    deltas: list[MapDelta] = field(default_factory=list)
+    snapshot: MapSnapshot | None = None
+    snapshot_failed: bool = False
+    goal: Goal | None = None
+    pose: Pose | None = None
+    tick: bool = False
+    """Step even with nothing new: notices a pose that has gone stale."""
+
+    def __bool__(self) -> bool:
+        return bool(
+            self.rejections or self.deltas or self.snapshot or self.snapshot_failed
+            or self.goal or self.pose or self.tick
+        )
+
+
+@dataclass
+class StepOutput:
+    """Messages to publish, in order: belt, voice, path, status."""
+
+    belt: list[BeltPattern] = field(default_factory=list)
+    voice: list[VoiceCue] = field(default_factory=list)
+    path_cells: np.ndarray | None = None
+    """The path as planned; ``path()`` makes the message, after the belt is on its way."""
+    path_meta: dict = field(default_factory=dict)
+    statuses: list[NavStatus] = field(default_factory=list)
+    want_snapshot: bool = False
+
+    def path(self) -> NavPath | None:
+        if self.path_cells is None:
+            return None
+        # Built by the daemon from the planner's own cells: no need to validate them again.
+        return NavPath.model_construct(
+            cells=[tuple(rc) for rc in self.path_cells.tolist()], **self.path_meta
+        )

@@ -1,0 +1,172 @@
+"""The asyncio side of one user: an inbox filled on the loop, a worker that steps it.
+
+Inputs only touch the inbox (loop thread). One task per user takes the whole inbox and
+runs ``UserSession.step`` on the user's own worker thread, so planning never blocks the
+loop and a user's map and planner are only ever touched by one thread; the worker
+publishes what the step produced. While a step runs, new inputs pile up and are
+coalesced into the next one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import zenoh
+
+from protocol import codec, keys
+from protocol.messages import Goal, MapDelta, MapSnapshot, Pose
+
+from .rejections import Rejection
+from .session import Inbox, StepOutput, UserSession
+
+log = logging.getLogger("guidebelt.runner")
+
+
+class UserRunner:
+    def __init__(
+        self,
+        session: UserSession,
+        publish: Callable[[str, bytes], None],
+        request: Callable[[str, float, Callable[[bytes | None], None]], None],
+        snapshot_timeout_s: float,
+    ) -> None:
+        self.session = session
+        self.user = session.user
+        self._publish = publish
+        self._request = request
+        self._snapshot_timeout_s = snapshot_timeout_s
+        self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"plan-{self.user}")
+        self._inbox = Inbox()
+        self._wake = asyncio.Event()
+        self._snapshot_pending = False
+        self._closed = False
+        self.last_status: bytes | None = None
+        self._loop = asyncio.get_running_loop()
+        self.last_input = self._loop.time()
+        self._task = self._loop.create_task(self._run(), name=f"user-{self.user}")
+
+    # -- inputs (loop thread) -------------------------------------------------------------
+
+    def reject(self, code: str, reason: str) -> None:
+        self._inbox.rejections.append(Rejection(code, reason))
+        self._heard()
+
+    def put_delta(self, delta: MapDelta) -> None:
+        self._inbox.deltas.append(delta)
+        self._heard()
+
+    def put_pose(self, pose: Pose) -> None:
+        self._inbox.pose = pose  # the latest pose wins
+        self._heard()
+
+    def put_goal(self, goal: Goal) -> None:
+        self._inbox.goal = goal
+        self._heard()
+
+    def _heard(self) -> None:
+        self.last_input = self._loop.time()
+        self._wake.set()
+
+    def tick(self) -> None:
+        self._inbox.tick = True
+        self._wake.set()
+
+    # -- the worker -----------------------------------------------------------------------
+
+    async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
+        while not self._closed:
+            await self._wake.wait()
+            self._wake.clear()
+            inbox, self._inbox = self._inbox, Inbox()
+            if not inbox:
+                continue
+            try:
+                await loop.run_in_executor(self._executor, self._step, inbox)
+            except asyncio.CancelledError:
+                raise
+            except Exception:  # even the error report failed: log it, keep serving
+                log.exception("worker failed", extra={"fields": {"user": self.user}})
+
+    def _step(self, inbox: Inbox) -> None:
+        """On the worker: step, then publish straight away (zenoh publishers are
+        thread-safe), so the belt pattern does not wait for the loop to wake up."""
+        try:
+            out = self.session.step(inbox, time.time())
+        except Exception as exc:  # a bug must not take every user down with it
+            log.exception("step failed", extra={"fields": {"user": self.user}})
+            fail = Inbox(rejections=[Rejection("internal", f"{type(exc).__name__}: {exc}")])
+            out = self.session.step(fail, time.time())
+        try:
+            self._emit(out)
+        except zenoh.ZError as exc:  # the session is closing under us: nothing to tell
+            log.warning("publish failed", extra={"fields": {"user": self.user, "err": str(exc)}})
+
+    def _emit(self, out: StepOutput) -> None:
+        """Publish ``out`` (on the worker thread)."""
+        user = self.user
+        for pattern in out.belt:
+            self._publish(keys.belt(user), codec.encode(pattern))
+        for cue in out.voice:
+            self._publish(keys.voice(user), codec.encode(cue))
+        path = out.path()
+        if path is not None:
+            self._publish(keys.path(user), codec.encode(path))
+        for status in out.statuses:
+            self.last_status = codec.encode(status)
+            self._publish(keys.status(user), self.last_status)
+        if out.want_snapshot:
+            self._loop.call_soon_threadsafe(self._ask_for_snapshot)
+
+    def _ask_for_snapshot(self) -> None:
+        if not self._snapshot_pending and not self._closed:
+            self._snapshot_pending = True
+            self._request(keys.map_source(self.user), self._snapshot_timeout_s, self._on_snapshot)
+
+    def _on_snapshot(self, payload: bytes | None) -> None:
+        self._snapshot_pending = False
+        if payload is None:
+            log.warning("no snapshot from the map source", extra={"fields": {"user": self.user}})
+            self._inbox.snapshot_failed = True
+        else:
+            try:
+                self._inbox.snapshot = codec.decode(MapSnapshot, payload)
+            except codec.DecodeError as exc:
+                self._inbox.rejections.append(Rejection(exc.code, f"snapshot: {exc.reason}"))
+                self._inbox.snapshot_failed = True
+        self._wake.set()
+
+    # -- queries --------------------------------------------------------------------------
+
+    async def reply_snapshot(self, query: zenoh.Query, key: str) -> None:
+        """Answer with this user's map, read on the worker thread between steps."""
+        loop = asyncio.get_running_loop()
+        try:
+            snap = await loop.run_in_executor(self._executor, self.session.snapshot, time.time())
+            if snap is None:
+                query.reply_err(b"no map yet")
+            else:
+                query.reply(key, codec.encode(snap))
+        finally:
+            query.drop()
+
+    # -- the end --------------------------------------------------------------------------
+
+    async def close(self, code: str = "shutdown", reason: str = "daemon stopping") -> None:
+        """Publish the last pattern and the final status, then stop the worker."""
+        if self._closed:
+            return
+        self._closed = True
+        self._task.cancel()
+        loop = asyncio.get_running_loop()
+        try:
+            await loop.run_in_executor(
+                self._executor,
+                lambda: self._emit(self.session.shutdown(time.time(), code, reason)),
+            )
+        finally:
+            self._executor.shutdown(wait=False, cancel_futures=True)

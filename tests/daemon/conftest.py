@@ -1,0 +1,53 @@
+"""A real daemon on a thread, on a free 127.0.0.1 port, multicast scouting off."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from daemon.service.config import DaemonConfig
+from daemon.service.embedded import DaemonThread
+from daemon.service.session import Inbox, UserSession
+from protocol.messages import Goal, GoalCell, MapDelta, Pose
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the planner and guidance once, before any
+    test's own time limits run: a cold compile takes 10-20 s on a loaded machine. The
+    first test of each module carries this in its (generous) timeout."""
+    s = UserSession("warm", DaemonConfig(backend="cpu"))
+    now = time.time()
+    inbox = Inbox(
+        deltas=[MapDelta.from_arrays(0, (20, 20), np.array([0]), np.array([1]), now)],
+        goal=Goal(target=GoalCell(row=5, col=10), stamp=now),
+        pose=Pose(x=1.0, y=0.5, heading=1.5, stamp=now),
+    )
+    s.step(inbox, now)
+
+
+def daemon_threads() -> list[threading.Thread]:
+    return [
+        t for t in threading.enumerate() if t.name.startswith(("guidebelt-daemon", "plan-"))
+    ]
+
+
+@pytest.fixture(scope="module")
+def daemon():
+    warm_up()
+    with DaemonThread(backend="cpu") as d:
+        yield d
+    # No leaks: the loop thread and every user's worker are gone once the daemon stops.
+    deadline = time.monotonic() + 3.0
+    while daemon_threads() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not daemon_threads(), daemon_threads()
+
+
+@pytest.fixture
+def peer(daemon):
+    session = daemon.peer()
+    yield session
+    session.close()
