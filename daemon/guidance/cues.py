@@ -1,0 +1,155 @@
+"""Voice cues the way blind travellers are guided: clock-face directions and distances.
+
+"Turn to 2 o'clock, then 3 metres": 12 o'clock is straight ahead, 3 o'clock is the right hand.
+Phrase tables in English and Spanish. Safety cues (stop, path blocked, no path, wait, turn
+around, arrived) are spoken at once; routine direction cues are rate limited and only repeated
+when what they say has changed, so the voice does not chatter over the belt.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+from protocol.messages import CuePriority, PatternKind, VoiceCue
+
+Lang = Literal["en", "es"]
+
+PHRASES: dict[str, dict[str, str]] = {
+    "en": {
+        "turn": "turn to {hour} o'clock, then {dist}",
+        "ahead": "straight ahead, {dist}",
+        "metres": "{n} metres",
+        "metre": "1 metre",
+        "half": "half a metre",
+        PatternKind.ARRIVED: "arrived",
+        PatternKind.STOP: "stop",
+        PatternKind.REROUTE: "path blocked, rerouting",
+        PatternKind.NO_PATH: "no path to the goal",
+        PatternKind.WAIT: "wait",
+        PatternKind.TURN_AROUND: "turn around",
+    },
+    "es": {
+        "turn": "gira a las {hour}, luego {dist}",
+        "ahead": "sigue recto, {dist}",
+        "metres": "{n} metros",
+        "metre": "1 metro",
+        "half": "medio metro",
+        PatternKind.ARRIVED: "has llegado",
+        PatternKind.STOP: "alto",
+        PatternKind.REROUTE: "camino bloqueado, buscando otra ruta",
+        PatternKind.NO_PATH: "no hay camino hasta el destino",
+        PatternKind.WAIT: "espera",
+        PatternKind.TURN_AROUND: "da la vuelta",
+    },
+}
+
+SAFETY_KINDS = frozenset(
+    {
+        PatternKind.STOP,
+        PatternKind.REROUTE,
+        PatternKind.NO_PATH,
+        PatternKind.WAIT,
+        PatternKind.TURN_AROUND,
+        PatternKind.ARRIVED,
+    }
+)
+"""Spoken at once, ahead of routine cues (arrived too: the user must stop walking)."""
+
+
+def clock_hour(rel: float) -> int:
+    """Relative angle (radians, positive = left) → clock hour 1..12, 12 straight ahead."""
+    h = round(-math.degrees(rel) / 30.0) % 12
+    return 12 if h == 0 else int(h)
+
+
+def say_distance(metres: float, lang: Lang) -> str:
+    p = PHRASES[lang]
+    if metres < 0.75:
+        return p["half"]
+    n = max(1, math.floor(metres + 0.5))  # half up: round() would say 4 for 4.5
+    return p["metre"] if n == 1 else p["metres"].format(n=n)
+
+
+def direction_text(rel: float, metres: float, lang: Lang) -> str:
+    hour = clock_hour(rel)
+    dist = say_distance(metres, lang)
+    if hour == 12:
+        return PHRASES[lang]["ahead"].format(dist=dist)
+    return PHRASES[lang]["turn"].format(hour=hour, dist=dist)
+
+
+def event_text(kind: PatternKind, lang: Lang) -> str:
+    return PHRASES[lang][kind]
+
+
+@dataclass
+class CueLimiter:
+    """Routine cues: at most one per ``min_interval_s`` and only when the words changed, or as
+    a reminder after ``repeat_s``. Safety cues always pass, except the same words again within
+    ``safety_dedupe_s`` — a belt can repeat itself every 100 ms, a voice cannot.
+    """
+
+    min_interval_s: float = 4.0
+    repeat_s: float = 12.0
+    safety_dedupe_s: float = 3.0
+    last_routine_at: float = -math.inf
+    last_routine_text: str = ""
+    last_safety_at: float = -math.inf
+    safety_said: dict[str, float] = field(default_factory=dict)
+    """When each safety phrase was last let through."""
+    suppressed: int = 0
+
+    def allow(self, text: str, priority: CuePriority, now: float) -> bool:
+        if priority is CuePriority.SAFETY:
+            if now - self.safety_said.get(text, -math.inf) < self.safety_dedupe_s:
+                self.suppressed += 1
+                return False
+            self.safety_said[text] = now
+            self.last_safety_at = now
+            # A routine cue right after a safety one would talk over it.
+            self.last_routine_at = max(self.last_routine_at, now)
+            return True
+        quiet = now - max(self.last_routine_at, self.last_safety_at)
+        if quiet < self.min_interval_s:
+            self.suppressed += 1
+            return False
+        if text == self.last_routine_text and now - self.last_routine_at < self.repeat_s:
+            self.suppressed += 1
+            return False
+        self.last_routine_at, self.last_routine_text = now, text
+        return True
+
+    def reset(self) -> None:
+        self.last_routine_at = self.last_safety_at = -math.inf
+        self.last_routine_text = ""
+        self.safety_said.clear()
+
+
+class CueMaker:
+    """Phrases cues in one language and passes them through the limiter."""
+
+    def __init__(self, lang: Lang = "en", limiter: CueLimiter | None = None) -> None:
+        if lang not in PHRASES:
+            raise ValueError(f"unsupported language {lang!r}; choose one of {sorted(PHRASES)}")
+        self.lang: Lang = lang
+        self.limiter = limiter or CueLimiter()
+
+    def direction(self, rel: float, metres: float, now: float) -> VoiceCue | None:
+        text = direction_text(rel, metres, self.lang)
+        if not self.limiter.allow(text, CuePriority.ROUTINE, now):
+            return None
+        return VoiceCue(
+            text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="direction", stamp=now
+        )
+
+    def event(self, kind: PatternKind, now: float) -> VoiceCue | None:
+        if kind not in PHRASES[self.lang]:
+            return None  # GUIDE and OFF have nothing to say
+        # The daemon's reason (goal_off_map, stale_pose…) goes to the status, not the ear.
+        text = event_text(kind, self.lang)
+        priority = CuePriority.SAFETY if kind in SAFETY_KINDS else CuePriority.ROUTINE
+        if not self.limiter.allow(text, priority, now):
+            return None
+        return VoiceCue(text=text, lang=self.lang, priority=priority, kind=str(kind), stamp=now)

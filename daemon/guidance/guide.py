@@ -1,0 +1,273 @@
+"""Guidance for one user: path + pose → the belt pattern to feel and the cue to hear.
+
+Composes the pieces top to bottom: arrival check → (optional rubber-band smoothing) →
+turning points with any-angle shortcuts → heading to the next point relative to the user →
+hold-instead-of-detour → turn around or GUIDE with hysteresis and obstacle pulse → a clock-face
+cue, rate limited. ``event`` gives the fixed patterns (STOP, NO_PATH, …) with their cue.
+
+One ``Guidance`` per user session; it keeps state (hysteresis, cue limiter, hold) between
+calls, so call it for every new pose or path, in time order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numba
+import numpy as np
+
+from protocol.messages import BeltPattern, PatternKind, Pose, VoiceCue
+
+from .cues import CueLimiter, CueMaker, clock_hour
+from .hold import HoldPolicy
+from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
+from .smoothing import rubber_band
+from .turning_points import (
+    bearing,
+    is_core,
+    relative_angle,
+    segment_clear,
+    segment_free,
+    turning_points,
+    xy_to_continuous,
+)
+
+
+@dataclass(frozen=True)
+class GuidanceOutput:
+    pattern: BeltPattern
+    cue: VoiceCue | None
+    target: tuple[float, float] | None = None
+    """The turning point guided to, in metres (x, y); None for events. For viewers and tests."""
+
+
+class Guidance:
+    """Turns the planner's path into what one user feels and hears.
+
+    ``radius_m`` must be the radius the ``blocked`` map was inflated by (the daemon's
+    ``user_radius_m``): how much of the margin a line to the target may shave comes from it.
+    """
+
+    def __init__(
+        self,
+        *,
+        cell_m: float = 0.10,
+        lang: Literal["en", "es"] = "en",
+        arrive_m: float = 0.3,
+        reach_m: float = 0.35,
+        escape_m: float = 0.25,
+        radius_m: float = 0.30,
+        max_leg_m: float = 8.0,
+        turn_around_deg: float = 135.0,
+        smooth: bool = False,
+        hold: HoldPolicy | None = None,
+        limiter: CueLimiter | None = None,
+    ) -> None:
+        self.cell_m = float(cell_m)
+        self.arrive_m = arrive_m
+        self.reach_m = reach_m
+        self.escape_m = min(escape_m, 0.9 * radius_m)
+        # Half the user's radius of the margin may be shaved by a line from the user.
+        self.shave_cells = int(0.5 * radius_m / cell_m)
+        self.max_leg_cells = max_leg_m / cell_m
+        self.turn_around = math.radians(turn_around_deg)
+        self.smooth = smooth
+        self.hold = hold if hold is not None else HoldPolicy()
+        self.patterns = PatternMaker()
+        self.cues = CueMaker(lang, limiter)
+        self.hysteresis = DirectionHysteresis()
+        self._announced: tuple[np.ndarray, int] | None = None
+
+    @property
+    def lang(self) -> str:
+        return self.cues.lang
+
+    def reset(self) -> None:
+        """A new goal: forget arrival, hysteresis, holds and what was said."""
+        self.hysteresis.reset()
+        self.hold.reset()
+        self.cues.limiter.reset()
+        self._announced = None
+
+    def event(self, kind: PatternKind, now: float, reason: str = "") -> GuidanceOutput:
+        """A fixed pattern and its cue: STOP, ARRIVED, REROUTE, NO_PATH, WAIT, OFF.
+
+        ``reason`` is for the caller's status and logs; the voice says the phrase only.
+        TURN_AROUND needs a direction: ``guide`` produces it.
+        """
+        del reason
+        if kind in (PatternKind.GUIDE, PatternKind.TURN_AROUND):
+            raise ValueError(f"{kind} comes from guide(), which knows the direction")
+        if kind is not PatternKind.ARRIVED:
+            self._announced = None  # after any event, the next direction is worth saying
+        return GuidanceOutput(self.patterns.event(kind, now), self.cues.event(kind, now))
+
+    def guide(
+        self,
+        path: np.ndarray,
+        pose: Pose,
+        shape: tuple[int, int],
+        now: float,
+        blocked: np.ndarray | None = None,
+    ) -> GuidanceOutput:
+        """Guide along ``path`` ((k, 2) cells from the user's cell to the goal)."""
+        path = np.asarray(path)
+        if path.ndim != 2 or len(path) == 0:
+            return self.event(PatternKind.NO_PATH, now)
+        user = xy_to_continuous(shape, pose.x, pose.y, self.cell_m)
+        goal = path[-1].astype(np.float64) + 0.5
+        if float(np.hypot(*(goal - user))) * self.cell_m <= self.arrive_m:
+            return self.event(PatternKind.ARRIVED, now)
+
+        pts = self._points(path, blocked)
+        target = self._target(pts, user, blocked)
+        rel = relative_angle(bearing(shape, user, target), pose.heading)
+
+        verdict = self.hold.update(path, user, blocked, self.cell_m, now)
+        if verdict == "hold":
+            return self.event(PatternKind.WAIT, now)
+        if verdict == "expired":
+            return self.event(PatternKind.REROUTE, now)
+
+        metres = float(np.hypot(*(target - user))) * self.cell_m
+        target_xy = (float(target[1] * self.cell_m), float((shape[0] - target[0]) * self.cell_m))
+        cw = -rel
+        if abs(rel) > self.turn_around:
+            self.hysteresis.reset()
+            pattern = self.patterns.turn_around(cw, now)
+            cue = self.cues.event(PatternKind.TURN_AROUND, now)
+            self._announced = None
+            return GuidanceOutput(pattern, cue, target_xy)
+        felt = self.hysteresis(cw)
+        clearance = forward_clearance_m(blocked, user, pose.heading, self.cell_m)
+        pattern = self.patterns.guide(felt, clearance, now)
+        return GuidanceOutput(pattern, self._direction_cue(target, rel, metres, now), target_xy)
+
+    def _points(self, path: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
+        # Only the next leg or two matter to the user (the target and its distance): a leg is
+        # at most max_leg long, so the path beyond a few legs' worth of cells is not looked at.
+        path = path[: int(2.5 * self.max_leg_cells) + 2]
+        if self.smooth and blocked is not None and len(path) > 2:
+            smoothed = rubber_band(path, blocked, cell_m=self.cell_m)
+            return turning_points_from_polyline(smoothed, blocked, self.max_leg_cells)
+        return turning_points(path, blocked, max_leg_cells=self.max_leg_cells)
+
+    def _target(self, pts: np.ndarray, user: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
+        """The next turning point: skip those already reached, or visible past the next one.
+
+        A user standing inside the inflated margin (a newly seen obstacle, or drift) sees no
+        line free from its own cell. There the first ``escape_m`` of a line are not checked:
+        shorter than the user's radius, that stretch cannot cross an obstacle cell and be out
+        of the margin again, so a line free after it is safe; otherwise the user is led to
+        the way out (the path's next point) first.
+        """
+        i = 1 if len(pts) > 1 else 0
+        if blocked is None:
+            while i + 1 < len(pts) and self._dist_m(pts[i], user) <= self.reach_m:
+                i += 1
+            return pts[i]
+        r, c = int(user[0]), int(user[1])
+        # A line may shave the outer half of the margin (segment_clear): in a doorway-narrow
+        # free channel no straight line stays wholly free, and a user told to zig-zag between
+        # path cells walks further and turns more than one told to walk on. A user already
+        # deeper than that is "in the margin": only the escape stretch is not checked.
+        inside = 0 <= r < blocked.shape[0] and 0 <= c < blocked.shape[1]
+        in_margin = inside and bool(blocked[r, c]) and is_core(blocked, r, c, self.shave_cells)
+        skip = self.escape_m / self.cell_m if in_margin else 0.0
+        depth = 0 if in_margin else self.shave_cells
+        while i + 1 < len(pts):
+            near = not in_margin and self._dist_m(pts[i], user) <= self.reach_m
+            if not (near or _free_after(blocked, user, pts[i + 1], skip, depth)):
+                break
+            i += 1
+        return pts[i]
+
+    def _dist_m(self, a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.hypot(*(a - b))) * self.cell_m
+
+    def _direction_cue(
+        self, target: np.ndarray, rel: float, metres: float, now: float
+    ) -> VoiceCue | None:
+        """Speak on a new leg or when the clock hour moved by two or more; else stay quiet."""
+        hour = clock_hour(rel)
+        if self._announced is not None:
+            old_target, old_hour = self._announced
+            moved = float(np.hypot(*(target - old_target))) * self.cell_m
+            turned = min((hour - old_hour) % 12, (old_hour - hour) % 12)
+            if moved < 1.0 and turned < 2:
+                return None
+        cue = self.cues.direction(rel, metres, now)
+        if cue is not None:
+            self._announced = (target.copy(), hour)
+        return cue
+
+
+def _free_after(
+    blocked: np.ndarray, a: np.ndarray, b: np.ndarray, skip_cells: float, depth: int
+) -> bool:
+    """``segment_clear`` from ``skip_cells`` along a→b to b (the whole segment when 0)."""
+    length = float(np.hypot(*(b - a)))
+    if skip_cells > 0.0:
+        if length <= skip_cells:
+            return True  # b itself is a path point: free
+        a = a + (b - a) * (skip_cells / length)
+    return bool(segment_clear(blocked, a[0], a[1], b[0], b[1], depth))
+
+
+def turning_points_from_polyline(
+    poly: np.ndarray, blocked: np.ndarray, max_leg_cells: float
+) -> np.ndarray:
+    """Turning points of an already smooth polyline (continuous cell units): greedy shortcuts."""
+    out = [poly[0]]
+    i = 0
+    while i < len(poly) - 1:
+        j = i + 1
+        while j + 1 < len(poly):
+            a, b = poly[i], poly[j + 1]
+            if float(np.hypot(*(b - a))) > max_leg_cells or not segment_free(
+                blocked, a[0], a[1], b[0], b[1]
+            ):
+                break
+            j += 1
+        out.append(poly[j])
+        i = j
+    return np.array(out, dtype=np.float64)
+
+
+def forward_clearance_m(
+    blocked: np.ndarray | None, user: np.ndarray, heading: float, cell_m: float
+) -> float | None:
+    """Distance to the nearest blocked cell within ±60° of the heading (None if none near)."""
+    if blocked is None:
+        return None
+    reach = math.ceil(PULSE_NEAR_M / cell_m) + 1
+    d = _clearance_cells(blocked, float(user[0]), float(user[1]), heading, reach)
+    return None if d < 0 else d * cell_m
+
+
+@numba.njit(cache=True, nogil=True)
+def _clearance_cells(
+    blocked: np.ndarray, ur: float, uc: float, heading: float, reach: int
+) -> float:
+    """Distance (cells) to the near edge of the nearest blocked cell ahead (±60°) or touching
+    the user; −1 when there is none within ``reach``."""
+    h, w = blocked.shape
+    r0, c0 = int(ur), int(uc)
+    cos_limit = math.cos(math.radians(60.0))
+    hx, hy = math.cos(heading), math.sin(heading)
+    best = 1e30
+    for r in range(max(0, r0 - reach), min(h, r0 + reach + 1)):
+        for c in range(max(0, c0 - reach), min(w, c0 + reach + 1)):
+            if not blocked[r, c]:
+                continue
+            dy = -((r + 0.5) - ur)
+            dx = (c + 0.5) - uc
+            dist = math.hypot(dx, dy)
+            ahead = dist < 1.0 or (dx * hx + dy * hy) >= cos_limit * dist
+            if ahead and dist < best:
+                best = dist
+    if best >= 1e30:
+        return -1.0
+    return max(0.0, best - 0.5)

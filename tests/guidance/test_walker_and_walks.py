@@ -1,0 +1,87 @@
+"""The walker that feels the belt, and a small run of the walks benchmark."""
+
+from __future__ import annotations
+
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from daemon.guidance.patterns import PatternMaker
+from drivers.sim.belt_walker import BeltWalker, WalkerParams
+from drivers.sim.courtyard import make_courtyard
+from drivers.sim.walks import belt_walk, run_table
+from protocol.messages import PatternKind
+
+EXACT = WalkerParams(step_sd_m=0.0, perception_sd_deg=0.0, gait_sd_deg=0.0)
+
+
+def open_world(n: int = 50) -> np.ndarray:
+    return np.zeros((n, n), dtype=np.uint8)
+
+
+def test_walker_steps_where_the_belt_points() -> None:
+    w = BeltWalker(x=2.5, y=2.5, heading=math.pi / 2, cell_m=0.1, params=EXACT)
+    maker = PatternMaker()
+    assert w.react(maker.guide(math.radians(30), None, 0.0), open_world()) == "step"
+    assert w.heading == pytest.approx(math.pi / 2 - math.radians(30), abs=0.01)  # rounding
+    assert math.hypot(w.x - 2.5, w.y - 2.5) == pytest.approx(0.5)
+    # far off the nose: turn on the spot first
+    assert w.react(maker.guide(math.radians(90), None, 0.0), open_world()) == "turn"
+    assert w.walked_m == pytest.approx(0.5)
+    # near an obstacle the belt pulses and the steps get shorter, the faster the shorter
+    near = maker.guide(0.0, 0.6, 0.0)
+    w.react(near, open_world())
+    assert 0 < near.period_ms < 800
+    assert w.walked_m == pytest.approx(0.5 + 0.5 * near.period_ms / 800)
+    w.react(maker.guide(0.0, 0.0, 0.0), open_world())  # fastest pulse: a quarter step
+    assert w.walked_m == pytest.approx(0.5 + 0.5 * near.period_ms / 800 + 0.5 * 0.25)
+
+
+def test_walker_stands_still_for_events_and_turns_around() -> None:
+    w = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, params=EXACT)
+    maker = PatternMaker()
+    for kind in (PatternKind.STOP, PatternKind.WAIT, PatternKind.NO_PATH, PatternKind.ARRIVED,
+                 PatternKind.REROUTE, PatternKind.OFF):  # fmt: skip
+        assert w.react(maker.event(kind, 0.0), open_world()) == "stand"
+    assert (w.x, w.y, w.heading) == (2.5, 2.5, 0.0)
+    assert w.react(maker.turn_around(math.radians(170), 0.0), open_world()) == "turn"
+    assert abs(abs(w.heading) - math.pi) < 1e-9
+
+
+def test_walker_counts_a_collision_and_does_not_walk_through() -> None:
+    world = open_world()
+    world[20:30, 30] = 1  # a wall 0.45 m east of the walker
+    w = BeltWalker(x=2.55, y=2.5, heading=0.0, cell_m=0.1, params=EXACT)
+    maker = PatternMaker()
+    assert w.react(maker.guide(0.0, None, 0.0), world) == "bump"
+    assert w.collisions == 1 and w.x == 2.55
+
+
+def test_walker_reads_the_belt_never_the_path() -> None:
+    maker = PatternMaker()
+    belt = maker.guide(0.0, None, time.time())
+    a = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, rng=np.random.default_rng(3))
+    b = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, rng=np.random.default_rng(3))
+    a.act(SimpleNamespace(path=np.array([[0, 0], [0, 1]]), belt=belt, true=open_world()))
+    b.act(SimpleNamespace(path=None, belt=belt, true=open_world()))
+    assert (a.x, a.y, a.heading) == (b.x, b.y, b.heading)
+    # an expired pattern is felt as nothing
+    old = maker.guide(0.0, None, time.time() - 5.0)
+    assert a.act(SimpleNamespace(path=None, belt=old, true=open_world())) == "stand"
+
+
+@pytest.mark.timeout(60)
+def test_small_walks_arrive_without_collisions() -> None:
+    for seed in (0, 1):
+        walk = belt_walk(make_courtyard(100, 0.4, seed=seed), seed=seed)
+        assert walk.arrived, walk.reason
+        assert walk.collisions == 0
+        assert walk.length_ratio < 1.10
+        assert 0 < walk.cues < walk.actions
+    rows = run_table([50], [0.2], 3)
+    assert rows[0]["success_rate"] == 1.0 and rows[0]["collisions"] == 0
+    assert set(rows[0]) >= {"grid", "unknown", "runs", "success_rate", "length_ratio",
+                            "collisions", "cues_per_walk"}  # fmt: skip
