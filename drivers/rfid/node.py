@@ -1,0 +1,109 @@
+"""The RFID node: serial reader → localiser → ``Pose`` on zenoh at a fixed rate.
+
+One process per user (one reader on the belt). Poses go to ``keys.pose(user)`` as the
+``protocol.messages.Pose`` JSON the daemon validates; the reader's counters go to
+``keys.rfid(user, "stats")`` once a second. With too few tags in reach there is no pose:
+the node publishes nothing and the daemon's staleness check (> 1 s) stops the guidance,
+rather than guiding from a stale position.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import time
+from collections.abc import Callable
+
+import zenoh
+
+from protocol import codec, keys
+from protocol.messages import Pose
+
+from .localiser import DEFAULT_METHOD, Estimate, Localiser
+from .reader import RfidReader
+from .tags import TagMap
+
+log = logging.getLogger("guidebelt.rfid")
+
+
+def open_session(
+    listen: list[str] | None = None, connect: list[str] | None = None, scouting: bool = True
+) -> zenoh.Session:
+    """A zenoh peer session; tests pass loopback endpoints and ``scouting=False``."""
+    conf = {
+        "mode": "peer",
+        "listen": {"endpoints": listen or []},
+        "connect": {"endpoints": connect or []},
+        "scouting": {"multicast": {"enabled": scouting}, "gossip": {"enabled": scouting}},
+    }
+    return zenoh.open(zenoh.Config.from_json5(json.dumps(conf)))
+
+
+class RfidNode:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        user: str,
+        tag_map: TagMap,
+        port: str,
+        *,
+        method: str = DEFAULT_METHOD,
+        rate_hz: float = 20.0,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        if rate_hz < 10.0:
+            raise ValueError("the daemon expects poses at 10 Hz or more")
+        self.user = keys.check_user(user)
+        self.clock = clock
+        self.period = 1.0 / rate_hz
+        self.localiser = Localiser(tag_map, method=method)
+        self.reader = RfidReader(port, tag_map.ids, self.localiser.add, clock=clock)
+        self._pose_pub = session.declare_publisher(keys.pose(user))
+        self._stats_pub = session.declare_publisher(keys.rfid(user, "stats"))
+        self.published = 0
+        self.last: Estimate | None = None
+
+    def publish_once(self) -> Estimate | None:
+        """Estimate now and publish the pose; None (nothing sent) without enough reads."""
+        now = self.clock()
+        est = self.localiser.estimate(now)
+        if est is None:
+            return None
+        pose = Pose(x=est.x, y=est.y, heading=est.heading, stamp=now, quality=est.quality)
+        self._pose_pub.put(codec.encode(pose))
+        self.published += 1
+        self.last = est
+        return est
+
+    def stats(self) -> dict:
+        out: dict = {**self.reader.stats(), "poses": self.published}
+        if self.last is not None:
+            out.update(source=self.last.source, quality=round(self.last.quality, 3))
+        return out
+
+    async def run(self) -> None:
+        """Until cancelled: the reader in one task, poses at the fixed rate in this one."""
+        reader = asyncio.create_task(self.reader.run(), name="rfid-reader")
+        loop = asyncio.get_running_loop()
+        next_t = loop.time()
+        next_stats = next_t + 1.0
+        try:
+            while True:
+                self.publish_once()
+                if loop.time() >= next_stats:
+                    self._stats_pub.put(json.dumps(self.stats()))
+                    next_stats += 1.0
+                next_t += self.period
+                delay = next_t - loop.time()
+                if delay < -self.period:  # fell behind (a stall): skip, don't burst
+                    next_t = loop.time()
+                    delay = 0.0
+                await asyncio.sleep(max(0.0, delay))
+        finally:
+            reader.cancel()
+            await asyncio.gather(reader, return_exceptions=True)
+
+    def close(self) -> None:
+        self._pose_pub.undeclare()
+        self._stats_pub.undeclare()

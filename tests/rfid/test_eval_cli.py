@@ -1,0 +1,93 @@
+"""The accuracy evaluation and the commands: rfid-eval, rfid-tags, rfid --mock."""
+
+from __future__ import annotations
+
+import json
+import socket
+
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from daemon.cli import rfid as rfid_cli
+from drivers.rfid.evaluate import along, evaluate, tags_for, true_route, walked
+from drivers.rfid.tags import TagMap
+from drivers.sim.courtyard import make_courtyard
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return make_courtyard(100, 0.4, seed=2)
+
+
+def app() -> typer.Typer:
+    a = typer.Typer()
+    rfid_cli.register(a)
+    return a
+
+
+def test_walk_leaves_the_cell_centres(scenario) -> None:
+    route = true_route(scenario)
+    s = np.linspace(0.0, 4.0, 81)
+    side = walked(route, s, (0.04, -0.03), 0.05, 2.0) - along(route, s) - [0.04, -0.03]
+    sway = np.hypot(*side.T)
+    assert sway.max() <= 0.05 + 1e-9 and sway.max() > 0.045  # swaying up to 5 cm
+    assert sway[0] < 1e-9  # …around the shifted route
+
+
+@pytest.mark.timeout(60)
+def test_floor_tags_meet_the_papers_claim_and_lsq_beats_the_centroid(scenario) -> None:
+    route = true_route(scenario)
+    res = {}
+    for layout in ("none", "floor"):
+        tag_map = tags_for(scenario, layout, seed=2)
+        for method in ("centroid", "lsq"):
+            res[method, layout] = evaluate(tag_map, route, method=method, lf_layout=layout,
+                                           seed=2, offset=(0.037, -0.061))
+    floor = res["lsq", "floor"].row()
+    assert floor["median_m"] <= 0.10 and floor["lf_tags"] is True
+    assert floor["lf_fraction"] > 0.8
+    none_c, none_l = res["centroid", "none"].row(), res["lsq", "none"].row()
+    assert none_l["lf_fraction"] == 0.0
+    assert none_l["median_m"] > floor["median_m"]
+    assert none_l["p95_m"] < none_c["p95_m"]  # why lsq is the default
+
+
+@pytest.mark.timeout(120)
+def test_rfid_eval_command_writes_rows(tmp_path) -> None:
+    out = tmp_path / "rfid.json"
+    result = CliRunner().invoke(app(), ["rfid-eval", "--seeds", "1", "--walks", "1",
+                                        "--json", str(out)])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(out.read_text())
+    assert {(r["method"], r["lf_layout"]) for r in rows} == {
+        (m, lay) for m in ("centroid", "lsq") for lay in ("none", "corners", "floor")
+    }
+    for r in rows:
+        assert set(r) >= {"method", "lf_tags", "median_m", "p95_m"}
+        assert r["lf_tags"] == (r["lf_layout"] != "none")
+        assert 0 < r["median_m"] <= r["p95_m"]
+
+
+def test_rfid_tags_command_writes_a_valid_map(tmp_path) -> None:
+    out = tmp_path / "tags.json"
+    result = CliRunner().invoke(app(), ["rfid-tags", "--out", str(out), "--lf-layout", "corners"])
+    assert result.exit_code == 0, result.output
+    tag_map = TagMap.load(out)
+    assert len(tag_map.uhf_ids) >= 3 and len(tag_map.lf_ids) > 0
+
+
+@pytest.mark.timeout(60)
+def test_rfid_command_runs_the_node_on_a_mock_reader() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    result = CliRunner().invoke(app(), [
+        "rfid", "--user", "bob", "--mock", "--duration", "2.5", "--no-scouting",
+        "--listen", f"tcp/127.0.0.1:{port}",
+    ])
+    assert result.exit_code == 0, result.output
+    stats = json.loads(result.output.strip().splitlines()[-1])
+    assert stats["poses"] >= 15 and stats["accepted"] > 0
+    assert stats["garbage"] == stats["unknown_tag"] == 0
