@@ -5,6 +5,11 @@ Its own step, as in Nav2's costmap layers: the planners only ever see the inflat
 ``cover[i]`` counts the discs covering cell i, so a cell is blocked while its count is
 positive. A change of one occupancy cell adds or removes one disc — exact, with no
 recomputation of the whole map — and reports only cells whose blocked state flipped.
+
+The initial counts come from row-window sums (``disc_cover``): O(r·h·w) with no per-cell
+discs, so a 2000 x 2000 map with a 60-cell radius stays cheap. The incremental stamping is
+compiled with numba: a 3 m sensor sweep on a fine grid changes thousands of cells, each
+stamping hundreds of disc cells, which ``np.add.at`` does an order of magnitude slower.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .grid import CELL_M, OCCUPIED
 
@@ -28,6 +34,86 @@ def radius_in_cells(radius_m: float, cell_m: float = CELL_M) -> int:
     return max(0, math.ceil(radius_m / cell_m - 1e-9))
 
 
+def _disc_rows(occupied: np.ndarray, radius_cells: int, combine, out: np.ndarray) -> np.ndarray:
+    """Fold, for every disc row ``dr``, the window sums of ``occupied`` shifted by ``dr``.
+
+    The disc's row ``dr`` spans ``|dc| <= isqrt(r² - dr²)``: a window over a cumulative row
+    count. ``combine(dst, src)`` adds (counts) or ors (dilation) into ``out``.
+    """
+    occ = np.asarray(occupied, dtype=bool)
+    h, w = occ.shape
+    r = int(radius_cells)
+    cs = np.zeros((h, w + 1), dtype=np.int32)
+    np.cumsum(occ, axis=1, out=cs[:, 1:])
+    cols = np.arange(w)
+    windows: dict[int, np.ndarray] = {}
+    for dr in range(-r, r + 1):
+        half = math.isqrt(r * r - dr * dr)
+        if half not in windows:
+            lo = np.clip(cols - half, 0, w)
+            hi = np.clip(cols + half + 1, 0, w)
+            windows[half] = cs[:, hi] - cs[:, lo]
+        win = windows[half]
+        if dr >= 0:
+            combine(out[: h - dr], win[dr:])
+        else:
+            combine(out[-dr:], win[: h + dr])
+    return out
+
+
+def disc_cover(occupied: np.ndarray, radius_cells: int) -> np.ndarray:
+    """``int32`` count of the radius discs of ``occupied`` cells covering each cell."""
+    out = np.zeros(np.shape(occupied), dtype=np.int32)
+
+    def _add(dst: np.ndarray, src: np.ndarray) -> None:
+        dst += src
+
+    return _disc_rows(occupied, radius_cells, _add, out)
+
+
+def dilate(occupied: np.ndarray, radius_cells: int) -> np.ndarray:
+    """Cells within ``radius_cells`` of an occupied cell: exactly ``InflatedMap.blocked``."""
+    out = np.zeros(np.shape(occupied), dtype=bool)
+
+    def _or(dst: np.ndarray, src: np.ndarray) -> None:
+        dst |= src > 0
+
+    return _disc_rows(occupied, radius_cells, _or, out)
+
+
+@njit(cache=True)
+def _stamp(cover, blocked, seen, epoch, w, cells, signs, dr, dc, touched):  # pragma: no cover
+    """Add ``signs[i]`` over the disc of each cell; return the flat cells whose state flipped.
+
+    ``seen`` (per cell, the epoch that last listed it) keeps ``touched`` free of repeats.
+    """
+    h = cover.shape[0] // w
+    nt = 0
+    for i in range(cells.shape[0]):
+        r0 = cells[i] // w
+        c0 = cells[i] % w
+        for k in range(dr.shape[0]):
+            r = r0 + dr[k]
+            c = c0 + dc[k]
+            if r < 0 or r >= h or c < 0 or c >= w:
+                continue
+            v = r * w + c
+            cover[v] += signs[i]
+            if seen[v] != epoch:
+                seen[v] = epoch
+                touched[nt] = v
+                nt += 1
+    nf = 0
+    for j in range(nt):
+        v = touched[j]
+        now = cover[v] > 0
+        if now != blocked[v]:
+            blocked[v] = now
+            touched[nf] = v
+            nf += 1
+    return nf
+
+
 class InflatedMap:
     """Occupancy (``uint8``) and its inflation (``blocked``), updated incrementally."""
 
@@ -36,20 +122,10 @@ class InflatedMap:
         self.radius_cells = int(radius_cells)
         self._dr, self._dc = disc_offsets(self.radius_cells)
         self.occupancy = np.array(occupancy, dtype=np.uint8, copy=True)
-        self.cover = np.zeros(self.shape, dtype=np.int32)
-        rows, cols = np.nonzero(self.occupancy == OCCUPIED)
-        self._add_discs(rows, cols, +1)
+        self.cover = disc_cover(self.occupancy == OCCUPIED, self.radius_cells)
         self.blocked = self.cover > 0
-
-    def _add_discs(self, rows: np.ndarray, cols: np.ndarray, sign: int) -> np.ndarray:
-        """Add ``sign`` to the cover count of every disc cell; return their flat indices."""
-        h, w = self.shape
-        rr = (rows[:, None] + self._dr[None, :]).ravel()
-        cc = (cols[:, None] + self._dc[None, :]).ravel()
-        keep = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-        flat = rr[keep] * w + cc[keep]
-        np.add.at(self.cover.reshape(-1), flat, sign)
-        return flat
+        self._seen = np.zeros(self.shape[0] * self.shape[1], dtype=np.int32)
+        self._epoch = 0
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set occupancy of flat ``cells`` to ``values``.
@@ -66,24 +142,27 @@ class InflatedMap:
             return np.empty(0, np.int64), np.empty(0, bool)
         if cells.min() < 0 or cells.max() >= self.shape[0] * self.shape[1]:
             raise IndexError("cell index outside the map")
-        # Last write wins: keep each cell's final value only.
-        rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
-        final = values[::-1][rev_idx]
         occ = self.occupancy.reshape(-1)
-        was = occ[rev_unique] == OCCUPIED
-        now = final == OCCUPIED
-        occ[rev_unique] = final
-        w = self.shape[1]
-        touched = []
-        for mask, sign in ((now & ~was, +1), (was & ~now, -1)):
-            sel = rev_unique[mask]
-            if sel.size:
-                touched.append(self._add_discs(sel // w, sel % w, sign))
-        if not touched:
+        if np.unique(cells).size != cells.size:  # last write wins: keep each cell's final value
+            rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
+            cells, values = rev_unique, values[::-1][rev_idx]
+        was = occ[cells] == OCCUPIED
+        now = values == OCCUPIED
+        occ[cells] = values
+        moved = was != now
+        if not moved.any():
             return np.empty(0, np.int64), np.empty(0, bool)
-        candidates = np.unique(np.concatenate(touched))
-        blocked_flat = self.blocked.reshape(-1)
-        new = self.cover.reshape(-1)[candidates] > 0
-        flipped = candidates[new != blocked_flat[candidates]]
-        blocked_flat[flipped] = ~blocked_flat[flipped]
-        return flipped, blocked_flat[flipped].copy()
+        stamp_cells = cells[moved]
+        signs = np.where(now[moved], 1, -1).astype(np.int32)
+        self._epoch += 1
+        if self._epoch >= 2**31 - 1:
+            self._seen[:] = 0
+            self._epoch = 1
+        # Every listed cell is distinct, so the map's size bounds the list.
+        touched = np.empty(min(stamp_cells.size * self._dr.size, self._seen.size), np.int64)
+        nf = _stamp(
+            self.cover.reshape(-1), self.blocked.reshape(-1), self._seen, self._epoch,
+            self.shape[1], stamp_cells, signs, self._dr, self._dc, touched,
+        )  # fmt: skip
+        flipped = np.sort(touched[:nf])
+        return flipped, self.blocked.reshape(-1)[flipped].copy()

@@ -16,14 +16,13 @@ Everything is built at the base 100 x 100 resolution and then resampled:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from daemon.planning.grid import CELL_M, FREE, OCCUPIED, UNKNOWN, Cell
-from daemon.planning.inflation import InflatedMap, radius_in_cells
+from daemon.planning.inflation import InflatedMap, dilate, radius_in_cells
 
 BASE = 100
 """Cells per side of the paper's courtyard at 10 cm."""
@@ -81,34 +80,6 @@ def base_courtyard() -> np.ndarray:
     for r0, r1, c0, c1 in (GARDEN, *BOXES):
         known[r0 : r1 + 1, c0 : c1 + 1] = OCCUPIED
     return known
-
-
-def dilate(occupied: np.ndarray, radius_cells: int) -> np.ndarray:
-    """Cells within ``radius_cells`` of an occupied cell: exactly ``InflatedMap.blocked``.
-
-    Row by row: the disc's row ``dr`` spans ``|dc| <= isqrt(r² - dr²)``, a window sum over
-    a cumulative row count. O(r·h·w) with no per-cell discs, so 2000 x 2000 stays cheap.
-    """
-    occ = np.asarray(occupied, dtype=bool)
-    h, w = occ.shape
-    r = int(radius_cells)
-    cs = np.zeros((h, w + 1), dtype=np.int32)
-    np.cumsum(occ, axis=1, out=cs[:, 1:])
-    cols = np.arange(w)
-    windows: dict[int, np.ndarray] = {}
-    out = np.zeros((h, w), dtype=bool)
-    for dr in range(-r, r + 1):
-        half = math.isqrt(r * r - dr * dr)
-        if half not in windows:
-            lo = np.clip(cols - half, 0, w)
-            hi = np.clip(cols + half + 1, 0, w)
-            windows[half] = (cs[:, hi] - cs[:, lo]) > 0
-        win = windows[half]
-        if dr >= 0:
-            out[: h - dr] |= win[dr:]
-        else:
-            out[-dr:] |= win[: h + dr]
-    return out
 
 
 @njit(cache=True)
