@@ -7,9 +7,10 @@ STAMP := $(VENV)/.installed
 .PHONY: demo test lint bench firmware system-deps clean venv
 
 # Debian packages the project runs against for real: espeak-ng (voice), the AVR
-# toolchain and simavr (the belt firmware on a simulated ATmega328P), systemd
+# toolchain and simavr (the belt firmware on a simulated ATmega328P; gcc builds
+# its harness against libsimavr), systemd
 # (systemd-analyze verify on the units). Installed only when one is missing.
-DEBIAN_PACKAGES := espeak-ng gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libelf-dev pkg-config systemd
+DEBIAN_PACKAGES := espeak-ng gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libelf-dev pkg-config gcc libc6-dev systemd
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 $(STAMP): pyproject.toml
@@ -33,6 +34,10 @@ demo: $(STAMP) system-deps
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
+
+# The belt firmware (ELF + HEX for the Nano) and its simavr harness, in build/belt/.
+firmware: system-deps
+	$(MAKE) -C drivers/belt/firmware BUILD=$(CURDIR)/build/belt
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
