@@ -1,9 +1,10 @@
 """The CUDA side of the cuda backend: sources, compilation, launches and host transfers.
 
-CUDA C lives in ``kernels/*.cu`` and is compiled once per process and option set (cupy also
-keeps the binaries in its on-disk cache). Everything here is thin: it sizes launches, moves
-bytes through pinned host buffers (so a transfer is one asynchronous copy on the stream and
-one synchronisation, with no pageable staging) and leaves the algorithms to the kernels.
+CUDA C lives in ``kernels/*.cu`` (and ``*.cuh``) and is compiled once per process and option
+set (cupy also keeps the binaries in its on-disk cache). Everything here is thin: it sizes
+launches, moves bytes through pinned host buffers (so a transfer is one asynchronous copy on
+the stream and one synchronisation, with no pageable staging) and leaves the algorithms to
+the kernels.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ one of its blocks resident, which a second concurrent launch could prevent."""
 def module(name: str, defines: tuple[str, ...] = ()) -> cp.RawModule:
     """``kernels/<name>.cu`` compiled with ``-D`` ``defines`` (cached for the process)."""
     code = (KERNELS / f"{name}.cu").read_text()
-    options = ("--std=c++17", *(f"-D{d}" for d in defines))
+    # NVRTC compiles a string: name the folder so `#include "tile_scans.cuh"` resolves.
+    options = ("--std=c++17", f"-I{KERNELS}", *(f"-D{d}" for d in defines))
     return cp.RawModule(code=code, options=options)
 
 

@@ -44,7 +44,14 @@ PAPER_THREADS = 256
 
 
 class CudaPlanner(Planner):
-    """EDS/DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``."""
+    """EDS/DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
+
+    ``fast`` options (BENCHMARKS.md, "Planning on the GPU", compares them): ``scans`` the
+    in-tile relaxation (0 Jacobi sweeps, 1 + row/column scans, 2 + diagonal scans: the
+    default, fastest for large DSS), ``min_blocks`` blocks per SM the kernel is compiled for
+    (1: 64 registers, no spills), ``path_mode`` (``PATH_MODES``). Calls are serialised on
+    the device (``cuda_kernels.DEVICE_LOCK``): the persistent kernel needs every block resident.
+    """
 
     def __init__(
         self,

@@ -94,7 +94,14 @@ __device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
         if (arrived == *target) {
             *release = arrived;
         } else {
-            while ((int)(*release - *target) < 0) __nanosleep(32);
+            // Blocks that are not all resident (another process's kernels under MPS, say)
+            // would wait here forever; after seconds, trap: a CUDA error the host's CPU
+            // fallback turns into a warning instead of a hung daemon.
+            unsigned spins = 0;
+            while ((int)(*release - *target) < 0) {
+                __nanosleep(32);
+                if (++spins == (1u << 26)) __trap();
+            }
         }
         __threadfence();
     }
