@@ -133,7 +133,11 @@ def run(args: argparse.Namespace) -> dict:
         "GUIDEBELT_STALE_POSE_S": "3600",
         "GUIDEBELT_LOG_LEVEL": "WARNING",
     }
-    daemon = subprocess.Popen([sys.executable, "-m", "daemon.cli.app", "run"], cwd=ROOT, env=env)
+    # --daemon-fifo N runs the daemon alone at SCHED_FIFO priority N, as the systemd unit does.
+    prefix = ["chrt", "-f", str(args.daemon_fifo)] if args.daemon_fifo else []
+    daemon = subprocess.Popen(
+        [*prefix, sys.executable, "-m", "daemon.cli.app", "run"], cwd=ROOT, env=env
+    )
     sub = subprocess.Popen(
         [sys.executable, __file__, "--role", "sub", "--port", str(port), "--tmp", str(tmp)],
         cwd=ROOT,
@@ -236,6 +240,7 @@ def main() -> None:
     ap.add_argument("--gap-ms", type=float, default=20.0)
     ap.add_argument("--blob", type=int, default=3, help="obstacle side in cells")
     ap.add_argument("--backend", default="cpu")
+    ap.add_argument("--daemon-fifo", type=int, default=0, help="SCHED_FIFO priority, daemon only")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default="", help="also write the result here")
     args = ap.parse_args()
