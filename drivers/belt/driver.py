@@ -1,0 +1,326 @@
+"""The belt driver: belt patterns from zenoh to the Nano over serial, health back to zenoh.
+
+``BeltLink`` owns the serial port. pyserial opens and configures it (115200 8N1, raw,
+exclusive lock) and leaves the descriptor non-blocking; the asyncio loop then watches the
+descriptor itself (``add_reader``) and writes frames with ``os.write``, so nothing ever
+blocks the loop and a vanished port shows up at once as EIO. When the port goes away the
+link retries with exponential backoff (50 ms doubling to 250 ms), and on reconnecting it
+re-sends the current pattern, so the belt resumes within a second of the port's return.
+
+The current pattern is re-sent every 100 ms until its TTL runs out (the firmware turns
+every motor off after 500 ms without a valid frame); when there is nothing to show, a PING
+keeps the link checked and measured. ``BeltService`` wires the link to zenoh: patterns in,
+``BeltHealth`` out, and STOP as soon as the daemon's liveliness token disappears.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import statistics
+import time
+from collections import deque
+
+import serial
+
+from drivers.belt import frames as F
+
+log = logging.getLogger("guidebelt.belt")
+
+KEEPALIVE_S = 0.1
+BACKOFF_MIN_S = 0.05
+BACKOFF_MAX_S = 0.25
+SILENCE_S = 1.0  # no byte from the belt for this long: the link is dead, reopen it
+# Opening a Nano's port pulses DTR, which resets it into its bootloader for about a second
+# before the firmware's first heartbeat; reopening sooner would reset it again, for ever.
+BOOT_GRACE_S = 3.0
+
+
+class BeltLink:
+    """One serial link to the belt firmware, reconnecting for ever until ``close()``."""
+
+    def __init__(self, port: str, baudrate: int = 115200) -> None:
+        self.port = port
+        self.baudrate = baudrate
+        self.connected = asyncio.Event()
+        self.pattern: F.Pattern | None = None
+        self.expires = 0.0  # monotonic time the current pattern's TTL runs out
+        self.parser = F.Parser()
+        self.heartbeat: F.Heartbeat | None = None
+        self.heartbeat_at: float | None = None
+        self.frames_sent = self.acks = self.refused = self.dropped = self.reconnects = 0
+        self.rtts: deque[float] = deque(maxlen=32)
+        self._sent_at: dict[int, float] = {}
+        self._seq = 0
+        self._serial: serial.Serial | None = None
+        self._fd = -1
+        self._lost: asyncio.Event | None = None
+        self._last_rx = 0.0
+        self._heard = False  # any byte since the port was opened
+        self._was_connected = False
+        self._closing = False
+
+    # ---- commands (call on the loop's thread) ----
+
+    def show(self, pattern: F.Pattern) -> None:
+        """Show ``pattern`` now and keep it alive until its TTL runs out."""
+        self.pattern = pattern
+        self.expires = time.monotonic() + pattern.ttl_ms / 1000
+        self._send_current()
+
+    def stop(self) -> None:
+        """Every motor off now, and nothing more until the next pattern."""
+        self.pattern = None
+        self._write(F.stop_frame(self._next_seq()))
+
+    def close(self) -> None:
+        self._closing = True
+        if self._lost is not None:
+            self._lost.set()
+
+    # ---- the connection loop ----
+
+    async def run(self) -> None:
+        backoff = BACKOFF_MIN_S
+        while not self._closing:
+            try:
+                ser = serial.Serial(self.port, self.baudrate, timeout=0, exclusive=True)
+            except (serial.SerialException, OSError, ValueError) as exc:
+                log.debug("belt port %s not available: %s", self.port, exc)
+                await asyncio.sleep(backoff)
+                backoff = min(backoff * 2, BACKOFF_MAX_S)
+                continue
+            backoff = BACKOFF_MIN_S
+            await self._serve(ser)
+
+    async def _serve(self, ser: serial.Serial) -> None:
+        loop = asyncio.get_running_loop()
+        try:
+            ser.reset_input_buffer()  # heartbeats queued while nobody listened are stale
+        except (OSError, serial.SerialException):
+            ser.close()  # gone again already: the caller retries
+            return
+        self.reconnects += self._was_connected
+        self._was_connected = True
+        self._serial, self._lost = ser, asyncio.Event()
+        if self._closing:
+            self._lost.set()
+        self.parser.buf.clear()
+        self._last_rx, self._heard = time.monotonic(), False
+        fd = self._fd = ser.fileno()
+        loop.add_reader(fd, self._on_readable)
+        self.connected.set()
+        log.info("belt connected on %s", self.port)
+        keepalive = asyncio.create_task(self._keepalive())
+        try:
+            self._send_current()
+            await self._lost.wait()
+        finally:
+            keepalive.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await keepalive
+            loop.remove_reader(fd)
+            self.connected.clear()
+            self._serial = None
+            self._sent_at.clear()
+            with contextlib.suppress(OSError, serial.SerialException):
+                ser.close()
+            (log.info if self._closing else log.warning)("belt disconnected from %s", self.port)
+
+    async def _keepalive(self) -> None:
+        while True:
+            await asyncio.sleep(KEEPALIVE_S)
+            limit = SILENCE_S if self._heard else BOOT_GRACE_S
+            if time.monotonic() - self._last_rx > limit:
+                log.warning("belt silent for %.1f s: reopening %s", limit, self.port)
+                self._drop_link()
+                return
+            self._send_current()
+
+    def _send_current(self) -> None:
+        if self._serial is None:
+            return
+        remaining_ms = int((self.expires - time.monotonic()) * 1000)
+        if self.pattern is not None and remaining_ms >= F.TTL_MIN_MS:
+            # The remaining TTL, so every repeat ends the pattern at the same moment.
+            p = self.pattern
+            self._write(F.pattern_frame(self._next_seq(), F.Pattern(p.motors, p.period_ms,
+                                                                    remaining_ms)))  # fmt: skip
+        else:
+            self._write(F.ping_frame(self._next_seq()))
+
+    def _next_seq(self) -> int:
+        self._seq = (self._seq + 1) & 0xFFFF
+        return self._seq
+
+    def _write(self, frame: bytes) -> None:
+        if self._serial is None:
+            self.dropped += 1
+            return
+        try:
+            n = os.write(self._serial.fileno(), frame)
+        except BlockingIOError:
+            n = 0
+        except OSError:
+            self.dropped += 1
+            self._drop_link()
+            return
+        if n != len(frame):  # a partial frame is finished off by the belt's byte timeout
+            self.dropped += 1
+            return
+        self.frames_sent += 1
+        self._sent_at[frame[4] | frame[5] << 8] = time.monotonic()
+        if len(self._sent_at) > 256:  # acks that never came
+            self._sent_at.pop(next(iter(self._sent_at)))
+
+    def _drop_link(self) -> None:
+        if self._lost is not None:
+            self._lost.set()
+
+    def _on_readable(self) -> None:
+        try:
+            data = os.read(self._serial.fileno(), 4096) if self._serial else b""
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:  # EIO or end of file: the port is gone
+            asyncio.get_running_loop().remove_reader(self._fd)
+            self._drop_link()
+            return
+        now = time.monotonic()
+        self._last_rx, self._heard = now, True
+        for frame in self.parser.feed(data):
+            msg = frame.decode()
+            if isinstance(msg, F.Ack):
+                self.acks += 1
+                self.refused += msg.result != F.ACK_APPLIED
+                sent = self._sent_at.pop(msg.seq, None)
+                if sent is not None:
+                    self.rtts.append(now - sent)
+            elif isinstance(msg, F.Heartbeat):
+                self.heartbeat, self.heartbeat_at = msg, now
+            else:
+                self.parser.malformed += 1
+
+    def health(self) -> dict[str, object]:
+        """The fields of ``protocol.messages.BeltHealth`` (without the stamp)."""
+        hb = self.heartbeat
+        c = hb.counters if hb else F.Counters()
+        p = self.parser
+        connected = self.connected.is_set()
+        return {
+            "port": self.port,
+            "connected": connected,
+            "belt_state": hb.state.name.lower() if hb and connected else "unknown",
+            "frames_sent": self.frames_sent,
+            "acks": self.acks,
+            "refused": self.refused,
+            "dropped": self.dropped,
+            "reconnects": self.reconnects,
+            "rx_errors": p.crc_errors + p.oversized + p.truncated + p.malformed,
+            "belt_crc_errors": c.crc_errors,
+            "belt_oversized": c.oversized,
+            "belt_truncated": c.truncated,
+            "belt_malformed": c.malformed,
+            "watchdog_trips": hb.watchdog_trips if hb else 0,
+            "latency_ms": statistics.median(self.rtts) * 1000 if self.rtts else None,
+            "heartbeat_age_s": time.monotonic() - self.heartbeat_at if self.heartbeat_at else None,
+        }
+
+
+class BeltService:
+    """Zenoh side of the driver: one user's patterns in, the link's health out."""
+
+    def __init__(self, session, user: str, link: BeltLink, health_period_s: float = 0.5) -> None:
+        self.session = session
+        self.user = user
+        self.link = link
+        self.health_period_s = health_period_s
+        self.rejected = 0
+        self.daemons_alive = 0
+
+    async def run(self) -> None:
+        import zenoh
+
+        from protocol import keys
+
+        loop = asyncio.get_running_loop()
+
+        def on_pattern(sample: zenoh.Sample) -> None:  # zenoh's thread: hand over, never block
+            loop.call_soon_threadsafe(self._on_pattern, sample.payload.to_bytes())
+
+        def on_alive(sample: zenoh.Sample) -> None:
+            loop.call_soon_threadsafe(self._on_alive, sample.kind == zenoh.SampleKind.PUT)
+
+        sub = self.session.declare_subscriber(keys.belt(self.user), on_pattern)
+        alive = self.session.liveliness().declare_subscriber(keys.ALIVE, on_alive, history=True)
+        pub = self.session.declare_publisher(keys.belt_health(self.user))
+        link_task = asyncio.create_task(self.link.run())
+        try:
+            while not link_task.done():
+                pub.put(self.health().model_dump_json())
+                await asyncio.sleep(self.health_period_s)
+            link_task.result()  # surface a crash of the link loop
+        finally:
+            self.link.close()
+            link_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await link_task
+            for entity in (sub, alive, pub):
+                entity.undeclare()
+
+    def health(self):
+        from protocol.messages import BeltHealth
+
+        return BeltHealth(**self.link.health(), stamp=time.time())
+
+    def _on_pattern(self, raw: bytes) -> None:
+        from protocol.codec import DecodeError, decode
+        from protocol.messages import BeltPattern
+
+        try:
+            msg = decode(BeltPattern, raw)
+        except DecodeError as exc:
+            self.rejected += 1
+            log.warning("belt pattern rejected: %s", exc)
+            return
+        # The firmware pulses no faster than 20 ms; a shorter period is a fast pulse.
+        period = msg.period_ms if msg.period_ms == 0 else max(msg.period_ms, F.PERIOD_MIN_MS)
+        self.link.show(F.Pattern(tuple(msg.motors), period, msg.ttl_ms))
+
+    def _on_alive(self, alive: bool) -> None:
+        was_alive = self.daemons_alive > 0
+        self.daemons_alive = max(0, self.daemons_alive + (1 if alive else -1))
+        if was_alive and self.daemons_alive == 0:
+            log.warning("daemon liveliness lost: STOP")
+            self.link.stop()
+
+
+def zenoh_config_json5(connect: list[str], listen: list[str], multicast: bool) -> str:
+    from daemon.service.config import ZenohSettings
+
+    return ZenohSettings(connect=connect, listen=listen, multicast_scouting=multicast).to_json5()
+
+
+async def serve(port: str, user: str, config_json5: str, stop: asyncio.Event) -> None:
+    """Run the driver until ``stop`` is set (the ``guidebelt belt`` command)."""
+    import zenoh
+
+    session = zenoh.open(zenoh.Config.from_json5(config_json5))
+    try:
+        service = BeltService(session, user, BeltLink(port))
+        task = asyncio.create_task(service.run())
+        stopper = asyncio.create_task(stop.wait())
+        await asyncio.wait({task, stopper}, return_when=asyncio.FIRST_COMPLETED)
+        stopper.cancel()
+        if not task.done():
+            service.link.stop()  # leave the belt quiet, not guiding on a dead driver
+            await asyncio.sleep(0.02)
+            task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+    finally:
+        session.close()
