@@ -2,16 +2,18 @@
 # The GPU machine's whole check in one device call (BENCHMARKS.md, "Planning on the GPU"):
 #   1. pytest -m gpu over tests/gpu and tests/planning (the cuda-fast and cuda-paper cases);
 #   2. guidebelt bench --backend cuda, then --backend cpu: 100/200/400 x 20/40/60 % unknown;
-#   3. scripts/time_cuda_planner.py: 1000 and 2000 at 40 % (recorded walks replayed on cuda and
-#      cpu; guidebelt bench's own walk inflates too slowly there), variants at 400 (in-tile
-#      Jacobi sweeps instead of scans, the one-warp path walk, the paper's form), and DSS-only
-#      at 400, 2000 and 4000;
-#   4. a short table, last (scripts/gpu_table.py).
+#   3. guidebelt bench, cuda then cpu, 1000 and 2000 at 40 %, each walk capped at $BIG_STEPS
+#      steps (the CPU's DSS at 2000 x 2000 takes ~50 ms a step; rows say "capped");
+#   4. scripts/time_cuda_planner.py: variants at 400 on the recorded walk (in-tile Jacobi
+#      sweeps instead of scans, the one-warp path walk, the paper's form, each also through
+#      update_and_path), and DSS-only at 400, 2000 and 4000;
+#   5. a short table, last (scripts/gpu_table.py).
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
 # Logs and JSON go to $OUT (default out/gpu_check). Exit status 1 if any step failed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/gpu_check}
+BIG_STEPS=${BIG_STEPS:-300}
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 # typer and rich for the CLI: the image has them; else the wheels carried in .whl/.
@@ -35,14 +37,17 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
     date -u +%Y-%m-%dT%H:%MZ
     git rev-parse --short HEAD 2>/dev/null || echo "commit unknown"
 } >"$OUT/device.txt"
-step pytest 180 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
-    --timeout 170
-step bench_cuda 110 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
+step pytest 90 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
+    --timeout 55
+step bench_cuda 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cuda --json "$OUT/bench_cuda.json"
-step bench_cpu 110 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
+step bench_cpu 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cpu --json "$OUT/bench_cpu.json"
-step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:0:1,fast:2:1:walk,paper,cpu \
-    --grid 400 --unknown 0.4 --big 1000,2000 --big-steps 40 --dss 400,2000,4000 \
-    --json "$OUT/replay.json"
+step bench_big_cuda 70 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
+    --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cuda.json"
+step bench_big_cpu 100 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
+    --backend cpu --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cpu.json"
+step replay 130 python3 scripts/time_cuda_planner.py --variants fast,fast:0:1,fast:2:1:walk,paper,cpu \
+    --grid 400 --unknown 0.4 --dss 400,2000,4000 --json "$OUT/replay.json"
 python3 scripts/gpu_table.py "$OUT"
 exit "$fail"

@@ -23,6 +23,7 @@ inside the sensor's view (3 m, 80°), for ``--big-steps`` steps along the path.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -104,6 +105,16 @@ def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:
         step_ms.append((t2 - t0) * 1e3)
         repair_ms.append((t1 - t0) * 1e3)
         iters.append(st.iterations)
+    # The same steps through update_and_path: repair, path and read-back with one sync.
+    fused, fused_ms = make(spec), []
+    fused.plan(blocked, goal)
+    for cells, values, start in rec.steps:
+        t0 = time.perf_counter()
+        if start is None:
+            (fused.update if mode == "eds" else fused.replan)(cells, values)
+        else:
+            fused.update_and_path(cells, values, start, full=mode == "dss")
+        fused_ms.append((time.perf_counter() - t0) * 1e3)
     return {
         "variant": spec, "mode": mode, "steps": len(step_ms),
         "step_ms_median": float(np.median(step_ms)),
@@ -111,7 +122,10 @@ def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:
         "repair_ms_median": float(np.median(repair_ms)),
         "path_ms_median": float(np.median(np.subtract(step_ms, repair_ms))),
         "iter_median": float(np.median(iters)),
-        "exact": bool(np.array_equal(planner.costs(), truth)),
+        "fused_ms_median": float(np.median(fused_ms)),
+        "fused_ms_p90": float(np.percentile(fused_ms, 90)),
+        "exact": bool(np.array_equal(planner.costs(), truth))
+        and bool(np.array_equal(fused.costs(), truth)),
     }  # fmt: skip
 
 
@@ -144,11 +158,18 @@ def record_light(grid: int, unknown: float, steps: int) -> tuple[Recorder, np.nd
     return rec, rec.inner.costs()
 
 
-def time_dss(spec: str, size: int, repeats: int) -> dict:
+@functools.cache
+def dss_case(size: int) -> tuple:
+    """The courtyard, its inflated true map and the CPU's plan on it (built once per size)."""
     sc = make_courtyard(size, 0.4, seed=0)
     blocked = dilate(sc.true == OCCUPIED, sc.radius_cells)  # == InflatedMap(...).blocked, faster
     cpu = make_planner("cpu", "fast")
     cpu.plan(blocked, sc.goal)
+    return sc, blocked, cpu
+
+
+def time_dss(spec: str, size: int, repeats: int) -> dict:
+    sc, blocked, cpu = dss_case(size)
     planner = make(spec)
     t0 = time.perf_counter()
     planner.plan(blocked, sc.goal)  # includes sending the whole map to the device
@@ -161,12 +182,19 @@ def time_dss(spec: str, size: int, repeats: int) -> dict:
         path = planner.path(sc.start)
         times.append((time.perf_counter() - t0) * 1e3)
         plan_ms.append(st.ms)
+    fused_ms = []
+    for _ in range(repeats):  # the same through update_and_path (one synchronisation)
+        t0 = time.perf_counter()
+        _, fused_path = planner.update_and_path(none, np.empty(0, bool), sc.start, full=True)
+        fused_ms.append((time.perf_counter() - t0) * 1e3)
     return {
         "variant": spec, "grid": size, "unknown": 0.4, "mode": "dss-only", "steps": repeats,
         "step_ms_median": float(np.median(times)), "repair_ms_median": float(np.median(plan_ms)),
         "iter_median": float(st.iterations), "path_len": len(path), "plan_with_upload_ms": first_ms,
+        "fused_ms_median": float(np.median(fused_ms)),
         "exact": bool(np.array_equal(planner.costs(), cpu.costs()))
-        and bool(np.array_equal(path, cpu.path(sc.start))),
+        and bool(np.array_equal(path, cpu.path(sc.start)))
+        and bool(np.array_equal(fused_path, path)),
         "device_MB": planner.device_bytes() / 1e6 if hasattr(planner, "device_bytes") else 0.0,
     }  # fmt: skip
 
@@ -215,11 +243,12 @@ def main() -> None:
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     print(f"\n{'variant':9} {'grid':>5} {'unk':>4} {'mode':8} {'steps':>5} {'step ms':>8} "
-          f"{'repair':>8} {'path':>7} {'p90':>7} {'iter':>6} exact")  # fmt: skip
+          f"{'repair':>8} {'path':>7} {'p90':>7} {'fused':>7} {'iter':>6} exact")  # fmt: skip
     for r in rows:
         print(f"{r['variant']:9} {r['grid']:5} {r['unknown']:4} {r['mode']:8} {r['steps']:5} "
               f"{r['step_ms_median']:8.3f} {r['repair_ms_median']:8.3f} "
               f"{r.get('path_ms_median', 0):7.3f} {r.get('step_ms_p90', 0):7.3f} "
+              f"{r.get('fused_ms_median', 0):7.3f} "
               f"{r['iter_median']:6.0f} {r['exact']}")  # fmt: skip
 
 

@@ -31,6 +31,9 @@ def bench(
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     repeats: Annotated[int, typer.Option(min=1, help="Walks per table cell, times pooled.")] = 1,
     fov: Annotated[float, typer.Option(help="Sensor field of view, degrees.")] = 80.0,
+    max_steps: Annotated[
+        int | None, typer.Option(min=1, help="Stop each walk after N steps (rows say capped).")
+    ] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Save a Figure 9-like plot.")] = None,
 ) -> None:
@@ -54,6 +57,7 @@ def bench(
         seed=seed,
         repeats=repeats,
         fov_deg=fov,
+        max_steps=max_steps,
     )
     console = Console()
     columns = (

@@ -24,6 +24,8 @@ THREADS = 1024
 # ctrl slots of fast.cu read back after each call: C_BAR (the barrier count the next launch
 # starts from) and the statistics C_ROUNDS .. C_CHANGED.
 CTRL_READ = 13
+IO_PATH = 64
+"""fast.cu's 64 ctrl words, then the path: where the path starts in the planner's I/O buffer."""
 C_BAR, C_ROUNDS, C_TILES, C_SWEEPS, C_RAISED, C_CHANGED = 0, 8, 9, 10, 11, 12
 
 DEVICE_LOCK = threading.Lock()

@@ -75,10 +75,10 @@ class CudaPlanner(Planner):
         self._fault: BaseException | None = None
         self.last_stats: UpdateStats | None = None
         self._defines = (f"SCANS={int(scans)}", f"MIN_BLOCKS={int(min_blocks)}")
-        self._stats = ck.Pinned(16, np.uint32)
+        # The host mirror of ``_io``: fast.cu's ctrl words, then the path (see _allocate).
+        self._io_host = ck.Pinned(ck.IO_PATH + 2 + 1024, np.int32)
         self._delta_host = ck.Pinned(1024, np.int32)
         self._delta = cp.zeros(1024, dtype=np.int32)
-        self._path_host = ck.Pinned(2 + 1024, np.int32)
         self._path_guess = 256
         self._slot = 0  # paper: which flag_stop slot the next launch writes
         self.sweeps = 0
@@ -108,8 +108,13 @@ class CudaPlanner(Planner):
         self._blocked_d = cp.zeros(n, dtype=np.uint8)
         self._g = cp.full(n, INF, dtype=np.int32)
         self._path_cap = int(min(n, 4 * (h + w) + 1024))
-        self._path_d = cp.zeros(2 + self._path_cap, dtype=np.int32)
-        self._path_host.reserve(2 + self._path_cap)
+        # One device buffer holds fast.cu's ctrl words (barrier count, statistics) and then the
+        # path, so a replanning step reads both back with one copy and one synchronisation.
+        self._io = cp.zeros(ck.IO_PATH + 2 + self._path_cap, dtype=np.int32)
+        self._ctrl = self._io[: ck.IO_PATH].view(np.uint32)
+        self._path_d = self._io[ck.IO_PATH :]
+        self._io_host.reserve(ck.IO_PATH + 2 + self._path_cap)
+        self._io_host.array[: ck.IO_PATH] = 0  # a fresh barrier count
         tiles = -(-h // ck.TILE) * -(-w // ck.TILE)
         self._tiles = tiles
         if self.path_mode == "tiles":
@@ -123,8 +128,6 @@ class CudaPlanner(Planner):
         if self.variant == "fast":
             self._raised = cp.zeros(n, dtype=np.uint8)
             self._flags = cp.zeros(3 * tiles, dtype=np.uint32)
-            self._ctrl = cp.zeros(64, dtype=np.uint32)
-            self._stats.array[:] = 0  # a fresh barrier count
             k = self._k_fast()
             self._blocks = int(min(tiles, ck.resident_blocks(k), self.max_blocks or tiles))
         else:
@@ -200,21 +203,60 @@ class CudaPlanner(Planner):
         self.last_stats = stats
         return stats
 
+    def update_and_path(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell, *, full: bool = False
+    ) -> tuple[UpdateStats, np.ndarray]:
+        """The repair launch, the path launch and one copy back of statistics and path, queued
+        back to back with a single synchronisation (``fast``; ``paper`` syncs per iteration
+        anyway and takes the interface's default)."""
+        if self.variant != "fast":
+            stats, path = super().update_and_path(cells, blocked, start, full=full)
+            self.last_stats = stats  # the whole step's, as for fast
+            return stats, path
+        t0 = time.perf_counter()
+        self._check_fault()
+        self._require_plan()
+        start = (int(start[0]), int(start[1]))
+        with ck.DEVICE_LOCK:
+            n = self._upload_delta(cells, blocked)
+            self._launch_fast(eds=not full, n_delta=n)
+            if in_bounds(self._shape, start):
+                path = self._path_locked(start, with_ctrl=True)
+            else:
+                self._io_host.from_device(self._io, ck.CTRL_READ)
+                ck.synchronize()
+                path = np.empty((0, 2), dtype=np.int32)
+            iterations, touched = self._read_fast_stats()
+        stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
+        self.last_stats = stats
+        return stats, path
+
+    def _ctrl_host(self) -> np.ndarray:
+        """The host copy of the ctrl words read back after the last fast launch."""
+        return self._io_host.array[: ck.CTRL_READ].view(np.uint32)
+
     def _run_fast(self, eds: bool, n_delta: int) -> tuple[int, int]:
+        self._launch_fast(eds, n_delta)
+        self._io_host.from_device(self._io, ck.CTRL_READ)
+        ck.synchronize()
+        return self._read_fast_stats()
+
+    def _read_fast_stats(self) -> tuple[int, int]:
+        st = self._ctrl_host()
+        self.sweeps, self.raised_cells = int(st[ck.C_SWEEPS]), int(st[ck.C_RAISED])
+        self.tiles = int(st[ck.C_TILES])
+        return int(st[ck.C_ROUNDS]), self.raised_cells + int(st[ck.C_CHANGED])
+
+    def _launch_fast(self, eds: bool, n_delta: int) -> None:
         h, w = self._shape
         goal = self._goal[0] * w + self._goal[1]
-        st = self._stats.array
+        st = self._ctrl_host()  # C_BAR: the barrier count the previous launch ended with
         self._k_fast()(
             (self._blocks,), (ck.THREADS,),
             (self._g, self._blocked_d, self._raised, self._delta, np.int32(n_delta), self._flags,
              self._ctrl, np.int32(h), np.int32(w), np.int32(goal), np.int32(1 if eds else 0),
              np.uint32(st[ck.C_BAR])),
         )  # fmt: skip
-        self._stats.from_device(self._ctrl, ck.CTRL_READ)
-        ck.synchronize()
-        self.sweeps, self.raised_cells = int(st[ck.C_SWEEPS]), int(st[ck.C_RAISED])
-        self.tiles = int(st[ck.C_TILES])
-        return int(st[ck.C_ROUNDS]), self.raised_cells + int(st[ck.C_CHANGED])
 
     # -- the paper's form ----------------------------------------------------------------------
 
@@ -305,26 +347,35 @@ class CudaPlanner(Planner):
         start = (int(start[0]), int(start[1]))
         if self._shape == (0, 0) or not in_bounds(self._shape, start):
             return np.empty((0, 2), dtype=np.int32)
+        with ck.DEVICE_LOCK:
+            return self._path_locked(start, with_ctrl=False)
+
+    def _path_locked(self, start: Cell, with_ctrl: bool) -> np.ndarray:
+        """Launch the path kernel(s) from ``start`` and read the cells back (lock held).
+
+        ``with_ctrl``: the first copy also brings the ctrl words of the fast launch queued
+        before it (one copy, one synchronisation for a whole replanning step)."""
         w = self._shape[1]
-        host = self._path_host
+        host, at = self._io_host, ck.IO_PATH
         chunks: list[np.ndarray] = []
         cur = start[0] * w + start[1]
-        with ck.DEVICE_LOCK:
-            while True:
-                self._launch_path(cur)
-                guess = min(self._path_guess, self._path_cap)
-                host.from_device(self._path_d, 2 + guess)
+        first = 0 if with_ctrl else at  # where the first copy starts in _io
+        while True:
+            self._launch_path(cur)
+            guess = min(self._path_guess, self._path_cap)
+            host.from_device(self._io, at + 2 + guess - first, offset=first)
+            ck.synchronize()
+            first = at
+            count, status = int(host.array[at]), int(host.array[at + 1])
+            if count > guess:
+                host.from_device(self._io, count - guess, offset=at + 2 + guess)
                 ck.synchronize()
-                count, status = int(host.array[0]), int(host.array[1])
-                if count > guess:
-                    host.from_device(self._path_d, count - guess, offset=2 + guess)
-                    ck.synchronize()
-                self._path_guess = max(256, 2 * count)
-                cells = host.array[2 : 2 + count].astype(np.int64)
-                chunks.append(cells if not chunks else cells[1:])
-                if status != 1:
-                    break
-                cur = int(cells[-1])
+            self._path_guess = max(256, 2 * count)
+            cells = host.array[at + 2 : at + 2 + count].astype(np.int64)
+            chunks.append(cells if not chunks else cells[1:])
+            if status != 1:
+                break
+            cur = int(cells[-1])
         if status == 2:
             return np.empty((0, 2), dtype=np.int32)
         if status == 3:
@@ -356,5 +407,5 @@ class CudaPlanner(Planner):
 
     def device_bytes(self) -> int:
         """Bytes of device memory this planner's state holds."""
-        arrays = [v for v in vars(self).values() if isinstance(v, cp.ndarray)]
+        arrays = [v for v in vars(self).values() if isinstance(v, cp.ndarray) and v.base is None]
         return int(sum(a.nbytes for a in arrays))

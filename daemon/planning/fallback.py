@@ -90,13 +90,13 @@ class FallbackPlanner(Planner):
             cpu.plan(self._blocked, self._goal)
         self._active = cpu
 
-    def _call(self, method: str, *args: object) -> Any:
+    def _call(self, method: str, *args: object, **kwargs: object) -> Any:
         if self._active is self.primary:
             try:
-                return getattr(self.primary, method)(*args)
+                return getattr(self.primary, method)(*args, **kwargs)
             except self._errors as exc:
                 self._switch(exc)
-        return getattr(self._active, method)(*args)
+        return getattr(self._active, method)(*args, **kwargs)
 
     # -- changes: mirrored on the host after they succeed ------------------------------------
 
@@ -115,6 +115,15 @@ class FallbackPlanner(Planner):
         stats = self._call("replan", cells, blocked)
         self._mirror(cells, blocked)
         return stats
+
+    def update_and_path(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell, *, full: bool = False
+    ) -> tuple[UpdateStats, np.ndarray]:
+        # A failure part-way (the repair done on the device, the path not) replays the whole
+        # step on the CPU, which is built from the mirror as it was before the step.
+        result = self._call("update_and_path", cells, blocked, start, full=full)
+        self._mirror(cells, blocked)
+        return result
 
     def _mirror(self, cells: np.ndarray, blocked: np.ndarray) -> None:
         if self._blocked is None:

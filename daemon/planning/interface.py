@@ -14,6 +14,7 @@ walks the same cells.
 
 from __future__ import annotations
 
+import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -66,6 +67,20 @@ class Planner(ABC):
     @abstractmethod
     def path(self, start: Cell) -> np.ndarray:
         """Cells from ``start`` to the goal, ``(k, 2) int32``; empty (0, 2) if none."""
+
+    def update_and_path(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell, *, full: bool = False
+    ) -> tuple[UpdateStats, np.ndarray]:
+        """One replanning step: ``replan`` (``full``, DSS) or ``update`` (EDS), then ``path``.
+
+        The returned statistics' ``ms`` covers both calls. Device backends override this to
+        queue the repair, the path and the read-back of both with one synchronisation.
+        """
+        t0 = time.perf_counter()
+        stats = self.replan(cells, blocked) if full else self.update(cells, blocked)
+        path = self.path(start)
+        ms = (time.perf_counter() - t0) * 1e3
+        return UpdateStats(stats.iterations, stats.cells_touched, ms), path
 
     @property
     @abstractmethod

@@ -2,7 +2,8 @@
 
 The loop thread only fills an ``Inbox``; ``UserSession.step`` takes a whole inbox at once,
 so the latest pose wins and every delta that arrived since the last step is applied in
-one ``InflatedMap.apply`` and one EDS update. Nothing here knows about zenoh or asyncio:
+one ``InflatedMap.apply`` and one EDS update, made with the step's path read in one
+``update_and_path`` call (one GPU round trip). Nothing here knows about zenoh or asyncio:
 ``step`` returns the messages to publish.
 """
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -77,6 +79,8 @@ class UserSession:
         self.pose: Pose | None = None
         self.pose_cell: tuple[int, int] | None = None
         self._last_path_flat = np.empty(0, np.int64)
+        self._pending: tuple[np.ndarray, np.ndarray] | None = None
+        """Changes not yet given to the planner: the step's path read takes them along."""
 
         self.state = NavState.IDLE
         self.rejected = 0
@@ -117,6 +121,7 @@ class UserSession:
             self._take_pose(self.pose, now, out)  # the pose came before the map
         if self.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             self._guide(now, out)
+        self._flush_pending()  # no path read this step
         self.steps += 1
         self.last_step_ms = (time.perf_counter() - t0) * 1e3
         return out
@@ -186,7 +191,21 @@ class UserSession:
             return
         if self.map.blocked.reshape(-1)[self._last_path_flat].any():
             self.replans += 1  # a newly seen obstacle cut the path the user was following
-        self._planner_do(lambda p: p.update(flipped, blocked_now))
+        self._flush_pending()  # a second batch in one step (rare): hand over the first
+        self._pending = (flipped, blocked_now)
+
+    def _flush_pending(self) -> None:
+        pending, self._pending = self._pending, None
+        if pending is not None and self._planned:  # unplanned: the next plan includes it
+            self._planner_do(lambda p: p.update(*pending))
+
+    def _path(self, cell: tuple[int, int]) -> np.ndarray:
+        """The path from ``cell``, with the pending changes in the same planner call."""
+        pending, self._pending = self._pending, None
+        if pending is None:
+            return self.planner.path(cell)
+        result = self._planner_do(lambda p: p.update_and_path(*pending, cell))
+        return result[1] if result is not None else self.planner.path(cell)
 
     def _apply_snapshot(self, snap: MapSnapshot, now: float, out: StepOutput) -> None:
         self.map = InflatedMap(snap.array(), self.radius_cells)
@@ -264,6 +283,7 @@ class UserSession:
             blocked = self.map.blocked
             self._planner_do(lambda p: p.plan(blocked, self.goal_cell))
             self._planned = True
+            self._pending = None  # in the plan
         path, cost = self._path_from(self.pose_cell)
         self._last_path_flat = path[:, 0].astype(np.int64) * self.map.shape[1] + path[:, 1]
         if len(path) == 0:
@@ -302,13 +322,14 @@ class UserSession:
         path first leads straight out to the nearby free cell that is cheapest overall."""
         assert self.map is not None
         if not self.map.blocked[cell]:
-            path = self.planner.path(cell)
+            path = self._path(cell)
             return path, (int(self.planner.cost_at(cell)) if len(path) else int(INF))
         h, w = self.map.shape
         reach = self.radius_cells + 2
         r0, c0 = cell
         rs, re = max(0, r0 - reach), min(h, r0 + reach + 1)
         cs, ce = max(0, c0 - reach), min(w, c0 + reach + 1)
+        self._flush_pending()
         g = self.planner.costs()[rs:re, cs:ce].astype(np.int64)
         dr = np.abs(np.arange(rs, re) - r0)[:, None]
         dc = np.abs(np.arange(cs, ce) - c0)[None, :]
@@ -326,10 +347,11 @@ class UserSession:
         ).astype(np.int32)
         return np.vstack([lead, self.planner.path(exit_cell)]), int(total.flat[k])
 
-    def _planner_do(self, call: Callable[[Planner], object]) -> None:
-        """Run a planner call; a GPU failure falls back to the CPU for this session."""
+    def _planner_do(self, call: Callable[[Planner], Any]) -> Any:
+        """Run a planner call; a GPU failure falls back to the CPU for this session (the
+        call's result, or None after a fallback: the fresh CPU plan includes its change)."""
         try:
-            call(self.planner)
+            return call(self.planner)
         except Exception:
             if self.planner.name == "cpu" or self.config.backend in ("cpu", "reference"):
                 raise

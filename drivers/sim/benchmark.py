@@ -40,6 +40,8 @@ class BenchConfig:
     seed: int = 0
     repeats: int = 1
     fov_deg: float = 80.0
+    max_steps: int | None = None
+    """Stop each walk after this many steps (big grids within a time limit); rows say so."""
 
     def total_walks(self) -> int:
         return len(self.grids) * len(self.unknowns) * len(self.modes) * self.repeats
@@ -105,7 +107,8 @@ def run_bench(
                     if on_start is not None:
                         on_start(label)
                     runs.append(walk(scenario, backend=backend, variant=config.variant,
-                                     mode=mode, fov_deg=config.fov_deg))
+                                     mode=mode, fov_deg=config.fov_deg,
+                                     max_steps=config.max_steps))
                     if on_walk is not None:
                         on_walk(label)
                 first = runs[0]
@@ -124,6 +127,8 @@ def run_bench(
                     "planner": first.planner,
                     "steps": first.steps,
                     "arrived": first.arrived,
+                    "capped": config.max_steps is not None and first.reason == "step limit",
+                    "max_steps": config.max_steps,
                     "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
                     "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
                     "ms_median": float(np.median(step_ms)),
@@ -166,6 +171,8 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
                 cells2 += ["-", "-", "-"]
                 continue
             steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
+            if r.get("capped"):
+                steps = f"{r['steps']} (capped)"
             cells1 += [steps, f"{r['iter_avg']:.1f}"]
             cells2 += [f"{r['ms_median']:.3f}", f"{r['ms_mean']:.3f}", f"{r['ms_p95']:.3f}"]
         if "dss" in modes and "eds" in modes and modes["eds"]["ms_median"] > 0:
@@ -247,6 +254,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=1)
     p.add_argument("--fov", type=float, default=80.0)
+    p.add_argument("--max-steps", type=int, default=None)
     p.add_argument("--json", dest="json_out", type=Path)
     p.add_argument("--plot", type=Path)
     a = p.parse_args(argv)
@@ -257,7 +265,7 @@ def main(argv: list[str] | None = None) -> None:
         grids=[int(x) for x in a.grid.split(",") if x],
         unknowns=[float(x) for x in a.unknown.split(",") if x],
         backend=a.backend, variant=a.variant, modes=modes, seed=a.seed,
-        repeats=max(1, a.repeats), fov_deg=a.fov,
+        repeats=max(1, a.repeats), fov_deg=a.fov, max_steps=a.max_steps,
     )  # fmt: skip
     done = [0]
 

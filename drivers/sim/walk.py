@@ -5,8 +5,9 @@ Each step:
 2. ``InflatedMap.apply`` inflates the delta by the user's radius, giving the cells whose
    blocked state flipped (timed as ``inflate_ms``);
 3. the planner repairs its field — ``update`` (EDS) or ``replan`` (DSS) — and the path
-   is read from the user's cell; these two together are the paper's "replanning step"
-   (``step_ms``, wall clock, includes any device synchronisation);
+   is read from the user's cell, in one ``update_and_path`` call (one host round trip on
+   the GPU); these two together are the paper's "replanning step" (``step_ms``, wall
+   clock, includes any device synchronisation);
 4. the user moves to the next cell of the path and faces half a metre ahead along it.
 
 Both modes compute the same exact field and read the path with the same neighbour
@@ -52,7 +53,7 @@ class WalkResult:
     iterations: np.ndarray
     cells_touched: np.ndarray
     plan_ms: np.ndarray
-    """The planner's own time for update/replan (its statistics)."""
+    """The planner's own time for update/replan + path (``update_and_path``'s statistics)."""
     step_ms: np.ndarray
     """Wall clock around update/replan + path extraction: the replanning step."""
     inflate_ms: np.ndarray
@@ -121,7 +122,7 @@ def walk(
     max_steps = max_steps if max_steps is not None else 10 * (h + w)
     sensor = Sensor(scenario.sensor_range_cells, fov_deg)
     lookahead = max(1, round(LOOKAHEAD_M / scenario.cell_m))
-    repair = planner.update if mode == "eds" else planner.replan
+    full = mode == "dss"
 
     inflated = InflatedMap(scenario.known, scenario.radius_cells)
     init_ms = planner.plan(inflated.blocked, scenario.goal).ms
@@ -137,8 +138,7 @@ def walk(
         t0 = time.perf_counter()
         flipped, now = inflated.apply(cells, values)
         t1 = time.perf_counter()
-        stats = repair(flipped, now)
-        path = planner.path(user)
+        stats, path = planner.update_and_path(flipped, now, user, full=full)
         t2 = time.perf_counter()
         for key, value in (
             ("it", stats.iterations),

@@ -53,6 +53,22 @@ def test_bench_command_writes_json_and_plot(tmp_path):
     assert fig.read_bytes().startswith(PNG)
 
 
+def test_max_steps_caps_the_walks_and_the_rows_say_so(tmp_path):
+    out = tmp_path / "capped.json"
+    res = CliRunner().invoke(
+        app, ["bench", "--grid", "50", "--unknown", "0.4", "--max-steps", "7", "--json", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    rows = json.loads(out.read_text())
+    assert [(r["mode"], r["steps"], r["capped"], r["arrived"]) for r in rows] == [
+        ("eds", 7, True, False),
+        ("dss", 7, True, False),
+    ]
+    assert "7 (capped)" in res.output
+    uncapped = run_bench(BenchConfig(grids=[50], unknowns=[0.4], max_steps=10_000)).rows
+    assert all(r["arrived"] and not r["capped"] and r["steps"] > 7 for r in uncapped)
+
+
 def test_bench_refuses_an_unknown_mode():
     res = CliRunner().invoke(app, ["bench", "--grid", "50", "--modes", "eds,astar"])
     assert res.exit_code != 0
