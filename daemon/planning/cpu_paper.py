@@ -29,7 +29,7 @@ import numpy as np
 
 from . import dial_numba
 from .grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, NO_PRED, Cell, in_bounds
-from .interface import Planner, UpdateStats
+from .interface import Planner, UpdateStats, checked_plan_input
 
 
 class PaperCpuPlanner(Planner):
@@ -151,13 +151,7 @@ class PaperCpuPlanner(Planner):
 
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
         t0 = time.perf_counter()
-        blocked = np.asarray(blocked, dtype=bool)
-        if blocked.ndim != 2 or blocked.size == 0:
-            raise ValueError(f"blocked must be a non-empty 2-D map, got shape {blocked.shape}")
-        shape = (int(blocked.shape[0]), int(blocked.shape[1]))
-        goal = (int(goal[0]), int(goal[1]))
-        if not in_bounds(shape, goal):
-            raise ValueError(f"goal {goal} is outside the {shape[0]}x{shape[1]} map")
+        blocked, shape, goal = checked_plan_input(blocked, goal)
         if shape != self._shape:
             self._allocate(shape)
         self._goal = goal

@@ -18,11 +18,9 @@ everything is relaxed until nothing changes. Every value is an integer path cost
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
 
 ``path`` runs on the device with the rule of ``interface.reference_path`` (``path_tiles.cu``:
-tile-to-tile jumps, the segments walked in parallel; or ``path.cu``: one warp walks every
-cell); only the path's cells come back to the host.
-
-Test hook: ``inject_fault(exc)`` makes the next public call raise ``exc`` before touching the
-device, so the CPU fallback (``fallback.py``) can be tested with a real cupy error.
+tile-to-tile jumps, segments walked in parallel; ``path.cu``: one warp walks every cell); only
+the path's cells come back. Test hook: ``inject_fault(exc)`` makes the next public call raise
+``exc`` before touching the device, to test the CPU fallback with a real cupy error.
 """
 
 from __future__ import annotations
@@ -34,7 +32,7 @@ import numpy as np
 
 from . import cuda_kernels as ck
 from .grid import INF, Cell, in_bounds
-from .interface import Planner, UpdateStats
+from .interface import Planner, UpdateStats, checked_plan_input
 
 VARIANTS = ("fast", "paper")
 PATH_MODES = ("tiles", "walk")
@@ -166,13 +164,7 @@ class CudaPlanner(Planner):
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
         t0 = time.perf_counter()
         self._check_fault()
-        blocked = np.asarray(blocked, dtype=bool)
-        if blocked.ndim != 2 or blocked.size == 0:
-            raise ValueError(f"blocked must be a non-empty 2-D map, got shape {blocked.shape}")
-        shape = (int(blocked.shape[0]), int(blocked.shape[1]))
-        goal = (int(goal[0]), int(goal[1]))
-        if not in_bounds(shape, goal):
-            raise ValueError(f"goal {goal} is outside the {shape[0]}x{shape[1]} map")
+        blocked, shape, goal = checked_plan_input(blocked, goal)
         with ck.DEVICE_LOCK:
             if shape != self._shape:
                 self._allocate(shape)

@@ -47,7 +47,7 @@ def _disc_rows(occupied: np.ndarray, radius_cells: int, combine, out: np.ndarray
     np.cumsum(occ, axis=1, out=cs[:, 1:])
     cols = np.arange(w)
     windows: dict[int, np.ndarray] = {}
-    for dr in range(-r, r + 1):
+    for dr in range(-min(r, h - 1), min(r, h - 1) + 1):  # a shift past the map adds nothing
         half = math.isqrt(r * r - dr * dr)
         if half not in windows:
             lo = np.clip(cols - half, 0, w)

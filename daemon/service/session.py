@@ -12,12 +12,12 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
 from daemon.planning.backends import make_planner
-from daemon.planning.grid import DIAGONAL, INF, STRAIGHT, UNKNOWN, in_bounds, xy_to_cell
+from daemon.planning.escape import escape_path
+from daemon.planning.grid import INF, UNKNOWN, in_bounds, xy_to_cell
 from daemon.planning.inflation import InflatedMap, radius_in_cells
 from daemon.planning.interface import Planner
 from protocol.messages import (
@@ -197,15 +197,14 @@ class UserSession:
     def _flush_pending(self) -> None:
         pending, self._pending = self._pending, None
         if pending is not None and self._planned:  # unplanned: the next plan includes it
-            self._planner_do(lambda p: p.update(*pending))
+            self.planner.update(*pending)
 
     def _path(self, cell: tuple[int, int]) -> np.ndarray:
         """The path from ``cell``, with the pending changes in the same planner call."""
         pending, self._pending = self._pending, None
         if pending is None:
             return self.planner.path(cell)
-        result = self._planner_do(lambda p: p.update_and_path(*pending, cell))
-        return result[1] if result is not None else self.planner.path(cell)
+        return self.planner.update_and_path(*pending, cell)[1]
 
     def _apply_snapshot(self, snap: MapSnapshot, now: float, out: StepOutput) -> None:
         self.map = InflatedMap(snap.array(), self.radius_cells)
@@ -281,7 +280,7 @@ class UserSession:
             return self._reject(Rejection("stale_pose", f"no pose for {age:.2f} s"), now, out)
         if not self._planned:
             blocked = self.map.blocked
-            self._planner_do(lambda p: p.plan(blocked, self.goal_cell))
+            self.planner.plan(blocked, self.goal_cell)
             self._planned = True
             self._pending = None  # in the plan
         path, cost = self._path_from(self.pose_cell)
@@ -324,41 +323,8 @@ class UserSession:
         if not self.map.blocked[cell]:
             path = self._path(cell)
             return path, (int(self.planner.cost_at(cell)) if len(path) else int(INF))
-        h, w = self.map.shape
-        reach = self.radius_cells + 2
-        r0, c0 = cell
-        rs, re = max(0, r0 - reach), min(h, r0 + reach + 1)
-        cs, ce = max(0, c0 - reach), min(w, c0 + reach + 1)
         self._flush_pending()
-        g = self.planner.costs()[rs:re, cs:ce].astype(np.int64)
-        dr = np.abs(np.arange(rs, re) - r0)[:, None]
-        dc = np.abs(np.arange(cs, ce) - c0)[None, :]
-        # Octile distance in the planner's 10/14 units.
-        out_cost = STRAIGHT * np.maximum(dr, dc) + (DIAGONAL - STRAIGHT) * np.minimum(dr, dc)
-        total = np.where(self.map.blocked[rs:re, cs:ce] | (g >= INF), INF, g + out_cost)
-        k = int(np.argmin(total))
-        if total.flat[k] >= INF:
-            return np.empty((0, 2), np.int32), int(INF)
-        exit_cell = (rs + k // (ce - cs), cs + k % (ce - cs))
-        n = max(abs(exit_cell[0] - r0), abs(exit_cell[1] - c0))
-        t = np.linspace(0.0, 1.0, n + 1)[:-1]
-        lead = np.stack(
-            [np.rint(r0 + t * (exit_cell[0] - r0)), np.rint(c0 + t * (exit_cell[1] - c0))], axis=1
-        ).astype(np.int32)
-        return np.vstack([lead, self.planner.path(exit_cell)]), int(total.flat[k])
-
-    def _planner_do(self, call: Callable[[Planner], Any]) -> Any:
-        """Run a planner call; a GPU failure falls back to the CPU for this session (the
-        call's result, or None after a fallback: the fresh CPU plan includes its change)."""
-        try:
-            return call(self.planner)
-        except Exception:
-            if self.planner.name == "cpu" or self.config.backend in ("cpu", "reference"):
-                raise
-            log.exception("planner failed; cpu from now on", extra={"fields": {"user": self.user}})
-            self.planner = make_planner("cpu", self.config.variant)
-            assert self.map is not None and self.goal_cell is not None
-            self.planner.plan(self.map.blocked, self.goal_cell)
+        return escape_path(self.planner, self.map.blocked, cell, self.radius_cells + 2)
 
     # -- reporting ------------------------------------------------------------------------
 
