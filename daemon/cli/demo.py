@@ -58,7 +58,14 @@ def demo(
             help="Walk in this process, or (default) through the daemon over zenoh.",
         ),
     ] = False,
-    follow: Annotated[str, typer.Option(help="With the daemon: the walker follows path…")] = "path",
+    follow: Annotated[
+        str,
+        typer.Option(help="With the daemon: the walker feels the belt (belt) or reads the path."),
+    ] = "belt",
+    pace: Annotated[
+        float,
+        typer.Option(help="With the daemon: seconds per step (0.1 = 1 m/s at 10 cm; 0 = no wait)."),
+    ] = 0.1,
     grid: Annotated[int, typer.Option(help="Grid side (100 = 10 cm cells).")] = 100,
     unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
@@ -81,7 +88,7 @@ def demo(
     else:
         from daemon.cli.demo_world import run_with_daemon
 
-        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt)
+        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace)
     raise typer.Exit(0 if arrived else 1)
 
 

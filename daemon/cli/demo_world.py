@@ -46,9 +46,13 @@ def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
 
 def run_with_daemon(
     grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
-    belt_kind: str = "none",
+    belt_kind: str = "none", pace_s: float = 0.0,
 ) -> bool:
-    """One user guided across the courtyard by the real daemon; True when they arrived."""
+    """One user guided across the courtyard by the real daemon; True when they arrived.
+
+    ``pace_s`` is the time the walker takes per step (0: as fast as the daemon answers).
+    Paced like a person, the voice cues' rate limit and the hold timer see real time.
+    """
     import threading
     import time
 
@@ -78,7 +82,7 @@ def run_with_daemon(
     ) as daemon:
         drivers, world, client = daemon.peer(), daemon.peer(), daemon.peer()
         belt, voice = BeltRecorder(drivers, user), VoiceRecorder(drivers, user)
-        node = SimNode(world, user, scenario, walker=follow)
+        node = SimNode(world, user, scenario, walker=follow, step_period_s=pace_s)
         box: dict[str, SimResult] = {}
         stop = threading.Event()
         try:
