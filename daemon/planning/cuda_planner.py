@@ -79,12 +79,8 @@ class CudaPlanner(Planner):
         self._delta = cp.zeros(1024, dtype=np.int32)
         self._path_guess = 256
         self._slot = 0  # paper: which flag_stop slot the next launch writes
-        self.sweeps = 0
-        """fast: in-tile sweeps of the last call, summed over processed tiles."""
-        self.raised_cells = 0
-        """fast: cells the last EDS update raised to INF."""
-        self.tiles = 0
-        """fast: tiles processed by the last call (all phases)."""
+        # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run.
+        self.sweeps = self.raised_cells = self.tiles = 0
 
     # -- test hook ----------------------------------------------------------------------------
 
