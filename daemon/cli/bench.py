@@ -12,12 +12,7 @@ from typing import Annotated
 
 import typer
 
-
-def _split(text: str, kind: type) -> list:
-    try:
-        return [kind(x) for x in text.split(",") if x.strip()]
-    except ValueError as exc:
-        raise typer.BadParameter(f"{text!r}: {exc}") from exc
+from daemon.cli.options import comma_list
 
 
 def bench(
@@ -49,8 +44,8 @@ def bench(
     if not mode_list or any(m not in ("eds", "dss") for m in mode_list):
         raise typer.BadParameter(f"{modes!r}: choose from eds, dss", param_hint="--modes")
     config = BenchConfig(
-        grids=_split(grid, int),
-        unknowns=_split(unknown, float),
+        grids=comma_list(grid, int),
+        unknowns=comma_list(unknown, float),
         backend=backend,
         variant=variant,
         modes=mode_list,

@@ -14,12 +14,7 @@ from typing import Annotated
 
 import typer
 
-
-def _split(text: str, kind: type) -> list:
-    try:
-        return [kind(x) for x in text.split(",") if x.strip()]
-    except ValueError as exc:
-        raise typer.BadParameter(f"{text!r}: {exc}") from exc
+from daemon.cli.options import comma_list
 
 
 def walks(
@@ -64,7 +59,7 @@ def walks(
     if crossing:
         _crossing(console, runs, seed, json_out)
         return
-    grids, unknowns = _split(grid, int), _split(unknown, float)
+    grids, unknowns = comma_list(grid, int), comma_list(unknown, float)
     if table:
         t0 = time.perf_counter()
         with console.status("walking…") as status:
