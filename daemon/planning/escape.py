@@ -2,20 +2,34 @@
 
 A newly seen obstacle can inflate over the user's own cell, or the user can drift off the
 path into the margin; the planner has no path from a blocked cell. The way out leads in a
-straight line to the nearby free cell whose total cost (octile distance to it plus its g)
-is lowest, then follows the planner's path from there.
+straight line to the *nearest* free cell that has a path (ties: the lowest total cost) and
+whose line crosses no occupied cell, then follows the planner's path from there. No such
+cell within reach means no path: the user is told so rather than led through an obstacle.
+
+Nearest, not cheapest overall: the cheapest exit can lie across the obstacle, and a straight
+lead there walks the user into it (a walker that feels the belt bumped thousands of times
+with the cheapest exit, never with the nearest).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .grid import DIAGONAL, INF, STRAIGHT, Cell
+from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell
 from .interface import Planner
 
 
+def _line(a: Cell, b: Cell) -> np.ndarray:
+    """Cells from ``a`` towards ``b`` (``b`` excluded), one per step of the longer axis."""
+    n = max(abs(b[0] - a[0]), abs(b[1] - a[1]))
+    t = np.linspace(0.0, 1.0, n + 1)[:-1]
+    return np.stack(
+        [np.rint(a[0] + t * (b[0] - a[0])), np.rint(a[1] + t * (b[1] - a[1]))], axis=1
+    ).astype(np.int32)
+
+
 def escape_path(
-    planner: Planner, blocked: np.ndarray, cell: Cell, reach: int
+    planner: Planner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
 ) -> tuple[np.ndarray, int]:
     """``(path, cost)`` from a blocked ``cell`` within ``reach`` cells; empty and INF if none."""
     h, w = blocked.shape
@@ -27,14 +41,14 @@ def escape_path(
     dc = np.abs(np.arange(cs, ce) - c0)[None, :]
     # Octile distance in the planner's 10/14 units.
     out_cost = STRAIGHT * np.maximum(dr, dc) + (DIAGONAL - STRAIGHT) * np.minimum(dr, dc)
-    total = np.where(blocked[rs:re, cs:ce] | (g >= INF), INF, g + out_cost)
-    k = int(np.argmin(total))
-    if total.flat[k] >= INF:
-        return np.empty((0, 2), np.int32), int(INF)
-    exit_cell = (rs + k // (ce - cs), cs + k % (ce - cs))
-    n = max(abs(exit_cell[0] - r0), abs(exit_cell[1] - c0))
-    t = np.linspace(0.0, 1.0, n + 1)[:-1]
-    lead = np.stack(
-        [np.rint(r0 + t * (exit_cell[0] - r0)), np.rint(c0 + t * (exit_cell[1] - c0))], axis=1
-    ).astype(np.int32)
-    return np.vstack([lead, planner.path(exit_cell)]), int(total.flat[k])
+    usable = ~blocked[rs:re, cs:ce] & (g < INF)
+    total = np.where(usable, g + out_cost, INF)
+    # Nearest first (squared distance), then the lowest total cost.
+    key = (dr * dr + dc * dc) * (4 * int(INF)) + total
+    for k in np.flatnonzero(usable.ravel())[np.argsort(key.ravel()[usable.ravel()], kind="stable")]:
+        exit_cell = (rs + int(k) // (ce - cs), cs + int(k) % (ce - cs))
+        lead = _line(cell, exit_cell)
+        if np.any(occupancy[lead[:, 0], lead[:, 1]] == OCCUPIED):
+            continue  # the straight way there runs through an obstacle
+        return np.vstack([lead, planner.path(exit_cell)]), int(total.flat[k])
+    return np.empty((0, 2), np.int32), int(INF)

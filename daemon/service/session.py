@@ -324,7 +324,9 @@ class UserSession:
             path = self._path(cell)
             return path, (int(self.planner.cost_at(cell)) if len(path) else int(INF))
         self._flush_pending()
-        return escape_path(self.planner, self.map.blocked, cell, self.radius_cells + 2)
+        return escape_path(
+            self.planner, self.map.blocked, self.map.occupancy, cell, self.radius_cells + 2
+        )
 
     # -- reporting ------------------------------------------------------------------------
 

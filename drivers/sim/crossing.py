@@ -113,7 +113,7 @@ def crossing_walk(
         flipped, now_blocked = inflated.apply(seen, values)
         if flipped.size:
             planner.update(flipped, now_blocked)
-        path = path_from(planner, inflated.blocked, cell)
+        path = path_from(planner, inflated, cell)
         pose = Pose(x=walker.x, y=walker.y, heading=walker.heading, stamp=now)
         out = guide.guide(path, pose, SHAPE, now, blocked=inflated.blocked)
         if out.pattern.kind is PatternKind.ARRIVED:

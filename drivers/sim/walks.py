@@ -22,6 +22,7 @@ import numpy as np
 
 from daemon.planning import make_planner
 from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.escape import escape_path
 from daemon.planning.grid import INF, Cell, cell_to_xy, in_bounds, xy_to_cell
 from daemon.planning.inflation import InflatedMap
 
@@ -29,6 +30,8 @@ from .belt_walker import BeltWalker, WalkerParams
 from .courtyard import Scenario, dilate, make_courtyard
 from .sensor import Sensor
 
+ESCAPE_REACH = 12
+"""Cells searched for a way out of the inflation margin."""
 STEP_S = 0.6
 """Simulated seconds per walker action (one step or one turn on the spot)."""
 
@@ -56,20 +59,6 @@ def optimal_m(scenario: Scenario) -> float:
     blocked = dilate(scenario.true == 1, scenario.radius_cells)
     g = int(dijkstra_field(blocked, scenario.goal)[scenario.start])
     return math.inf if g >= INF else g / 10.0 * scenario.cell_m
-
-
-def nearest_free(blocked: np.ndarray, cell: Cell, reach: int = 12) -> Cell | None:
-    """The unblocked cell nearest ``cell`` (the walker may stand in a freshly inflated cell)."""
-    h, w = blocked.shape
-    r0, c0 = cell
-    rs, cs = max(0, r0 - reach), max(0, c0 - reach)
-    win = blocked[rs : min(h, r0 + reach + 1), cs : min(w, c0 + reach + 1)]
-    rr, cc = np.nonzero(~win)
-    if rr.size == 0:
-        return None
-    d = (rr + rs - r0) ** 2 + (cc + cs - c0) ** 2
-    k = int(np.argmin(d))
-    return (int(rr[k] + rs), int(cc[k] + cs))
 
 
 def belt_walk(
@@ -113,7 +102,7 @@ def belt_walk(
         flipped, now_blocked = inflated.apply(seen, values)
         if flipped.size:
             planner.update(flipped, now_blocked)
-        path = path_from(planner, inflated.blocked, cell)
+        path = path_from(planner, inflated, cell)
         pose = Pose(x=walker.x, y=walker.y, heading=walker.heading, stamp=now)
         out = guide.guide(path, pose, shape, now, blocked=inflated.blocked)
         cues += out.cue is not None
@@ -136,19 +125,12 @@ def belt_walk(
     )
 
 
-def path_from(planner, blocked: np.ndarray, cell: Cell) -> np.ndarray:
-    """The path from the walker's cell; from the nearest free cell when it stands in a blocked
-    one (a newly seen obstacle inflated over it), with its own cell first so guidance leads
-    it out."""
-    if not blocked[cell]:
+def path_from(planner, inflated: InflatedMap, cell: Cell) -> np.ndarray:
+    """The path from the walker's cell, led out of the inflation margin the way the daemon
+    does it (``planning.escape``) when a newly seen obstacle inflated over the walker."""
+    if not inflated.blocked[cell]:
         return planner.path(cell)
-    free = nearest_free(blocked, cell)
-    if free is None:
-        return np.empty((0, 2), dtype=np.int32)
-    rest = planner.path(free)
-    if len(rest) == 0:
-        return rest
-    return np.vstack([np.array([cell], dtype=np.int32), rest])
+    return escape_path(planner, inflated.blocked, inflated.occupancy, cell, ESCAPE_REACH)[0]
 
 
 def _one(task: tuple) -> tuple[int, float, bool, float, int, int, int]:

@@ -1,0 +1,49 @@
+"""The way out of the inflation margin leads to the nearest free cell, never across an obstacle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daemon.planning import make_planner
+from daemon.planning.escape import escape_path
+from daemon.planning.grid import INF, OCCUPIED, path_cost
+from daemon.planning.inflation import InflatedMap
+
+USER, GOAL = (12, 15), (3, 15)
+
+
+def wall_map(gap: bool) -> tuple[InflatedMap, object]:
+    """A thin wall, the goal above it, the user just below it (inside its margin)."""
+    occ = np.zeros((30, 40), np.uint8)
+    occ[10, :] = OCCUPIED
+    if gap:
+        occ[10, 30:] = 0  # a way round on the right, far from the user
+    m = InflatedMap(occ, 3)
+    planner = make_planner("cpu")
+    planner.plan(m.blocked, GOAL)
+    assert m.blocked[USER]
+    return m, planner
+
+
+def test_the_lead_goes_to_the_nearest_free_cell_with_a_path():
+    m, planner = wall_map(gap=True)
+    # Reach wide enough that free cells beyond the wall, much cheaper, are in the window.
+    path, cost = escape_path(planner, m.blocked, m.occupancy, USER, reach=12)
+    assert tuple(path[0]) == USER and tuple(path[-1]) == GOAL
+    first_free = next(i for i, c in enumerate(path) if not m.blocked[tuple(c)])
+    assert tuple(path[first_free]) == (14, 15)  # two steps straight down: the nearest way out
+    assert all(m.occupancy[tuple(c)] != OCCUPIED for c in path)
+    assert cost == 2 * 10 + planner.cost_at((14, 15))
+    assert path_cost(path[first_free:]) == planner.cost_at((14, 15))
+
+
+def test_an_exit_only_across_the_wall_is_refused():
+    m, planner = wall_map(gap=False)  # below the wall nothing reaches the goal
+    path, cost = escape_path(planner, m.blocked, m.occupancy, USER, reach=12)
+    assert path.shape == (0, 2) and cost == int(INF)
+
+
+def test_no_free_cell_within_reach_gives_no_path():
+    m, planner = wall_map(gap=True)
+    path, cost = escape_path(planner, m.blocked, m.occupancy, USER, reach=1)
+    assert path.shape == (0, 2) and cost == int(INF)
