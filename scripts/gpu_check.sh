@@ -4,10 +4,12 @@
 #   2. guidebelt bench --backend cuda, then --backend cpu: 100/200/400 x 20/40/60 % unknown;
 #   3. guidebelt bench, cuda then cpu, 1000 and 2000 at 40 %, each walk capped at $BIG_STEPS
 #      steps (the CPU's DSS at 2000 x 2000 takes ~50 ms a step; rows say "capped");
-#   4. scripts/time_cuda_planner.py: variants at 400 on the recorded walk (in-tile Jacobi
-#      sweeps instead of scans, the one-warp path walk, the paper's form, each also through
-#      update_and_path), and DSS-only at 400, 2000 and 4000;
-#   5. a short table, last (scripts/gpu_table.py).
+#   4. scripts/time_cuda_planner.py: variants at 400 on the recorded walk (the relaxation in
+#      grid-wide rounds instead of asynchronous, launches from Python instead of the CUDA
+#      graph, in-tile Jacobi sweeps instead of scans, the path by its own launch and one warp,
+#      the paper's form, each also through update_and_path), and DSS-only at 400, 2000, 4000;
+#   5. scripts/profile_fast_phases.py: where a step's time goes (host parts, launch phases);
+#   6. the short table (scripts/gpu_table.py), then the phases.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
 # Logs and JSON go to $OUT (default out/gpu_check). Exit status 1 if any step failed.
 set -uo pipefail
@@ -37,8 +39,8 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
     date -u +%Y-%m-%dT%H:%MZ
     git rev-parse --short HEAD 2>/dev/null || echo "commit unknown"
 } >"$OUT/device.txt"
-step pytest 90 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
-    --timeout 55
+step pytest 300 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
+    --timeout 120
 step bench_cuda 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cuda --json "$OUT/bench_cuda.json"
 step bench_cpu 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
@@ -47,7 +49,9 @@ step bench_big_cuda 70 python3 -m daemon.cli.app bench --grid 1000,2000 --unknow
     --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cuda.json"
 step bench_big_cpu 100 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
     --backend cpu --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cpu.json"
-step replay 130 python3 scripts/time_cuda_planner.py --variants fast,fast:0:1,fast:2:1:walk,paper,cpu \
+step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:rounds,fast:direct,fast:0:1,fast:walk,paper,cpu \
     --grid 400 --unknown 0.4 --dss 400,2000,4000 --json "$OUT/replay.json"
+step phases 120 python3 scripts/profile_fast_phases.py --grid 400 --dss 400,2000
 python3 scripts/gpu_table.py "$OUT"
+cat "$OUT/phases.log"
 exit "$fail"

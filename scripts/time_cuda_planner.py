@@ -76,7 +76,9 @@ class Recorder(Planner):
 
 
 def make(spec: str) -> Planner:
-    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm[:walk]]]`` (``walk``: path.cu)."""
+    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm]][:walk][:rounds][:direct]`` (``walk``:
+    the path by path.cu after the repair; ``rounds``: the relaxation in grid-wide rounds,
+    ``sched=0``; ``direct``: launches from Python instead of the captured graph)."""
     if spec == "cpu":
         return make_planner("cpu", "fast")
     from daemon.planning.cuda_planner import CudaPlanner
@@ -85,8 +87,12 @@ def make(spec: str) -> Planner:
         return CudaPlanner("paper")
     parts = spec.split(":")[1:]
     mode = "walk" if "walk" in parts else "tiles"
-    scans, blocks = [*(int(p) for p in parts if p != "walk"), 2, 1][:2]
-    return CudaPlanner("fast", scans=scans, min_blocks=blocks, path_mode=mode)
+    sched = 0 if "rounds" in parts else 1
+    scans, blocks = [*(int(p) for p in parts if p.isdigit()), 2, 1][:2]
+    graph = "direct" not in parts
+    return CudaPlanner(
+        "fast", scans=scans, sched=sched, min_blocks=blocks, path_mode=mode, use_graph=graph
+    )
 
 
 def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:

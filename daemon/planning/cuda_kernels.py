@@ -22,11 +22,16 @@ TILE = 32
 THREADS = 1024
 
 # ctrl slots of fast.cu read back after each call: C_BAR (the barrier count the next launch
-# starts from) and the statistics C_ROUNDS .. C_CHANGED.
+# starts from) and the statistics C_EXITS .. C_CHANGED.
 CTRL_READ = 13
 IO_PATH = 64
+P_STAMPS = 48  # fast.cu -DPROFILE: 8 phase stamps of the global timer
+PARAMS = 8
+"""fast.cu's params words (ndelta, mode, start, goal, ...) before the delta in a call's stage."""
+GRAPH_DELTA = 1024  # delta cells the captured call copies up itself (more: one copy before)
+GRAPH_PATH = 2048  # path cells it copies back with the ctrl words (more: one copy after)
 """fast.cu's 64 ctrl words, then the path: where the path starts in the planner's I/O buffer."""
-C_BAR, C_ROUNDS, C_TILES, C_SWEEPS, C_RAISED, C_CHANGED = 0, 8, 9, 10, 11, 12
+C_BAR, C_EXITS, C_ROUNDS, C_TILES, C_SWEEPS, C_RAISED, C_CHANGED = 0, 7, 8, 9, 10, 11, 12
 
 DEVICE_LOCK = threading.Lock()
 """One planning call on the device at a time: the persistent kernel's grid barrier needs every
@@ -70,21 +75,25 @@ class Pinned:
         self.array = np.empty(0, dtype=self.dtype)
         self.reserve(count)
 
-    def reserve(self, count: int) -> None:
+    def reserve(self, count: int) -> bool:
+        """Room for ``count`` items; True if the buffer moved (its contents are not kept)."""
         if count <= self.count:
-            return
+            return False
         count = max(count, 2 * self.count)
         self._mem = cp.cuda.alloc_pinned_memory(count * self.dtype.itemsize)
         self.array = np.frombuffer(self._mem, dtype=self.dtype, count=count)
         self.count = count
+        return True
 
-    def to_device(self, dst: cp.ndarray, count: int) -> None:
-        """Copy the first ``count`` items to ``dst`` (asynchronous on the current stream)."""
+    def to_device(self, dst: cp.ndarray, count: int, offset: int = 0) -> None:
+        """Copy ``count`` items from item ``offset`` to ``dst`` at the same offset
+        (asynchronous on the current stream)."""
         nbytes = count * self.dtype.itemsize
         if nbytes:
             stream = cp.cuda.get_current_stream().ptr
+            start = offset * self.dtype.itemsize
             cp.cuda.runtime.memcpyAsync(
-                dst.data.ptr, self.array.ctypes.data, nbytes,
+                dst.data.ptr + start, self.array.ctypes.data + start, nbytes,
                 cp.cuda.runtime.memcpyHostToDevice, stream,
             )  # fmt: skip
 
@@ -105,18 +114,29 @@ def synchronize() -> None:
     cp.cuda.get_current_stream().synchronize()
 
 
-def encode_delta(cells: np.ndarray, values: np.ndarray, n_cells: int) -> np.ndarray:
-    """``cell * 2 + blocked`` per changed cell, one entry per cell (the last value wins)."""
-    cells = np.asarray(cells, dtype=np.int64).ravel()
-    values = np.broadcast_to(np.asarray(values, dtype=bool).ravel(), cells.shape)
-    if cells.size == 0:
-        return np.empty(0, dtype=np.int32)
-    if cells.size == 1 or np.all(cells[1:] > cells[:-1]):  # sorted and unique, as inflation gives
-        lo, hi = int(cells[0]), int(cells[-1])
-    else:
+def encode_delta(
+    cells: np.ndarray, values: np.ndarray, n_cells: int, out: np.ndarray | None = None
+) -> np.ndarray:
+    """``cell * 2 + blocked`` per changed cell, one entry per cell (the last value wins), into
+    ``out[:n]`` when given (room for ``len(cells)`` codes). Sorted unique cells, as inflation
+    gives them, take the short way: no copy but the codes themselves."""
+    cells = np.asarray(cells)
+    if cells.dtype != np.int64:
+        cells = cells.astype(np.int64)
+    cells = cells.ravel()
+    n = cells.size
+    if n == 0:
+        return np.empty(0, dtype=np.int32) if out is None else out[:0]
+    values = np.asarray(values, dtype=bool).ravel()
+    if values.size != n:
+        values = np.broadcast_to(values, cells.shape)
+    if n > 1 and not (cells[1:] > cells[:-1]).all():
         rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
         cells, values = rev_unique, values[::-1][rev_idx]
-        lo, hi = int(cells[0]), int(cells[-1])
-    if lo < 0 or hi >= n_cells:
+        n = cells.size
+    if cells[0] < 0 or cells[-1] >= n_cells:
         raise IndexError(f"a cell index is outside the map of {n_cells} cells")
-    return (cells * 2 + values).astype(np.int32)
+    codes = np.empty(n, dtype=np.int32) if out is None else out[:n]
+    np.left_shift(cells, 1, out=codes, casting="unsafe")
+    np.bitwise_or(codes, values, out=codes)
+    return codes

@@ -2,13 +2,15 @@
 
 Two variants (``kernels/``):
 
-- ``fast`` (default, ``fast.cu``): one persistent launch per planning call. 32 x 32 tiles
-  settle in shared memory before a grid-wide exchange; only flagged tiles are processed, so
-  an EDS update works around the change. Per call: the delta up (one copy), one launch,
-  the statistics down (one copy and the only synchronisation).
-- ``paper`` (``paper.cu``): Díaz-Toro et al.'s Figure 4 form, for comparison: read-only and
-  write-only maps for g, pred and incon, one ``kernel_planner`` launch per iteration and
-  ``flag_stop`` read back after each.
+- ``fast`` (default, ``fast.cu``): one persistent launch per replanning step. 32 x 32 tiles
+  settle in shared memory; a tile is relaxed as soon as a neighbour's border change flags it
+  (or in grid-wide rounds, ``sched=0``), so an EDS update works around the change; in
+  ``update_and_path`` the same launch then extracts the path, recomputing the tile exits only
+  where g changed. Per step: the delta up (one copy), one launch, statistics and path down
+  (one copy and the only synchronisation).
+- ``paper`` (``cuda_paper.py``, ``paper.cu``): Díaz-Toro et al.'s Figure 4 form, for
+  comparison: read-only and write-only maps for g, pred and incon, one ``kernel_planner``
+  launch per iteration and ``flag_stop`` read back after each.
 
 EDS semantics are the CPU's: newly blocked cells are raised to INF, and so is every cell
 all of whose supporting neighbours (g[n] + cost == g[v]) are raised — exactly the cells whose
@@ -31,6 +33,7 @@ import cupy as cp
 import numpy as np
 
 from . import cuda_kernels as ck
+from .cuda_paper import PaperForm
 from .grid import INF, Cell, in_bounds
 from .interface import Planner, UpdateStats, checked_plan_input
 
@@ -38,17 +41,23 @@ VARIANTS = ("fast", "paper")
 PATH_MODES = ("tiles", "walk")
 """``tiles``: path_tiles.cu, tile-to-tile jumps with the segments walked in parallel (default);
 ``walk``: path.cu, one warp walks every cell in a shared-memory window."""
-PAPER_THREADS = 256
 
 
-class CudaPlanner(Planner):
+class CudaPlanner(PaperForm, Planner):
     """EDS/DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
 
     ``fast`` options (BENCHMARKS.md, "Planning on the GPU", compares them): ``scans`` the
     in-tile relaxation (0 Jacobi sweeps, 1 + row/column scans, 2 + diagonal scans: the
-    default, fastest for large DSS), ``min_blocks`` blocks per SM the kernel is compiled for
-    (1: 64 registers, no spills), ``path_mode`` (``PATH_MODES``). Calls are serialised on
-    the device (``cuda_kernels.DEVICE_LOCK``): the persistent kernel needs every block resident.
+    default, fastest for large DSS), ``sched`` the relaxation's schedule (1 asynchronous: a
+    tile is relaxed as soon as a neighbour flags it, the default; 0 grid-wide rounds),
+    ``min_blocks`` blocks per SM the kernel is compiled for (1: 64 registers, no spills),
+    ``path_mode`` (``PATH_MODES``; with ``tiles`` the fast launch of ``update_and_path`` also
+    extracts the path). Calls are serialised on the device (``cuda_kernels.DEVICE_LOCK``): the
+    persistent kernel needs every block resident.
+
+    ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and reset; with
+    ``sched=0`` also the relaxation's), plus with ``sched=1`` the longest chain of tile visits
+    of the relaxation, the rounds it stands in for.
     """
 
     def __init__(
@@ -56,15 +65,19 @@ class CudaPlanner(Planner):
         variant: str = "fast",
         *,
         scans: int = 2,
+        sched: int = 1,
         min_blocks: int = 1,
         path_mode: str = "tiles",
         max_blocks: int | None = None,
+        use_graph: bool = True,
+        profile: bool = False,
     ) -> None:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         if path_mode not in PATH_MODES:
             raise ValueError(f"unknown path_mode {path_mode!r}; choose one of {PATH_MODES}")
         self.path_mode = path_mode
+        self.use_graph = use_graph  # fast: replay each step as a captured CUDA graph
         self.max_blocks = max_blocks  # caps the persistent grid (experiments; None: all resident)
         self.variant = variant
         self.name = f"cuda-{variant}"
@@ -72,15 +85,22 @@ class CudaPlanner(Planner):
         self._goal: Cell = (0, 0)
         self._fault: BaseException | None = None
         self.last_stats: UpdateStats | None = None
-        self._defines = (f"SCANS={int(scans)}", f"MIN_BLOCKS={int(min_blocks)}")
+        self._defines = tuple(
+            f"{k}={int(v)}"
+            for k, v in (("SCANS", scans), ("SCHED", sched), ("MIN_BLOCKS", min_blocks))
+        )
+        self._defines += ("PROFILE=1",) if profile else ()  # phase_ns
         # The host mirror of ``_io``: fast.cu's ctrl words, then the path (see _allocate).
         self._io_host = ck.Pinned(ck.IO_PATH + 2 + 1024, np.int32)
-        self._delta_host = ck.Pinned(1024, np.int32)
-        self._delta = cp.zeros(1024, dtype=np.int32)
+        # The pinned stage of a call: fast.cu's params words, then the delta (see _stage_delta).
+        self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32)
+        self._params = self._delta = cp.zeros(0, dtype=np.int32)
+        self._graph: cp.cuda.graph.Graph | None = None
         self._path_guess = 256
         self._slot = 0  # paper: which flag_stop slot the next launch writes
-        # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run.
-        self.sweeps = self.raised_cells = self.tiles = 0
+        # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run,
+        # tiles whose path exits were recomputed (update_and_path; the rest were reused).
+        self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = 0
 
     # -- test hook ----------------------------------------------------------------------------
 
@@ -108,12 +128,15 @@ class CudaPlanner(Planner):
         self._ctrl = self._io[: ck.IO_PATH].view(np.uint32)
         self._path_d = self._io[ck.IO_PATH :]
         self._io_host.reserve(ck.IO_PATH + 2 + self._path_cap)
-        self._io_host.array[: ck.IO_PATH] = 0  # a fresh barrier count
+        self._path_copy = min(self._path_cap, ck.GRAPH_PATH)  # cells read back with the ctrl words
+        self._set_params_size(ck.PARAMS + ck.GRAPH_DELTA)
         tiles = -(-h // ck.TILE) * -(-w // ck.TILE)
         self._tiles = tiles
+        # Path by tile jumps (path_exits.cuh): 124 border exits per tile, kept between steps
+        # (fast.cu recomputes only stale tiles), and the segments of one extraction.
+        self._exits = cp.zeros(2 * 124 * tiles, dtype=np.int32)
+        self._segs = cp.zeros(4 * self._path_cap, dtype=np.int32)
         if self.path_mode == "tiles":
-            self._exits = cp.zeros(2 * 124 * tiles, dtype=np.int32)
-            self._segs = cp.zeros(4 * self._path_cap, dtype=np.int32)
             self._path_ctrl = cp.zeros(64, dtype=np.uint32)
             self._path_bar = 0  # its barrier count: 2 barriers x blocks per launch
             k = ck.kernel("path_tiles", "path_tiles")
@@ -121,34 +144,33 @@ class CudaPlanner(Planner):
             self._path_blocks = int(min(tiles, ck.resident_blocks(k, 128), 8 * sms))
         if self.variant == "fast":
             self._raised = cp.zeros(n, dtype=np.uint8)
-            self._flags = cp.zeros(3 * tiles, dtype=np.uint32)
+            # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth.
+            self._flags = cp.zeros(5 * tiles, dtype=np.uint32)
+            self._flags[3 * tiles : 4 * tiles] = 1
             k = self._k_fast()
             self._blocks = int(min(tiles, ck.resident_blocks(k), self.max_blocks or tiles))
         else:
-            self._g_w = cp.full(n, INF, dtype=np.int32)
-            self._pred = cp.full(n, -1, dtype=np.int8)
-            self._pred_w = cp.full(n, -1, dtype=np.int8)
-            self._incon = cp.zeros(n, dtype=np.uint8)
-            self._incon_w = cp.zeros(n, dtype=np.uint8)
-            self._raised = cp.zeros(n, dtype=np.uint8)
-            self._raised_w = cp.zeros(n, dtype=np.uint8)
-            # flag_stop of the two slots, then a 64-bit count of the cells relaxed so far
-            self._flag = cp.zeros(4, dtype=np.int32)
-            self._flag_host = ck.Pinned(4, np.int32)
-            self._flag_host.array[:] = 0
+            self._allocate_paper(n)
 
     def _k_fast(self) -> cp.RawKernel:
         return ck.kernel("fast", "plan_persistent", self._defines)
 
-    def _upload_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
+    def _set_params_size(self, size: int) -> None:
+        """A device buffer for the params words and a delta of up to ``size - PARAMS`` cells."""
+        self._params = cp.zeros(size, dtype=np.int32)
+        self._delta = self._params[ck.PARAMS :]  # the paper's kernels take the delta alone
+        self._graph = None  # it holds the buffers' addresses
+
+    def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
+        """Encode the delta into the pinned stage after the params words; it goes up with the
+        call (fast: ``_launch_fast``; paper: ``_run_paper``). Returns its length."""
         h, w = self._shape
-        codes = ck.encode_delta(cells, blocked, h * w)
-        n = int(codes.size)
-        if n > self._delta.size:
-            self._delta = cp.zeros(max(n, 2 * self._delta.size), dtype=np.int32)
-        self._delta_host.reserve(n)
-        self._delta_host.array[:n] = codes
-        self._delta_host.to_device(self._delta, n)
+        most = int(np.size(cells))
+        if self._stage.reserve(ck.PARAMS + most):
+            self._graph = None
+        n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
+        if ck.PARAMS + n > self._params.size:
+            self._set_params_size(2 * (ck.PARAMS + n))
         return n
 
     def _require_plan(self) -> None:
@@ -179,7 +201,7 @@ class CudaPlanner(Planner):
         self._check_fault()
         self._require_plan()
         with ck.DEVICE_LOCK:
-            n = self._upload_delta(cells, blocked)
+            n = self._stage_delta(cells, blocked)
             return self._run(eds=eds, n_delta=n, t0=t0)
 
     def _run(self, eds: bool, n_delta: int, t0: float) -> UpdateStats:
@@ -194,9 +216,10 @@ class CudaPlanner(Planner):
     def update_and_path(
         self, cells: np.ndarray, blocked: np.ndarray, start: Cell, *, full: bool = False
     ) -> tuple[UpdateStats, np.ndarray]:
-        """The repair launch, the path launch and one copy back of statistics and path, queued
-        back to back with a single synchronisation (``fast``; ``paper`` syncs per iteration
-        anyway and takes the interface's default)."""
+        """One launch that repairs the field and extracts the path (``fast`` with
+        ``path_mode="tiles"``; with ``walk`` the path kernel is queued right behind it), with
+        statistics and path copied back and a single synchronisation. ``paper`` syncs per
+        iteration anyway and takes the interface's default."""
         if self.variant != "fast":
             stats, path = super().update_and_path(cells, blocked, start, full=full)
             self.last_stats = stats  # the whole step's, as for fast
@@ -205,13 +228,14 @@ class CudaPlanner(Planner):
         self._check_fault()
         self._require_plan()
         start = (int(start[0]), int(start[1]))
+        inside = in_bounds(self._shape, start)
+        fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
-            n = self._upload_delta(cells, blocked)
-            self._launch_fast(eds=not full, n_delta=n)
-            if in_bounds(self._shape, start):
-                path = self._path_locked(start, with_ctrl=True)
+            n = self._stage_delta(cells, blocked)
+            self._launch_fast(not full, n, start[0] * self._shape[1] + start[1] if fused else -1)
+            if inside:
+                path = self._path_locked(start, copied=self._path_copy if fused else None)
             else:
-                self._io_host.from_device(self._io, ck.CTRL_READ)
                 ck.synchronize()
                 path = np.empty((0, 2), dtype=np.int32)
             iterations, touched = self._read_fast_stats()
@@ -225,94 +249,55 @@ class CudaPlanner(Planner):
 
     def _run_fast(self, eds: bool, n_delta: int) -> tuple[int, int]:
         self._launch_fast(eds, n_delta)
-        self._io_host.from_device(self._io, ck.CTRL_READ)
         ck.synchronize()
         return self._read_fast_stats()
 
     def _read_fast_stats(self) -> tuple[int, int]:
         st = self._ctrl_host()
         self.sweeps, self.raised_cells = int(st[ck.C_SWEEPS]), int(st[ck.C_RAISED])
-        self.tiles = int(st[ck.C_TILES])
+        self.tiles, self.exit_tiles = int(st[ck.C_TILES]), int(st[ck.C_EXITS])
         return int(st[ck.C_ROUNDS]), self.raised_cells + int(st[ck.C_CHANGED])
 
-    def _launch_fast(self, eds: bool, n_delta: int) -> None:
+    def _launch_fast(self, eds: bool, n_delta: int, start: int = -1) -> None:
+        """Queue one fast call: params and delta up, the launch (repair; with ``start`` >= 0, a
+        flat cell, the path from it too), the ctrl words and the first ``_path_copy`` path
+        cells down. The caller synchronises. With ``use_graph`` the three replay as one
+        captured CUDA graph: one call from Python instead of three with 12 kernel arguments."""
+        w = self._shape[1]
+        self._stage.array[:4] = (n_delta, 1 if eds else 0, start, self._goal[0] * w + self._goal[1])
+        if not self.use_graph:
+            self._queue_fast(ck.PARAMS + n_delta)
+            return
+        if self._graph is None:
+            self._graph = self._capture()
+        if n_delta > ck.GRAPH_DELTA:  # the graph's own copy takes the first GRAPH_DELTA cells
+            rest = ck.PARAMS + ck.GRAPH_DELTA
+            self._stage.to_device(self._params, n_delta - ck.GRAPH_DELTA, offset=rest)
+        self._graph.launch()
+
+    def _queue_fast(self, up: int) -> None:
         h, w = self._shape
-        goal = self._goal[0] * w + self._goal[1]
-        st = self._ctrl_host()  # C_BAR: the barrier count the previous launch ended with
+        self._stage.to_device(self._params, up)
         self._k_fast()(
             (self._blocks,), (ck.THREADS,),
-            (self._g, self._blocked_d, self._raised, self._delta, np.int32(n_delta), self._flags,
-             self._ctrl, np.int32(h), np.int32(w), np.int32(goal), np.int32(1 if eds else 0),
-             np.uint32(st[ck.C_BAR])),
+            (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
+             np.int32(h), np.int32(w), self._exits, self._segs, self._path_d,
+             np.int32(self._path_cap)),
         )  # fmt: skip
+        self._io_host.from_device(self._io, ck.IO_PATH + 2 + self._path_copy)
 
-    # -- the paper's form ----------------------------------------------------------------------
-
-    def _launch_paper(self, name: str, args: tuple, n: int) -> None:
-        k = ck.kernel("paper", name)
-        k((-(-n // PAPER_THREADS),), (PAPER_THREADS,), args)
-
-    def _flag_after(self, name: str, args: tuple) -> bool:
-        """Launch one iteration and read its flag_stop back (the paper's per-iteration sync)."""
-        h, w = self._shape
-        self._launch_paper(name, (*args, self._flag, np.int32(self._slot)), h * w)
-        self._flag_host.from_device(self._flag, 4)
-        ck.synchronize()
-        changed = bool(self._flag_host.array[self._slot])
-        self._slot ^= 1
-        return changed
-
-    def _run_paper(self, eds: bool, n_delta: int) -> tuple[int, int]:
-        h, w = self._shape
-        n = h * w
-        goal = np.int32(self._goal[0] * w + self._goal[1])
-        hw = (np.int32(h), np.int32(w))
-        if n_delta:
-            self._launch_paper(
-                "paper_apply",
-                (self._delta, np.int32(n_delta), self._blocked_d, self._raised, self._raised_w,
-                 self._incon, np.int32(1 if eds else 0)),
-                n_delta,
-            )  # fmt: skip
-        relaxed_before = int(self._flag_host.array[2:4].view(np.uint64)[0])
-        iterations = 0
-        if not eds:
-            self._launch_paper(
-                "paper_init",
-                (self._g, self._pred, self._incon, self._incon_w, self._raised, self._raised_w,
-                 self._blocked_d, *hw, goal, self._flag),
-                n,
-            )  # fmt: skip
-            self._slot = 0
-        else:
-            while True:  # raise the pred-tree descendants of newly blocked cells
-                iterations += 1
-                changed = self._flag_after(
-                    "kernel_raise", (self._pred, self._raised, self._raised_w, *hw)
-                )
-                self._raised, self._raised_w = self._raised_w, self._raised
-                if not changed:
-                    break
-            self._launch_paper(
-                "paper_reset",
-                (self._g, self._pred, self._raised, self._raised_w, self._incon, self._blocked_d,
-                 np.int32(n)),
-                n,
-            )  # fmt: skip
-        while True:
-            iterations += 1
-            changed = self._flag_after(
-                "kernel_planner",
-                (self._g, self._g_w, self._pred, self._pred_w, self._incon, self._incon_w,
-                 self._blocked_d, *hw, goal),
-            )  # fmt: skip
-            self._g, self._g_w = self._g_w, self._g
-            self._pred, self._pred_w = self._pred_w, self._pred
-            self._incon, self._incon_w = self._incon_w, self._incon
-            if not changed:
-                break
-        relaxed = int(self._flag_host.array[2:4].view(np.uint64)[0]) - relaxed_before
-        return iterations, relaxed
+    def _capture(self) -> cp.cuda.graph.Graph:
+        """The fast call as a CUDA graph (it holds the buffers' addresses, so any reallocation
+        sets ``_graph`` to None and the next call captures again)."""
+        self._k_fast()  # compiled and loaded before the capture
+        side = cp.cuda.Stream(non_blocking=True)
+        with side:
+            side.begin_capture()
+            try:
+                self._queue_fast(ck.PARAMS + ck.GRAPH_DELTA)
+            finally:
+                graph = side.end_capture()
+        return graph
 
     # -- queries --------------------------------------------------------------------------------
 
@@ -336,40 +321,42 @@ class CudaPlanner(Planner):
         if self._shape == (0, 0) or not in_bounds(self._shape, start):
             return np.empty((0, 2), dtype=np.int32)
         with ck.DEVICE_LOCK:
-            return self._path_locked(start, with_ctrl=False)
+            return self._path_locked(start)
 
-    def _path_locked(self, start: Cell, with_ctrl: bool) -> np.ndarray:
-        """Launch the path kernel(s) from ``start`` and read the cells back (lock held).
-
-        ``with_ctrl``: the first copy also brings the ctrl words of the fast launch queued
-        before it (one copy, one synchronisation for a whole replanning step)."""
+    def _path_locked(self, start: Cell, copied: int | None = None) -> np.ndarray:
+        """Read the path from ``start`` back (lock held), launching the path kernel unless the
+        fast call queued before extracted it and copies its first ``copied`` cells back (then
+        one synchronisation serves the whole step). Longer paths come back in chunks."""
         w = self._shape[1]
         host, at = self._io_host, ck.IO_PATH
         chunks: list[np.ndarray] = []
         cur = start[0] * w + start[1]
-        first = 0 if with_ctrl else at  # where the first copy starts in _io
-        while True:
-            self._launch_path(cur)
-            guess = min(self._path_guess, self._path_cap)
-            host.from_device(self._io, at + 2 + guess - first, offset=first)
+        if copied is not None:
             ck.synchronize()
-            first = at
+        while True:
+            if copied is None:
+                self._launch_path(cur)
+                copied = min(self._path_guess, self._path_cap)
+                host.from_device(self._io, 2 + copied, offset=at)
+                ck.synchronize()
             count, status = int(host.array[at]), int(host.array[at + 1])
-            if count > guess:
-                host.from_device(self._io, count - guess, offset=at + 2 + guess)
+            if count > copied:
+                host.from_device(self._io, count - copied, offset=at + 2 + copied)
                 ck.synchronize()
             self._path_guess = max(256, 2 * count)
-            cells = host.array[at + 2 : at + 2 + count].astype(np.int64)
-            chunks.append(cells if not chunks else cells[1:])
+            cells = host.array[at + 2 : at + 2 + count]
+            chunks.append(cells.copy() if not chunks else cells[1:].copy())
             if status != 1:
                 break
-            cur = int(cells[-1])
+            cur, copied = int(cells[-1]), None
         if status == 2:
             return np.empty((0, 2), dtype=np.int32)
         if status == 3:
             raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
-        flat = np.concatenate(chunks)
-        return np.stack((flat // w, flat % w), axis=1).astype(np.int32)
+        flat = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
+        path = np.empty((flat.size, 2), dtype=np.int32)
+        np.divmod(flat, w, out=(path[:, 0], path[:, 1]))
+        return path
 
     def _launch_path(self, cur: int) -> None:
         h, w = self._shape
@@ -384,6 +371,13 @@ class CudaPlanner(Planner):
              np.uint32(self._path_bar)),
         )  # fmt: skip
         self._path_bar = (self._path_bar + 2 * self._path_blocks) % 2**32
+
+    def phase_ns(self) -> np.ndarray:
+        """With ``profile=True``, after a fused ``update_and_path``: ns of the launch's phases as
+        block 0 saw them (fast.cu PROFILE): init, delta and seeds, EDS raise and reset, the
+        relaxation, the stale tiles' exits, the hops, block 0's segments."""
+        stamps = self._io_host.array[ck.P_STAMPS : ck.P_STAMPS + 8].view(np.uint32)
+        return (np.diff(stamps.astype(np.int64)) % 2**32).astype(np.int64)
 
     @property
     def goal(self) -> Cell:

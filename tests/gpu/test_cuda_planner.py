@@ -19,10 +19,14 @@ pytestmark = [
     pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device"),
 ]
 
-# fast with each in-tile relaxation (scan level), 1 and 2 blocks per SM, both path kernels;
-# and the paper's form.
+# fast with each in-tile relaxation (scan level), 1 and 2 blocks per SM, both schedules of the
+# relaxation, a persistent grid of 3 blocks (each block owns many tiles), direct launches
+# instead of the captured graph, both path kernels; and the paper's form.
 CONFIGS = [
     pytest.param(("fast", {}), id="fast"),
+    pytest.param(("fast", {"sched": 0}), id="fast-rounds"),
+    pytest.param(("fast", {"max_blocks": 3}), id="fast-3blocks"),
+    pytest.param(("fast", {"use_graph": False}), id="fast-direct"),
     pytest.param(("fast", {"scans": 0, "min_blocks": 2}), id="fast-jacobi-2blk"),
     pytest.param(("fast", {"scans": 1, "min_blocks": 1}), id="fast-rowcol-1blk"),
     pytest.param(("fast", {"path_mode": "walk"}), id="fast-walkpath"),
@@ -181,3 +185,38 @@ def test_large_map_matches_cpu_and_fits_in_100_mb(variant):
         assert used < 100e6, f"{used / 1e6:.1f} MB on the device"
         assert planner.device_bytes() < 100e6
     assert np.array_equal(planner.path((h - 1, w // 2)), cpu.path((h - 1, w // 2)))
+
+
+@pytest.mark.parametrize("config", CONFIGS)
+def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(config):
+    """fast replays a captured graph whose arguments never change: the goal, like every other
+    per-call value, must come from the call's parameters."""
+    rng = np.random.default_rng(5)
+    blocked, _ = random_map(rng, (70, 90), 0.25)
+    planner = cuda_planner(config)
+    for goal in [(3, 4), (66, 80), (35, 1)]:
+        blocked[goal] = False
+        planner.plan(blocked, goal)
+        assert np.array_equal(planner.costs(), dijkstra_field(blocked, goal))
+        cells = rng.choice(70 * 90, size=30, replace=False)
+        values = rng.random(30) < 0.5
+        values[cells == goal[0] * 90 + goal[1]] = False
+        blocked.reshape(-1)[cells] = values
+        planner.update(cells, values)
+        assert np.array_equal(planner.costs(), dijkstra_field(blocked, goal))
+        start = (int(rng.integers(70)), int(rng.integers(90)))
+        _, path = planner.update_and_path(np.empty(0, np.int64), np.empty(0, bool), start)
+        assert np.array_equal(path, reference_path(planner.costs(), blocked, start))
+
+
+def test_encode_delta_keeps_the_last_value_of_a_cell_and_checks_bounds():
+    from daemon.planning.cuda_kernels import encode_delta
+
+    out = np.full(8, -1, np.int32)
+    codes = encode_delta(np.array([5, 3, 5, 9]), np.array([True, False, False, True]), 10, out=out)
+    assert codes.tolist() == [6, 10, 19] and out[:3].tolist() == [6, 10, 19]  # 5 -> last: free
+    assert encode_delta(np.array([1, 2], np.int32), np.array(True), 10).tolist() == [3, 5]
+    assert encode_delta(np.empty(0, np.int64), np.empty(0, bool), 10).size == 0
+    for bad in ([10], [-1, 3]):
+        with pytest.raises(IndexError):
+            encode_delta(np.array(bad), np.ones(len(bad), bool), 10)

@@ -116,6 +116,9 @@ def test_fallback_replays_a_failed_fused_step_on_the_cpu(nth):
 
 CONFIGS = [
     pytest.param(("fast", {}), id="fast"),
+    pytest.param(("fast", {"sched": 0}), id="fast-rounds"),
+    pytest.param(("fast", {"max_blocks": 3}), id="fast-3blocks"),
+    pytest.param(("fast", {"use_graph": False}), id="fast-direct"),
     pytest.param(("fast", {"path_mode": "walk"}), id="fast-walkpath"),
     pytest.param(("paper", {}), id="paper"),
 ]
@@ -183,3 +186,50 @@ def test_fused_long_path_is_read_back_in_chunks(path_mode):
         assert np.array_equal(planner.costs(), g)
         assert np.array_equal(path, reference_path(g, blocked, start))
         assert stats.iterations >= 1
+
+
+@pytest.mark.gpu
+@pytest.mark.timeout(300)
+@pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device")
+@pytest.mark.parametrize("config", CONFIGS[:4])  # the fused path: fast with tiles
+def test_fused_walk_with_local_changes_keeps_the_exits_it_reuses_exact(config):
+    """A walk along the path with sensor-like discs of change: most tiles keep their cached
+    exits from step to step, and the path must still be the reference path every time."""
+    rng = np.random.default_rng(11)
+    h, w = 200, 300
+    blocked = rng.random((h, w)) < 0.3
+    goal = (5, 5)
+    blocked[goal] = False
+    planner = cuda_planner(config)
+    planner.plan(blocked, goal)
+    start = (h - 3, w - 3)
+    blocked[start] = False
+    planner.update(np.array([start[0] * w + start[1]]), np.array([False]))
+    tiles = -(-h // 32) * -(-w // 32)
+    recomputed = []
+    for i in range(60):
+        cy, cx = int(rng.integers(h)), int(rng.integers(w))
+        if i % 3 == 0:  # often right on the path, which cuts it
+            path_now = planner.path(start)
+            if len(path_now) > 4:
+                cy, cx = (int(v) for v in path_now[len(path_now) // 3])
+        r = int(rng.integers(1, 6))
+        ys, xs = np.mgrid[max(cy - r, 0) : min(cy + r + 1, h), max(cx - r, 0) : min(cx + r + 1, w)]
+        cells = (ys * w + xs).ravel()
+        values = rng.random(cells.size) < 0.6
+        values[cells == start[0] * w + start[1]] = False
+        values[cells == goal[0] * w + goal[1]] = False
+        blocked.reshape(-1)[cells] = values
+        full = i % 10 == 9
+        _, path = planner.update_and_path(cells, values, start, full=full)
+        if full:
+            assert planner.exit_tiles == tiles  # a plan from scratch changes every tile
+        else:
+            recomputed.append(planner.exit_tiles)
+        g = dijkstra_field(blocked, goal)
+        assert np.array_equal(planner.costs(), g), f"step {i}"
+        assert np.array_equal(path, reference_path(g, blocked, start)), f"step {i}"
+        if len(path) > 3:
+            start = (int(path[3][0]), int(path[3][1]))  # the user walks on
+    # a local change leaves most tiles' exits as they were (the start's tile is always redone)
+    assert min(recomputed) >= 1 and np.median(recomputed) < tiles / 2, recomputed

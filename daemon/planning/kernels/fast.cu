@@ -1,359 +1,239 @@
-// The fast CUDA planner: one persistent launch per planning call.
+// The fast CUDA planner: one persistent launch per replanning step, the path included.
 //
-// The grid is cut into 32 x 32 tiles. A block loads a tile and its one-cell halo into
-// shared memory and relaxes it until it settles; only then does the tile's change reach
-// the neighbouring tiles, through a grid-wide barrier. A tile is processed in a round only
-// when it is flagged: by the delta, by the goal, or by a neighbour whose border changed.
-// So a plan costs ~tens of grid-wide rounds instead of ~hundreds of sweeps, and an EDS
-// update touches only the tiles around the change.
+// The grid is cut into 32 x 32 tiles (tile_relax.cuh). A block loads a tile and its one-cell
+// halo into shared memory and relaxes it until it settles; only then does the tile's change
+// reach the neighbouring tiles. A tile is relaxed only when it is flagged: by the delta, by
+// the goal, or by a neighbour whose border changed. So an EDS update touches only the tiles
+// around the change.
 //
 // Correctness does not depend on the order of relaxation: every value ever written is the
-// cost of a real path (an upper bound), values only decrease, and a round ends with every
-// processed tile settled against the halo it read; a tile whose halo changed afterwards is
-// flagged again. The fixpoint of g[v] = min(g[v], g[n] + c) over that is the exact field.
+// cost of a real path (an upper bound), values only decrease, and every tile whose halo
+// changed after it last read it is flagged again. The fixpoint of g[v] = min(g[v], g[n] + c)
+// is then the exact field, whatever the schedule.
+//
+// SCHED selects the schedule of the relaxation (compile-time, -DSCHED=n):
+//   0  grid-wide rounds: every flagged tile once, a grid barrier, the tiles flagged meanwhile;
+//   1  asynchronous (default): block b owns tiles b, b + gridDim.x, ... and relaxes each as
+//      soon as it is flagged, so the wave moves at the pace of one tile instead of a round.
+// The EDS raise and reset phases always run in rounds (a few per step).
+//
+// With start >= 0 the launch then extracts the path from `start` (path_exits.cuh), reusing
+// the exits of every tile whose g and halo did not change since the last extraction.
 //
 // Host contract (cuda_planner.py): the launch has at most as many blocks as can be resident
-// at once (the barrier spins), ctrl[0] == 0 at launch, one launch at a time per device.
-//
-// SCANS selects the in-tile relaxation (compile-time, -DSCANS=n):
-//   0  Jacobi sweeps over the 8 neighbours;
-//   1  + min-plus scans along every row and column of the tile;
-//   2  + scans along both diagonals, so any straight or diagonal run settles in one sweep.
+// at once (the barriers spin), one launch at a time per device, flags zero but for the stale
+// region (set at allocation), ctrl zero at allocation. Everything that changes from step to
+// step is read from device memory (params, and the barrier count the last launch ended with
+// in ctrl[C_BASE]), so the host can replay the same launch as a CUDA graph.
 
-#ifndef SCANS
-#define SCANS 2
+#ifndef SCHED
+#define SCHED 1
 #endif
 
 #ifndef MIN_BLOCKS
 #define MIN_BLOCKS 1
 #endif
 
-#define TILE 32
-#define HT (TILE + 2)
-#define NTHREADS (TILE * TILE)
-#define INF 0x3FFFFFFF
-#define BIG 0x7F000000
-#define FULL 0xFFFFFFFFu
+#include "tile_relax.cuh"
+#include "path_exits.cuh"
 
-// ctrl layout (unsigned ints)
-#define C_BAR 0       // barrier arrivals since the planner was allocated (wraps)
+// ctrl layout (unsigned ints): C_BAR 0 and C_RELEASE 32 (grid_sync.cuh), C_SWEEPS ..
+// C_CHANGED 10..12 (tile_relax.cuh), P_* 40..42 (path_exits.cuh), and:
 #define C_CNT 2       // 3 rotating counters of tiles flagged for the next round
-#define C_ROUNDS 8    // grid-wide rounds run
+#define C_EXITS 7     // tiles whose path exits were recomputed
+#define C_ROUNDS 8    // grid-wide rounds; with SCHED 1 the relaxation adds its longest chain of visits
 #define C_TILES 9     // tiles processed (all phases)
-#define C_SWEEPS 10   // in-tile sweeps, summed over processed tiles
-#define C_RAISED 11   // cells raised to INF by EDS
-#define C_CHANGED 12  // cells whose g the relaxation lowered
-#define C_RELEASE 32  // the last arrival count of a completed barrier (own cache line)
+#define C_LONGEST 13  // SCHED 1: the longest chain of visits of the relaxation
+#define C_BASE 14     // the barrier count the last launch ended with (the next one starts there)
 
-// phases (ops)
+// -DPROFILE: block 0's thread 0 stamps the global timer (ns, low 32 bits) into ctrl[48 + i]
+// at the end of each phase (cuda_planner.CudaPlanner.phase_ns reads them).
+#define P_STAMPS 48
+#ifdef PROFILE
+#define STAMP(i)                                                                  \
+    do {                                                                          \
+        if (blockIdx.x == 0 && threadIdx.x == 0) {                                \
+            unsigned long long t_;                                                \
+            asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t_));                \
+            ctrl[P_STAMPS + (i)] = (unsigned)t_;                                  \
+        }                                                                         \
+    } while (0)
+#else
+#define STAMP(i) \
+    do {         \
+    } while (0)
+#endif
+
+// phases (ops) of a round
 #define OP_RELAX 0
 #define OP_RAISE 1
 #define OP_RESET 2
 
-__constant__ int NB_DR[8] = {-1, -1, -1, 0, 0, 1, 1, 1};
-__constant__ int NB_DC[8] = {-1, 0, 1, -1, 1, -1, 0, 1};
-__constant__ int NB_COST[8] = {14, 10, 14, 10, 10, 14, 10, 14};
-
-// Tile offsets for the edge bits N S W E NW NE SW SE.
-__constant__ int EDGE_DY[8] = {-1, 1, 0, 0, -1, -1, 1, 1};
-__constant__ int EDGE_DX[8] = {0, 0, -1, 1, -1, 1, -1, 1};
-
-struct Grid {
-    int h, w, tiles_x, tiles_y, ntiles, goal;
-};
-
-// A barrier over the whole launch. Valid only when every block is resident (host sizes
-// the grid from the occupancy). ctrl[C_BAR] counts arrivals and only ever grows (the host
-// passes the count the previous launch ended with as `bar_base`), so no reset races the next
-// barrier; the last block in publishes the count in ctrl[C_RELEASE], a cache line of its own
-// that the waiting blocks read while the arrivals hit the counter.
-__device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
+// Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
+// s_list, clearing their flags (one atomic each: a read first would cost a second round trip
+// on the wave's critical path). With `watch`, the block's last thread reads *watch into
+// *s_watch in the same pass. Returns how many tiles, the same in every thread of the block.
+__device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, int* s_n,
+                            const unsigned* watch = nullptr, unsigned* s_watch = nullptr) {
+    __syncthreads();  // every thread has read the previous count
+    if (threadIdx.x == 0) *s_n = 0;
     __syncthreads();
-    if (threadIdx.x == 0) {
-        *target += gridDim.x;
-        __threadfence();
-        unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
-        volatile unsigned* release = ctrl + C_RELEASE;
-        if (arrived == *target) {
-            *release = arrived;
-        } else {
-            // Blocks that are not all resident (another process's kernels under MPS, say)
-            // would wait here forever; after seconds, trap: a CUDA error the host's CPU
-            // fallback turns into a warning instead of a hung daemon.
-            unsigned spins = 0;
-            while ((int)(*release - *target) < 0) {
-                __nanosleep(32);
-                if (++spins == (1u << 26)) __trap();
-            }
-        }
-        __threadfence();
+    int t = base + threadIdx.x * gridDim.x;
+    if (t < ntiles && atomicExch(flags + t, 0u)) {
+        s_list[atomicAdd(s_n, 1)] = t;
+        __threadfence();  // what the flagging block published is read after the flag was taken
     }
+    if (watch && threadIdx.x == NTHREADS - 1) *s_watch = *((volatile const unsigned*)watch);
     __syncthreads();
+    return *s_n;
 }
 
-__device__ __forceinline__ void flag_tile(unsigned* next, unsigned* cnt, int t) {
-    if (atomicExch(next + t, 1u) == 0u) atomicAdd(cnt, 1u);
-}
-
-// Flag the tile across edge/corner k (bits: N S W E NW NE SW SE) if that bit is set.
-__device__ void flag_neighbour(const Grid& G, int t, unsigned bits, int k, unsigned* next,
-                               unsigned* cnt) {
-    if (k >= 8 || !(bits & (1u << k))) return;
-    int ny = t / G.tiles_x + EDGE_DY[k], nx = t % G.tiles_x + EDGE_DX[k];
-    if (ny < 0 || nx < 0 || ny >= G.tiles_y || nx >= G.tiles_x) return;
-    flag_tile(next, cnt, ny * G.tiles_x + nx);
-}
-
-// Which edge/corner bits a tile cell (y, x) sits on.
-__device__ __forceinline__ unsigned edge_bits(int y, int x) {
-    unsigned b = 0;
-    if (y == 0) b |= 1u;
-    if (y == TILE - 1) b |= 2u;
-    if (x == 0) b |= 4u;
-    if (x == TILE - 1) b |= 8u;
-    if (y == 0 && x == 0) b |= 16u;
-    if (y == 0 && x == TILE - 1) b |= 32u;
-    if (y == TILE - 1 && x == 0) b |= 64u;
-    if (y == TILE - 1 && x == TILE - 1) b |= 128u;
-    return b;
-}
-
-// Load g of the tile and its halo into gs (cells outside the map read INF).
-__device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*gs)[HT]) {
-    for (int i = threadIdx.x; i < HT * HT; i += NTHREADS) {
-        int sy = i / HT, sx = i % HT;
-        int y = oy + sy - 1, x = ox + sx - 1;
-        int v = INF;
-        if (y >= 0 && x >= 0 && y < G.h && x < G.w) v = __ldcg(g + y * G.w + x);
-        gs[sy][sx] = v;
-    }
-}
-
-#if SCANS >= 1
-#include "tile_scans.cuh"
-#endif
-
-// Relax one tile until it settles. Returns the edge bits of cells that changed.
-__device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
-                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
-    __shared__ unsigned s_bits;
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
-    bool inside = gy < G.h && gx < G.w;
-    int idx = gy * G.w + gx;
-    bool blk = !inside || __ldcg(blocked + idx) != 0;
-    bool is_goal = inside && idx == G.goal;
-    if (threadIdx.x == 0) s_bits = 0;
-    load_tile_g(G, g, oy, ox, gs);
-    bs[y][x] = blk ? 1 : 0;
-    __syncthreads();
-    int before = gs[y + 1][x + 1];
-    if (is_goal && !blk) gs[y + 1][x + 1] = 0;
-    __syncthreads();
-    unsigned n = 0;
-    while (true) {
-        bool ch = false;
-        if (!blk && !is_goal) {
-            int cur = gs[y + 1][x + 1];
-            int best = cur;
-#pragma unroll
-            for (int k = 0; k < 8; ++k) best = min(best, gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k]);
-            if (best < cur) {
-                gs[y + 1][x + 1] = best;
-                ch = true;
-            }
-        }
-#if SCANS >= 1
-        __syncthreads();
-        ch |= scan_lines(0, gs, bs);
-        __syncthreads();
-        ch |= scan_lines(1, gs, bs);
-#endif
-#if SCANS >= 2
-        __syncthreads();
-        ch |= scan_lines(2, gs, bs);
-        __syncthreads();
-        ch |= scan_lines(3, gs, bs);
-#endif
-        ++n;
-        if (!__syncthreads_or(ch)) break;
-    }
-    int after = gs[y + 1][x + 1];
-    bool changed = inside && after != before;
-    if (changed) {
-        __stcg(g + idx, after);
-        atomicOr(&s_bits, edge_bits(y, x));
-    }
-    unsigned total = __syncthreads_count(changed);
-    if (threadIdx.x == 0) {
-        atomicAdd(sweeps, n);
-        atomicAdd(sweeps + (C_CHANGED - C_SWEEPS), total);
-    }
-    return s_bits;
-}
-
-// EDS step 1, one tile: a cell is raised when every neighbour that supports its g (a tight
-// neighbour, g[n] + c == g[v] in the unchanged old field) is raised or newly blocked. That
-// is exactly the set of cells whose cost must rise (the CPU's rule), smaller than the whole
-// pred subtree. Returns the edge bits of newly raised cells; *any_raised tells whether the
-// tile holds one.
-__device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
-                               int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
-                               bool* any_raised) {
-    __shared__ unsigned s_bits;
-    __shared__ int s_any;
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
-    bool inside = gy < G.h && gx < G.w;
-    int idx = gy * G.w + gx;
-    if (threadIdx.x == 0) { s_bits = 0; s_any = 0; }
-    load_tile_g(G, g, oy, ox, gs);
-    for (int i = threadIdx.x; i < HT * HT; i += NTHREADS) {
-        int sy = i / HT, sx = i % HT;
-        int yy = oy + sy - 1, xx = ox + sx - 1;
-        unsigned char v = 0;
-        if (yy >= 0 && xx >= 0 && yy < G.h && xx < G.w) v = __ldcg(raised + yy * G.w + xx);
-        rs[sy][sx] = v;
-    }
-    __syncthreads();
-    int gv = gs[y + 1][x + 1];
-    unsigned tight = 0;  // bit k: neighbour k supports g (the goal has none and never rises)
-    if (inside && gv > 0 && gv < INF) {
-#pragma unroll
-        for (int k = 0; k < 8; ++k)
-            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] == gv) tight |= 1u << k;
-    }
-    bool was = rs[y + 1][x + 1] != 0;
-    unsigned n = 0;
-    while (true) {
-        bool ch = false;
-        if (tight && !rs[y + 1][x + 1]) {
-            bool all = true;
-#pragma unroll
-            for (int k = 0; k < 8; ++k)
-                if ((tight >> k) & 1u) all = all && rs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]];
-            if (all) {
-                rs[y + 1][x + 1] = 1;
-                ch = true;
-            }
-        }
-        ++n;
-        if (!__syncthreads_or(ch)) break;
-    }
-    bool now = rs[y + 1][x + 1] != 0;
-    if (inside && now && !was) {
-        raised[idx] = 1;
-        atomicOr(&s_bits, edge_bits(y, x));
-    }
-    if (inside && now) s_any = 1;
-    __syncthreads();
-    if (threadIdx.x == 0) atomicAdd(sweeps, n);
-    *any_raised = s_any != 0;
-    return s_bits;
-}
-
-// EDS step 2, one tile: raised cells take INF and are cleared; the tile is flagged to relax.
-__device__ void reset_tile(const Grid& G, int t, int* g, unsigned char* raised, unsigned* count) {
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
-    unsigned r = 0;
-    if (gy < G.h && gx < G.w) {
-        int idx = gy * G.w + gx;
-        if (__ldcg(raised + idx)) {
-            __stcg(g + idx, INF);
-            raised[idx] = 0;
-            r = 1;
-        }
-    }
-    unsigned total = __syncthreads_count(r);
-    if (threadIdx.x == 0) atomicAdd(count, total);
-}
-
-// One grid-wide round: every block takes its flagged tiles of `in` (clearing the flags),
-// applies `op`, and flags tiles for the next round in `next` (count in cnt_next).
-// Returns the number of tiles flagged for the next round, the same in every block.
+// One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
+// tiles for the next round in `next` (count in ctrl[C_CNT + (r + 1) % 3]). Returns the number
+// of tiles flagged for the next round, the same in every block.
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
-                              unsigned* ctrl, int r, int* g, const unsigned char* blocked,
-                              unsigned char* raised, int (*gs)[HT], unsigned char (*bs)[TILE + 1],
-                              unsigned char (*rs)[HT], unsigned* bar) {
-    __shared__ int s_list[NTHREADS];
-    __shared__ int s_n;
+                              unsigned* stale, unsigned* ctrl, int r, int* g,
+                              const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
+                              unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
+                              int* s_n, unsigned* bar) {
     unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
     if (blockIdx.x == 0 && threadIdx.x == 0) {
         ctrl[C_CNT + (r + 2) % 3] = 0;
         ctrl[C_ROUNDS] += 1;
     }
-    // Collect this block's flagged tiles (t = blockIdx.x + k * gridDim.x).
     for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * NTHREADS) {
-        if (threadIdx.x == 0) s_n = 0;
-        __syncthreads();
-        int t = base + threadIdx.x * gridDim.x;
-        if (t < G.ntiles && __ldcg(in + t)) {
-            in[t] = 0;
-            s_list[atomicAdd(&s_n, 1)] = t;
-        }
-        __syncthreads();
-        int count = s_n;
+        int count = take_flagged(in, G.ntiles, base, s_list, s_n);
         for (int i = 0; i < count; ++i) {
             int tile = s_list[i];
             if (op == OP_RELAX) {
                 unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, ctrl + C_SWEEPS);
                 flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
+                mark_exits_stale(G, tile, bits, (int)threadIdx.x - 32, stale);
             } else if (op == OP_RAISE) {
                 bool any = false;
                 unsigned bits = raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any);
                 flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
                 if (any && threadIdx.x == 8) atomicExch(seeds + tile, 1u);
             } else {
-                reset_tile(G, tile, g, raised, ctrl + C_RAISED);
+                unsigned bits = reset_tile(G, tile, g, raised, ctrl + C_RAISED);
                 if (threadIdx.x == 0) flag_tile(next, cnt_next, tile);
+                mark_exits_stale(G, tile, bits, (int)threadIdx.x - 32, stale);
             }
             if (threadIdx.x == 0) atomicAdd(ctrl + C_TILES, 1u);
             __syncthreads();  // shared tile buffers are reused by the next tile
         }
-        __syncthreads();
     }
     grid_barrier(ctrl, bar);
     return *((volatile unsigned*)cnt_next);
 }
 
+#define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
+
+// SCHED 1: the relaxation without rounds. *work counts the flags set plus the visits under
+// way; the phase ends when it reaches 0, which is final, since only a visit sets a flag.
+// depth[t]: the longest chain of visits that flagged t (a statistic: the rounds it replaces).
+__device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
+                            unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
+                            int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
+    __shared__ unsigned s_work, s_depth;
+    // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
+    if (blockIdx.x >= G.ntiles) return;
+    unsigned idle = 0, longest = 0;
+    while (true) {
+        int visited = 0;
+        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * NTHREADS) {
+            // The first chunk's pass also reads the work count, for the test below.
+            int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
+                                     base == (int)blockIdx.x ? work : nullptr, &s_work);
+            for (int i = 0; i < count; ++i) {
+                int tile = s_list[i];
+                if (threadIdx.x == 0) s_depth = __ldcg(depth + tile) + 1;  // read after relax_tile's barriers
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, ctrl + C_SWEEPS);
+                int k = threadIdx.x;
+                if (k < 8 && (bits & (1u << k))) {
+                    int n = tile_across(G, tile, k);
+                    if (n >= 0) {
+                        atomicMax(depth + n, s_depth);
+                        __threadfence();  // the tile's g and the depth before the flag
+                        flag_tile(dirty, work, n);
+                    }
+                }
+                mark_exits_stale(G, tile, bits, k - 32, stale);
+                if (threadIdx.x == 0) {
+                    atomicAdd(ctrl + C_TILES, 1u);
+                    longest = max(longest, s_depth);
+                }
+                __syncthreads();  // shared tile buffers are reused by the next tile
+            }
+            // The flags this block set are counted before its visits are uncounted.
+            if (count && threadIdx.x == 0) atomicSub(work, (unsigned)count);
+            visited += count;
+        }
+        if (visited) {
+            idle = 0;
+            continue;
+        }
+        // No flag of ours was set; a work count of 0, read in the same pass, means none will
+        // be: nothing is flagged anywhere and no visit is under way to flag one. (The next
+        // write of s_work comes after the first barrier of the next pass.)
+        if (s_work == 0u) break;
+        if (++idle == IDLE_LIMIT) __trap();  // a lost flag would otherwise hang the daemon
+    }
+    if (threadIdx.x == 0) atomicMax(ctrl + C_LONGEST, longest);
+}
+
+// params of a call: [ndelta, mode, start, goal, 0, 0, 0, 0], then the delta.
+#define PARAMS 8
+
 // The planning call.
 //   mode 0 (DSS): apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   mode 1 (EDS): apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
-// delta[i] = cell * 2 + new_blocked. flags: 3 * ntiles (ping, pong, seeds), all zero.
+//   start >= 0: then the path from start into out (path_exits.cuh).
+// delta[i] = cell * 2 + new_blocked. flags: 5 * ntiles (ping, pong, seeds, stale, depth).
 extern "C" __global__ void __launch_bounds__(NTHREADS, MIN_BLOCKS)
-plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int* delta, int ndelta,
-                unsigned* flags, unsigned* ctrl, int h, int w, int goal, int mode,
-                unsigned bar_base) {
+plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int* params,
+                unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* out,
+                int cap) {
     __shared__ int gs[HT][HT];
     __shared__ unsigned char bs[TILE][TILE + 1];
     __shared__ unsigned char rs[HT][HT];
+    __shared__ int s_list[NTHREADS];
+    __shared__ int s_n;
     Grid G;
-    G.h = h; G.w = w; G.goal = goal;
+    G.h = h; G.w = w;
     G.tiles_x = (w + TILE - 1) / TILE;
     G.tiles_y = (h + TILE - 1) / TILE;
     G.ntiles = G.tiles_x * G.tiles_y;
     unsigned* ping = flags;
     unsigned* pong = flags + G.ntiles;
     unsigned* seeds = flags + 2 * G.ntiles;
+    unsigned* stale = flags + 3 * G.ntiles;
+    unsigned* depth = flags + 4 * G.ntiles;
     int tid = blockIdx.x * NTHREADS + threadIdx.x, stride = gridDim.x * NTHREADS;
-    unsigned bar = bar_base;  // thread 0's barrier target
+    const int ndelta = params[0], mode = params[1], start = params[2], goal = params[3];
+    const int* delta = params + PARAMS;
+    G.goal = goal;
+    // Thread 0's barrier target. Block 0 writes C_BASE back only after the last barrier, when
+    // every block has read it.
+    unsigned bar = ((volatile unsigned*)ctrl)[C_BASE];
+    STAMP(0);
 
     // Round 0: counters, the delta, the seeds of the first phase.
     if (tid == 0) {
         for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
-        for (int i = C_ROUNDS; i <= C_CHANGED; ++i) ctrl[i] = 0;
+        ctrl[C_EXITS] = 0;
+        for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
     }
+    for (int i = tid; i < G.ntiles; i += stride) depth[i] = 0;
     grid_barrier(ctrl, &bar);
+    STAMP(1);
     unsigned* cnt1 = ctrl + C_CNT + 1;
     if (mode == 0) {
         for (int i = tid; i < ndelta; i += stride) blocked[delta[i] >> 1] = delta[i] & 1;
         for (int i = tid; i < h * w; i += stride) g[i] = INF;
-        if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, (goal / w / TILE) * G.tiles_x + (goal % w) / TILE);
+        for (int i = tid; i < G.ntiles; i += stride) stale[i] = 1u;
+        if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
         for (int i = tid; i < ndelta; i += stride) {
             int cell = delta[i] >> 1;
@@ -376,21 +256,54 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
         }
     }
     grid_barrier(ctrl, &bar);
+    STAMP(2);
     unsigned pending = *((volatile unsigned*)cnt1);
     int r = 1;
     if (mode == 1) {
         while (pending) {
-            pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, ctrl, r, g, blocked,
-                                raised, gs, bs, rs, &bar);
+            pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
             ++r;
         }
-        pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, ctrl, r, g, blocked, raised,
-                            gs, bs, rs, &bar);
+        pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r, g,
+                            blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
         ++r;
     }
+    STAMP(3);
+#if SCHED == 1
+    // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
+    // Every block enters, even with nothing pending: a block that is late to read `pending`
+    // may find the count already changed by the others' visits.
+    (void)pending;
+    relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
+                bs, s_list, &s_n);
+    grid_barrier(ctrl, &bar);
+    if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
+#else
     while (pending) {
-        pending = run_round(G, OP_RELAX, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, ctrl, r, g, blocked,
-                            raised, gs, bs, rs, &bar);
+        pending = run_round(G, OP_RELAX, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
+                            ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
         ++r;
     }
+#endif
+    STAMP(4);
+    if (start >= 0) {
+        // The path: exits of the stale tiles and of the start's, the hops, the segments.
+        unsigned char(*code)[TILE] = (unsigned char(*)[TILE]) & rs[0][0];
+        int start_tile = tile_of(start, w, G.tiles_x);
+        if (threadIdx.x == 0 && start_tile % gridDim.x == blockIdx.x) stale[start_tile] = 1u;
+        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * NTHREADS) {
+            int count = take_flagged(stale, G.ntiles, base, s_list, &s_n);
+            for (int i = 0; i < count; ++i) tile_exits(g, h, w, s_list[i], start, exits, ctrl, gs, code);
+            if (count && threadIdx.x == 0) atomicAdd(ctrl + C_EXITS, (unsigned)count);
+        }
+        grid_barrier(ctrl, &bar);
+        STAMP(5);
+        if (tid == 0) hop_segments(g, w, start, exits, segs, out, cap, ctrl);
+        grid_barrier(ctrl, &bar);
+        STAMP(6);
+        walk_segments(g, h, w, segs, out, ctrl, gs, code);
+        STAMP(7);
+    }
+    if (tid == 0) ctrl[C_BASE] = bar;
 }

@@ -1,70 +1,66 @@
-// In-tile min-plus scans for fast.cu (included there; SCANS >= 1).
+// In-tile min-plus scans for tile_relax.cuh (included there when SCANS >= 1).
 //
 // A warp holds one line of 32 cells of the tile in shared memory (a row, a column or a
 // diagonal) and gives every cell min over its segment of g[l'] + step * |l - l'|, so a
 // straight or diagonal run of free cells settles in one pass instead of one cell per sweep.
+// A segment ends at a blocked cell (which is a segment of its own) or where a diagonal wraps
+// round the tile. The map does not change during a visit, so each thread works out its four
+// segments once per visit (line_segments) and a scan is then 10 shuffles and no ballot.
 
 #pragma once
 
-#if SCANS >= 1
-// Segmented min-plus scan along one line of 32 cells held by a warp: every cell gets
-// min over cells of its segment of g[l'] + step * |l - l'|. A segment ends at a blocked
-// cell or where the line leaves the tile (wrap of a diagonal).
-__device__ __forceinline__ int line_scan(int gv, bool blk, bool head, bool tail, int step) {
-    int lane = threadIdx.x & 31;
-    // forward: min over l' <= l of g[l'] - step*l', then + step*l
-    int v = blk ? BIG : gv - step * lane;
-    int f = head ? 1 : 0;
-    for (int d = 1; d < 32; d <<= 1) {
-        int v2 = __shfl_up_sync(FULL, v, d);
-        int f2 = __shfl_up_sync(FULL, f, d);
-        if (lane >= d) {
-            if (!f) v = min(v, v2);
-            f |= f2;
-        }
+// Scan family dir (0 rows, 1 columns, 2 diagonals, 3 anti-diagonals): warp w takes line w,
+// lane l its l-th cell (y, x); head/tail: the line itself starts/ends there.
+__device__ __forceinline__ void line_cell(int dir, int* y, int* x, bool* head, bool* tail) {
+    int w = threadIdx.x >> 5, l = threadIdx.x & 31;
+    if (dir == 0) { *y = w; *x = l; *head = l == 0; *tail = l == 31; }
+    else if (dir == 1) { *y = l; *x = w; *head = l == 0; *tail = l == 31; }
+    else if (dir == 2) {
+        *y = l; *x = (w + l) & 31;
+        *head = l == 0 || *x == 0; *tail = l == 31 || *x == 31;
+    } else {
+        *y = l; *x = (w - l) & 31;
+        *head = l == 0 || *x == 31; *tail = l == 31 || *x == 0;
     }
-    int best = v + step * lane;
-    // backward: min over l' >= l of g[l'] + step*l', then - step*l
-    v = blk ? BIG : gv + step * lane;
-    f = tail ? 1 : 0;
-    for (int d = 1; d < 32; d <<= 1) {
-        int v2 = __shfl_down_sync(FULL, v, d);
-        int f2 = __shfl_down_sync(FULL, f, d);
-        if (lane + d < 32) {
-            if (!f) v = min(v, v2);
-            f |= f2;
-        }
-    }
-    return min(best, v - step * lane);
 }
 
-// Scan family `dir` (0 rows, 1 columns, 2 diagonals, 3 anti-diagonals): warp w takes line w,
-// lane l its l-th cell. Returns whether this thread's cell decreased.
-__device__ __forceinline__ bool scan_lines(int dir, int (*gs)[HT], unsigned char (*bs)[TILE + 1]) {
-    int w = threadIdx.x >> 5, l = threadIdx.x & 31;
-    int y, x, step;
+// This lane's segment on line family dir, packed: first lane | last lane << 8 | blocked << 16.
+__device__ __forceinline__ unsigned line_segments(int dir, unsigned char (*bs)[TILE + 1]) {
+    int y, x, l = threadIdx.x & 31;
     bool head, tail;
-    if (dir == 0) { y = w; x = l; step = 10; head = l == 0; tail = l == 31; }
-    else if (dir == 1) { y = l; x = w; step = 10; head = l == 0; tail = l == 31; }
-    else if (dir == 2) {
-        y = l; x = (w + l) & 31; step = 14;
-        head = l == 0 || x == 0; tail = l == 31 || x == 31;
-    } else {
-        y = l; x = (w - l) & 31; step = 14;
-        head = l == 0 || x == 31; tail = l == 31 || x == 0;
-    }
+    line_cell(dir, &y, &x, &head, &tail);
     bool blk = bs[y][x] != 0;
-    // A blocked cell is its own segment: it neither passes nor takes a value.
-    bool prev_blk = __shfl_up_sync(FULL, blk ? 1 : 0, 1) != 0;
-    bool next_blk = __shfl_down_sync(FULL, blk ? 1 : 0, 1) != 0;
-    head = head || blk || (l > 0 && prev_blk);
-    tail = tail || blk || (l < 31 && next_blk);
+    unsigned b = __ballot_sync(FULL, blk);
+    unsigned heads = __ballot_sync(FULL, head) | b | (b << 1);  // a blocked cell ends the one before
+    unsigned tails = __ballot_sync(FULL, tail) | b | (b >> 1);
+    unsigned first = 31 - __clz(heads & ((2u << l) - 1u));     // lane 0 is always a head
+    unsigned last = __ffs(tails & ~((1u << l) - 1u)) - 1;      // lane 31 is always a tail
+    return first | (last << 8) | ((blk ? 1u : 0u) << 16);
+}
+
+// One scan of family dir over the tile; returns whether this thread's cell decreased.
+__device__ __forceinline__ bool scan_line(int dir, unsigned seg, int (*gs)[HT]) {
+    int y, x, l = threadIdx.x & 31;
+    bool head, tail;
+    line_cell(dir, &y, &x, &head, &tail);
+    int step = dir < 2 ? 10 : 14;
+    int first = seg & 0xFF, last = (seg >> 8) & 0xFF;
+    bool blk = (seg >> 16) & 1u;
     int gv = gs[y + 1][x + 1];
-    int cand = line_scan(gv, blk, head, tail, step);
+    // forward: min over l' in [first, l] of g[l'] - step*l', then + step*l; backward alike.
+    int f = blk ? BIG : gv - step * l;
+    int b = blk ? BIG : gv + step * l;
+#pragma unroll
+    for (int d = 1; d < 32; d <<= 1) {
+        int f2 = __shfl_up_sync(FULL, f, d);
+        int b2 = __shfl_down_sync(FULL, b, d);
+        if (l - d >= first) f = min(f, f2);
+        if (l + d <= last) b = min(b, b2);
+    }
+    int cand = min(f + step * l, b - step * l);
     if (!blk && cand < gv) {
         gs[y + 1][x + 1] = cand;
         return true;
     }
     return false;
 }
-#endif

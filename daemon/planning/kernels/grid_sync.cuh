@@ -1,0 +1,41 @@
+// The grid-wide barrier of the persistent kernels (fast.cu, path_tiles.cu).
+//
+// Valid only when every block of the launch is resident at once (the host sizes the grid
+// from the occupancy). ctrl[C_BAR] counts arrivals and only ever grows: the host passes the
+// count the previous launch ended with as the first target, so no reset races the next
+// barrier. The last block in publishes the count in ctrl[C_RELEASE], a cache line of its own
+// that the waiting blocks read while the arrivals hit the counter.
+#pragma once
+
+#define C_BAR 0
+#define C_RELEASE 32
+#define SPIN_LIMIT (1u << 26)  // ~seconds of __nanosleep(32) before a wait is called hung
+
+__device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        *target += gridDim.x;
+        __threadfence();
+        unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
+        volatile unsigned* release = ctrl + C_RELEASE;
+        if (arrived == *target) {
+            *release = arrived;
+        } else {
+            // Blocks that are not all resident (another process's kernels under MPS, say)
+            // would wait here forever; after seconds, trap: a CUDA error the host's CPU
+            // fallback turns into a warning instead of a hung daemon.
+            unsigned spins = 0;
+            while ((int)(*release - *target) < 0) {
+                __nanosleep(32);
+                if (++spins == SPIN_LIMIT) __trap();
+            }
+        }
+        __threadfence();
+    }
+    __syncthreads();
+}
+
+// Set flag t; count it in *cnt if it was clear (so *cnt is the number of flags set).
+__device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t) {
+    if (atomicExch(flags + t, 1u) == 0u) atomicAdd(cnt, 1u);
+}

@@ -1,0 +1,154 @@
+// Path extraction by tile jumps (interface.reference_path's rule: from each cell, the first
+// neighbour in grid.NEIGHBOUR_* order with g[n] + cost == g[cur]), in three phases that the
+// persistent kernels (path_tiles.cu, and fast.cu after a repair) separate by grid barriers:
+// 1. tile_exits, per 32 x 32 tile: for each of its 124 border cells (where a path can enter),
+//    follow the rule inside the tile in shared memory to the first cell outside it (the
+//    exit, an entry of the next tile) or to the goal; keep exit and count. The start's tile
+//    does the same for the start cell. An exit depends only on g in the tile and its halo,
+//    so fast.cu recomputes only the tiles whose g or halo changed.
+// 2. hop_segments, one thread: from the start, hop exit to exit (one load per tile crossed
+//    instead of one step per cell) and list the segments (entry, cells, offset).
+// 3. walk_segments: every segment again inside its tile, in parallel, writing its cells.
+//
+// out[0] = cells written, out[1] = status (0 reached the goal, 1 stopped before exceeding
+// `cap` cells: call again from the last one, 2 start unreachable, 3 field inconsistent),
+// out[2 ...] = flat cell indices. ctrl[P_SEG..P_NSEGS] pass values between the phases.
+#pragma once
+#include "neighbours.cuh"
+
+#define BORDER 124  // cells on a tile's perimeter
+#define EXIT_GOAL -2
+#define EXIT_STUCK -3
+#define CODE_GOAL 8
+#define CODE_STUCK 9
+#define P_SEG 40     // the start's own segment: exit, cells
+#define P_NSEGS 42   // segments listed by hop_segments
+
+// Perimeter index b (0..123) <-> tile-local cell: top row, bottom row, left and right columns.
+__device__ __forceinline__ void border_cell(int b, int* ly, int* lx) {
+    if (b < 32) { *ly = 0; *lx = b; }
+    else if (b < 64) { *ly = TILE - 1; *lx = b - 32; }
+    else if (b < 94) { *ly = b - 63; *lx = 0; }
+    else { *ly = b - 93; *lx = TILE - 1; }
+}
+
+__device__ __forceinline__ int border_index(int ly, int lx) {
+    if (ly == 0) return lx;
+    if (ly == TILE - 1) return 32 + lx;
+    if (lx == 0) return 63 + ly;
+    return 93 + ly;  // lx == TILE - 1
+}
+
+__device__ __forceinline__ int tile_of(int cell, int w, int tiles_x) {
+    return (cell / w / TILE) * tiles_x + (cell % w) / TILE;
+}
+
+// Load g of the tile at (oy, ox) and its halo (INF outside the map) and work out each tile
+// cell's next step (code: neighbour index, CODE_GOAL or CODE_STUCK).
+__device__ void load_codes(const int* g, int h, int w, int oy, int ox, int (*gs)[HT],
+                           unsigned char (*code)[TILE]) {
+    for (int i = threadIdx.x; i < HT * HT; i += blockDim.x) {
+        int sy = i / HT, sx = i % HT;
+        int y = oy + sy - 1, x = ox + sx - 1;
+        gs[sy][sx] = (y >= 0 && x >= 0 && y < h && x < w) ? __ldcg(g + y * w + x) : INF;
+    }
+    __syncthreads();
+    for (int i = threadIdx.x; i < TILE * TILE; i += blockDim.x) {
+        int ly = i / TILE, lx = i % TILE;
+        int gc = gs[ly + 1][lx + 1];
+        unsigned char c = CODE_STUCK;
+        if (gc == 0) c = CODE_GOAL;
+        else if (gc < INF) {
+            for (int k = 0; k < 8 && c == CODE_STUCK; ++k)
+                if (gs[ly + 1 + NB_DR[k]][lx + 1 + NB_DC[k]] + NB_COST[k] == gc) c = (unsigned char)k;
+        }
+        code[ly][lx] = c;
+    }
+    __syncthreads();
+}
+
+// Follow the codes from (ly, lx) until leaving the tile; (exit or EXIT_*, cells in the tile).
+__device__ int2 follow(unsigned char (*code)[TILE], int ly, int lx, int oy, int ox, int w) {
+    int count = 0;
+    while (true) {
+        int c = code[ly][lx];
+        ++count;
+        if (c == CODE_GOAL) return make_int2(EXIT_GOAL, count);
+        if (c == CODE_STUCK) return make_int2(EXIT_STUCK, count);
+        ly += NB_DR[c];
+        lx += NB_DC[c];
+        if (ly < 0 || lx < 0 || ly >= TILE || lx >= TILE) return make_int2((oy + ly) * w + ox + lx, count);
+    }
+}
+
+// Phase 1 for tile t: exits[t * BORDER + b] for its border cells; the start's own segment
+// to ctrl[P_SEG..] when the start lies in t. Needs blockDim.x > BORDER.
+__device__ void tile_exits(const int* g, int h, int w, int t, int start, int2* exits,
+                           unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE]) {
+    int tiles_x = (w + TILE - 1) / TILE;
+    int oy = (t / tiles_x) * TILE, ox = (t % tiles_x) * TILE;
+    load_codes(g, h, w, oy, ox, gs, code);
+    int b = threadIdx.x;
+    if (b < BORDER) {
+        int ly, lx;
+        border_cell(b, &ly, &lx);
+        exits[t * BORDER + b] = (oy + ly < h && ox + lx < w) ? follow(code, ly, lx, oy, ox, w)
+                                                            : make_int2(EXIT_STUCK, 1);
+    } else if (b == BORDER && start >= 0 && tile_of(start, w, tiles_x) == t) {
+        int2 seg = follow(code, start / w - oy, start % w - ox, oy, ox, w);
+        ctrl[P_SEG] = (unsigned)seg.x;
+        ctrl[P_SEG + 1] = (unsigned)seg.y;
+    }
+    __syncthreads();  // the tile buffers are reused by the next tile
+}
+
+// Phase 2, one thread: hop from the start's segment to the goal through the exits.
+__device__ void hop_segments(const int* g, int w, int start, const int2* exits, int4* segs,
+                             int* out, int cap, unsigned* ctrl) {
+    int tiles_x = (w + TILE - 1) / TILE;
+    int n = 0, total = 0, status = 0;
+    if (__ldcg(g + start) >= INF) {
+        status = 2;
+    } else {
+        int entry = start;
+        int2 seg = make_int2((int)__ldcg(ctrl + P_SEG), (int)__ldcg(ctrl + P_SEG + 1));
+        while (true) {
+            if (total + seg.y > cap) { status = 1; break; }
+            segs[n++] = make_int4(entry, seg.y, total, 0);
+            total += seg.y;
+            if (seg.x == EXIT_GOAL) break;
+            if (seg.x == EXIT_STUCK) { status = 3; break; }
+            entry = seg.x;
+            int y = entry / w, x = entry % w;
+            seg = __ldcg(exits + tile_of(entry, w, tiles_x) * BORDER + border_index(y % TILE, x % TILE));
+        }
+    }
+    ctrl[P_NSEGS] = (unsigned)n;
+    out[0] = total;
+    out[1] = status;
+}
+
+// Phase 3: every block walks its share of the segments again inside their tiles.
+__device__ void walk_segments(const int* g, int h, int w, const int4* segs, int* out,
+                              unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE]) {
+    __shared__ int s_nsegs;
+    if (threadIdx.x == 0) s_nsegs = (int)__ldcg(ctrl + P_NSEGS);
+    __syncthreads();
+    for (int k = blockIdx.x; k < s_nsegs; k += gridDim.x) {
+        int4 s = __ldcg(segs + k);
+        int y = s.x / w, x = s.x % w;
+        int oy = (y / TILE) * TILE, ox = (x / TILE) * TILE;
+        load_codes(g, h, w, oy, ox, gs, code);
+        if (threadIdx.x == 0) {
+            int ly = y - oy, lx = x - ox;
+            for (int i = 0; i < s.y; ++i) {
+                out[2 + s.z + i] = (oy + ly) * w + ox + lx;
+                int c = code[ly][lx];
+                if (c >= CODE_GOAL) break;
+                ly += NB_DR[c];
+                lx += NB_DC[c];
+            }
+        }
+        __syncthreads();  // the tile buffers are reused by the next segment
+    }
+}

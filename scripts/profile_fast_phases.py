@@ -1,0 +1,101 @@
+"""Where a replanning step's time goes on the GPU: host side and the fused launch's phases.
+
+Replays the recorded courtyard walk (``scripts/time_cuda_planner.py``'s recording) through the
+steps of ``CudaPlanner.update_and_path``, timed one by one on the host (delta encoding, the
+launch call: the graph's or the three direct calls, the wait for the call and reading the
+path, the statistics),
+with the kernel compiled with ``-DPROFILE`` so that block 0 stamps the global timer at the end
+of each phase of the launch. Prints medians in µs, per mode (EDS, DSS), and DSS-only plans on
+the whole inflated map.
+
+    python3 scripts/profile_fast_phases.py --grid 400 --dss 400,2000
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from time_cuda_planner import dss_case, record
+
+from daemon.planning.cuda_planner import CudaPlanner
+
+PHASES = ("init", "delta", "raise+reset", "relax", "exits", "hops", "segments")
+HOST = ("encode", "launch", "wait+read", "stats")
+
+
+def fused_step(p: CudaPlanner, cells, values, start, full: bool) -> list[float]:
+    """update_and_path's body, with a clock between its parts (µs)."""
+    t = [time.perf_counter()]
+    n = p._stage_delta(cells, values)
+    t.append(time.perf_counter())
+    p._launch_fast(not full, n, start[0] * p.shape[1] + start[1])
+    t.append(time.perf_counter())
+    p._path_locked(start, copied=p._path_copy)
+    t.append(time.perf_counter())
+    p._read_fast_stats()
+    t.append(time.perf_counter())
+    return list(np.diff(t) * 1e6)
+
+
+def report(label: str, host: list[list[float]], dev: list[np.ndarray], extra: str) -> None:
+    h, d = np.median(np.array(host), axis=0), np.median(np.array(dev), axis=0) / 1e3
+    total_dev = np.median([x.sum() for x in dev]) / 1e3
+    total_host = np.median([sum(x) for x in host])
+    print(f"\n{label}: host total {total_host:.1f} µs, device (block 0, stamp to stamp) "
+          f"{total_dev:.1f} µs; {extra}")  # fmt: skip
+    print("  host  " + "  ".join(f"{k} {v:.1f}" for k, v in zip(HOST, h, strict=True)))
+    print("  device " + "  ".join(f"{k} {v:.1f}" for k, v in zip(PHASES, d, strict=True)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--grid", type=int, default=400)
+    ap.add_argument("--dss", default="400,2000")
+    ap.add_argument("--sched", type=int, default=1)
+    ap.add_argument("--scans", type=int, default=2)
+    ap.add_argument("--no-graph", action="store_true", help="direct launches (use_graph=False)")
+    args = ap.parse_args()
+    rec, _ = record(args.grid, 0.4, None)
+    blocked, goal = rec.initial
+    for mode in ("eds", "dss"):
+        p = CudaPlanner(
+            "fast", scans=args.scans, sched=args.sched, use_graph=not args.no_graph, profile=True
+        )
+        p.plan(blocked, goal)
+        host, dev, visits, sweeps = [], [], [], []
+        for cells, values, start in rec.steps:
+            if start is None:
+                continue
+            host.append(fused_step(p, cells, values, start, full=mode == "dss"))
+            dev.append(p.phase_ns())
+            visits.append(p.tiles)
+            sweeps.append(p.sweeps / max(p.tiles, 1))
+        extra = (f"tiles run {np.median(visits):.0f}, Jacobi passes per tile "
+                 f"{np.mean(sweeps):.2f}")  # fmt: skip
+        report(f"{args.grid}² walk, {mode}, {len(host)} steps", host, dev, extra)
+    for size in [int(s) for s in args.dss.split(",") if s]:
+        sc, blocked_full, _ = dss_case(size)
+        p = CudaPlanner(
+            "fast", scans=args.scans, sched=args.sched, use_graph=not args.no_graph, profile=True
+        )
+        p.plan(blocked_full, sc.goal)
+        none = np.empty(0, np.int64), np.empty(0, bool)
+        host, dev = [], []
+        for _ in range(10):
+            host.append(fused_step(p, *none, sc.start, full=True))
+            dev.append(p.phase_ns())
+        extra = (f"tiles run {p.tiles}, Jacobi passes per tile {p.sweeps / max(p.tiles, 1):.2f}, "
+                 f"exits recomputed {p.exit_tiles}")  # fmt: skip
+        report(f"{size}² DSS only", host, dev, extra)
+
+
+if __name__ == "__main__":
+    main()
