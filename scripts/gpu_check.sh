@@ -52,6 +52,10 @@ step bench_big_cpu 100 python3 -m daemon.cli.app bench --grid 1000,2000 --unknow
 step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:rounds,fast:direct,fast:0:1,fast:walk,paper,cpu \
     --grid 400 --unknown 0.4 --dss 400,2000,4000 --json "$OUT/replay.json"
 step phases 120 python3 scripts/profile_fast_phases.py --grid 400 --dss 400,2000
+for gap in work sleep; do
+    step "phases_gap_$gap" 60 python3 scripts/profile_fast_phases.py --grid 400 --gap "$gap" --walk-only
+done
+tail -n 3 "$OUT/pytest.log"
 python3 scripts/gpu_table.py "$OUT"
-cat "$OUT/phases.log"
+cat "$OUT"/phases*.log
 exit "$fail"

@@ -8,6 +8,10 @@ with the kernel compiled with ``-DPROFILE`` so that block 0 stamps the global ti
 of each phase of the launch. Prints medians in µs, per mode (EDS, DSS), and DSS-only plans on
 the whole inflated map.
 
+``--gap work`` puts ~1 ms of numpy work on a map-sized array between steps (as sensing and
+inflation do in the closed-loop walk), ``--gap sleep`` 1 ms of idling, to tell host caches
+from an idle GPU.
+
     python3 scripts/profile_fast_phases.py --grid 400 --dss 400,2000
 """
 
@@ -45,6 +49,16 @@ def fused_step(p: CudaPlanner, cells, values, start, full: bool) -> list[float]:
     return list(np.diff(t) * 1e6)
 
 
+def gap(kind: str, scratch: np.ndarray) -> None:
+    """~1 ms between steps: CPU work over a map-sized array, or idling."""
+    end = time.perf_counter() + 1e-3
+    if kind == "sleep":
+        time.sleep(1e-3)
+    while kind == "work" and time.perf_counter() < end:
+        np.add(scratch, 1.0, out=scratch)
+        scratch.sort(axis=1)
+
+
 def report(label: str, host: list[list[float]], dev: list[np.ndarray], extra: str) -> None:
     h, d = np.median(np.array(host), axis=0), np.median(np.array(dev), axis=0) / 1e3
     total_dev = np.median([x.sum() for x in dev]) / 1e3
@@ -62,6 +76,8 @@ def main() -> None:
     ap.add_argument("--sched", type=int, default=1)
     ap.add_argument("--scans", type=int, default=2)
     ap.add_argument("--no-graph", action="store_true", help="direct launches (use_graph=False)")
+    ap.add_argument("--gap", choices=("none", "work", "sleep"), default="none")
+    ap.add_argument("--walk-only", action="store_true")
     args = ap.parse_args()
     rec, _ = record(args.grid, 0.4, None)
     blocked, goal = rec.initial
@@ -71,17 +87,19 @@ def main() -> None:
         )
         p.plan(blocked, goal)
         host, dev, visits, sweeps = [], [], [], []
+        scratch = np.random.default_rng(0).random((args.grid, args.grid))
         for cells, values, start in rec.steps:
             if start is None:
                 continue
+            gap(args.gap, scratch)
             host.append(fused_step(p, cells, values, start, full=mode == "dss"))
             dev.append(p.phase_ns())
             visits.append(p.tiles)
             sweeps.append(p.sweeps / max(p.tiles, 1))
         extra = (f"tiles run {np.median(visits):.0f}, Jacobi passes per tile "
                  f"{np.mean(sweeps):.2f}")  # fmt: skip
-        report(f"{args.grid}² walk, {mode}, {len(host)} steps", host, dev, extra)
-    for size in [int(s) for s in args.dss.split(",") if s]:
+        report(f"{args.grid}² walk, {mode}, gap {args.gap}, {len(host)} steps", host, dev, extra)
+    for size in [] if args.walk_only else [int(s) for s in args.dss.split(",") if s]:
         sc, blocked_full, _ = dss_case(size)
         p = CudaPlanner(
             "fast", scans=args.scans, sched=args.sched, use_graph=not args.no_graph, profile=True

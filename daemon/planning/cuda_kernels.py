@@ -121,16 +121,15 @@ def encode_delta(
     ``out[:n]`` when given (room for ``len(cells)`` codes). Sorted unique cells, as inflation
     gives them, take the short way: no copy but the codes themselves."""
     cells = np.asarray(cells)
-    if cells.dtype != np.int64:
-        cells = cells.astype(np.int64)
-    cells = cells.ravel()
+    if cells.dtype != np.int64 or cells.ndim != 1:
+        cells = cells.astype(np.int64).ravel()
     n = cells.size
     if n == 0:
         return np.empty(0, dtype=np.int32) if out is None else out[:0]
-    values = np.asarray(values, dtype=bool).ravel()
-    if values.size != n:
-        values = np.broadcast_to(values, cells.shape)
-    if n > 1 and not (cells[1:] > cells[:-1]).all():
+    values = np.asarray(values)
+    if values.dtype != np.bool_ or values.shape != cells.shape:
+        values = np.broadcast_to(values.astype(bool).ravel(), cells.shape)
+    if n > 1 and not np.greater(cells[1:], cells[:-1]).all():
         rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
         cells, values = rev_unique, values[::-1][rev_idx]
         n = cells.size

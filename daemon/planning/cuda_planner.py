@@ -165,8 +165,8 @@ class CudaPlanner(PaperForm, Planner):
         """Encode the delta into the pinned stage after the params words; it goes up with the
         call (fast: ``_launch_fast``; paper: ``_run_paper``). Returns its length."""
         h, w = self._shape
-        most = int(np.size(cells))
-        if self._stage.reserve(ck.PARAMS + most):
+        cells = np.asarray(cells)
+        if self._stage.reserve(ck.PARAMS + cells.size):
             self._graph = None
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
@@ -253,18 +253,19 @@ class CudaPlanner(PaperForm, Planner):
         return self._read_fast_stats()
 
     def _read_fast_stats(self) -> tuple[int, int]:
-        st = self._ctrl_host()
-        self.sweeps, self.raised_cells = int(st[ck.C_SWEEPS]), int(st[ck.C_RAISED])
-        self.tiles, self.exit_tiles = int(st[ck.C_TILES]), int(st[ck.C_EXITS])
-        return int(st[ck.C_ROUNDS]), self.raised_cells + int(st[ck.C_CHANGED])
+        st = self._ctrl_host().tolist()
+        self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
+        self.tiles, self.exit_tiles = st[ck.C_TILES], st[ck.C_EXITS]
+        return st[ck.C_ROUNDS], self.raised_cells + st[ck.C_CHANGED]
 
     def _launch_fast(self, eds: bool, n_delta: int, start: int = -1) -> None:
         """Queue one fast call: params and delta up, the launch (repair; with ``start`` >= 0, a
         flat cell, the path from it too), the ctrl words and the first ``_path_copy`` path
         cells down. The caller synchronises. With ``use_graph`` the three replay as one
         captured CUDA graph: one call from Python instead of three with 12 kernel arguments."""
-        w = self._shape[1]
-        self._stage.array[:4] = (n_delta, 1 if eds else 0, start, self._goal[0] * w + self._goal[1])
+        head = self._stage.array  # scalar stores: a tuple assignment costs several times more
+        head[0], head[1], head[2] = n_delta, 1 if eds else 0, start
+        head[3] = self._goal[0] * self._shape[1] + self._goal[1]
         if not self.use_graph:
             self._queue_fast(ck.PARAMS + n_delta)
             return
