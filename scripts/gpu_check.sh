@@ -11,10 +11,10 @@
 #   5. scripts/profile_fast_phases.py: where a step's time goes (host parts, launch phases);
 #   6. the short table (scripts/gpu_table.py), then the phases.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
-# Logs and JSON go to $OUT (default out/gpu_check). Exit status 1 if any step failed.
+# Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-OUT=${OUT:-out/gpu_check}
+OUT=${GPU_CHECK_OUT:-out/gpu_check}
 BIG_STEPS=${BIG_STEPS:-300}
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 VARIANTS=${VARIANTS:-fast,fast:rounds}
 DSS=${DSS:-400,2000}
-OUT=${OUT:-out/gpu_quick}
+OUT=${GPU_CHECK_OUT:-out/gpu_quick}
 mkdir -p "$OUT"
 fail=0
 timeout 300 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \

@@ -135,7 +135,7 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
 __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
                             unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
                             int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
-    __shared__ unsigned s_work, s_depth;
+    __shared__ unsigned s_work;
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (blockIdx.x >= G.ntiles) return;
     unsigned idle = 0, longest = 0;
@@ -147,13 +147,15 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                                      base == (int)blockIdx.x ? work : nullptr, &s_work);
             for (int i = 0; i < count; ++i) {
                 int tile = s_list[i];
-                if (threadIdx.x == 0) s_depth = __ldcg(depth + tile) + 1;  // read after relax_tile's barriers
-                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, ctrl + C_SWEEPS);
                 int k = threadIdx.x;
+                // The depth statistic is loaded by the threads that use it, and used only after
+                // the relaxation: a load that a barrier waits for would delay every visit.
+                unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, ctrl + C_SWEEPS);
                 if (k < 8 && (bits & (1u << k))) {
                     int n = tile_across(G, tile, k);
                     if (n >= 0) {
-                        atomicMax(depth + n, s_depth);
+                        atomicMax(depth + n, d);
                         __threadfence();  // the tile's g and the depth before the flag
                         flag_tile(dirty, work, n);
                     }
@@ -161,7 +163,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 mark_exits_stale(G, tile, bits, k - 32, stale);
                 if (threadIdx.x == 0) {
                     atomicAdd(ctrl + C_TILES, 1u);
-                    longest = max(longest, s_depth);
+                    longest = max(longest, d);
                 }
                 __syncthreads();  // shared tile buffers are reused by the next tile
             }
