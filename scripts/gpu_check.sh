@@ -37,7 +37,7 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
 {
     nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
     date -u +%Y-%m-%dT%H:%MZ
-    git rev-parse --short HEAD 2>/dev/null || echo "commit unknown"
+    git describe --always --dirty 2>/dev/null || echo "commit unknown"  # a copied checkout may be stale: dirty says so
 } >"$OUT/device.txt"
 step pytest 300 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
     --timeout 120
