@@ -65,6 +65,24 @@ __device__ __forceinline__ unsigned edge_bits(int y, int x) {
     return b;
 }
 
+// This thread's cell of tile t: the tile's origin (oy, ox), the cell in the tile (y, x), its
+// index in the map and whether it lies inside the map (edge tiles hang over).
+struct TileCell {
+    int oy, ox, y, x, idx;
+    bool inside;
+};
+
+__device__ __forceinline__ TileCell tile_cell(const Grid& G, int t) {
+    TileCell c;
+    c.oy = (t / G.tiles_x) * TILE;
+    c.ox = (t % G.tiles_x) * TILE;
+    c.y = threadIdx.x >> 5;
+    c.x = threadIdx.x & 31;
+    c.inside = c.oy + c.y < G.h && c.ox + c.x < G.w;
+    c.idx = (c.oy + c.y) * G.w + c.ox + c.x;
+    return c;
+}
+
 // Load g of the tile and its halo into gs (cells outside the map read INF).
 __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*gs)[HT]) {
     for (int i = threadIdx.x; i < HT * HT; i += NTHREADS) {
@@ -85,11 +103,9 @@ __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*g
 __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
                                int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
     __shared__ unsigned s_bits;
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
-    bool inside = gy < G.h && gx < G.w;
-    int idx = gy * G.w + gx;
+    const TileCell c = tile_cell(G, t);
+    const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
+    const bool inside = c.inside;
     bool blk = !inside || __ldcg(blocked + idx) != 0;
     bool is_goal = inside && idx == G.goal;
     if (threadIdx.x == 0) s_bits = 0;
@@ -161,11 +177,9 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
                                bool* any_raised) {
     __shared__ unsigned s_bits;
     __shared__ int s_any;
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
-    bool inside = gy < G.h && gx < G.w;
-    int idx = gy * G.w + gx;
+    const TileCell c = tile_cell(G, t);
+    const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
+    const bool inside = c.inside;
     if (threadIdx.x == 0) { s_bits = 0; s_any = 0; }
     load_tile_g(G, g, oy, ox, gs);
     for (int i = threadIdx.x; i < HT * HT; i += NTHREADS) {
@@ -216,20 +230,15 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
 // reset cells and CHANGED_ANY if there were any (their exits change).
 __device__ unsigned reset_tile(const Grid& G, int t, int* g, unsigned char* raised, unsigned* count) {
     __shared__ unsigned s_bits;
-    int oy = (t / G.tiles_x) * TILE, ox = (t % G.tiles_x) * TILE;
-    int y = threadIdx.x >> 5, x = threadIdx.x & 31;
-    int gy = oy + y, gx = ox + x;
+    const TileCell c = tile_cell(G, t);
     if (threadIdx.x == 0) s_bits = 0;
     __syncthreads();
     unsigned r = 0;
-    if (gy < G.h && gx < G.w) {
-        int idx = gy * G.w + gx;
-        if (__ldcg(raised + idx)) {
-            __stcg(g + idx, INF);
-            raised[idx] = 0;
-            r = 1;
-            atomicOr(&s_bits, edge_bits(y, x) | CHANGED_ANY);
-        }
+    if (c.inside && __ldcg(raised + c.idx)) {
+        __stcg(g + c.idx, INF);
+        raised[c.idx] = 0;
+        r = 1;
+        atomicOr(&s_bits, edge_bits(c.y, c.x) | CHANGED_ANY);
     }
     unsigned total = __syncthreads_count(r);
     if (threadIdx.x == 0) atomicAdd(count, total);
