@@ -64,6 +64,9 @@ class FallbackPlanner(Planner):
         self._errors = errors
         self._active: Planner = primary
         self._blocked: np.ndarray | None = None
+        # Changes not yet written into the mirror: (cells, values) copies, applied in batches
+        # (_flush) so that a step pays for two small copies, not a scatter into the map.
+        self._pending: list[tuple[np.ndarray, np.ndarray]] = []
         self._goal: Cell = (0, 0)
         self.fallback_reason: str | None = None
 
@@ -87,7 +90,7 @@ class FallbackPlanner(Planner):
         )
         cpu = self._cpu_factory()
         if self._blocked is not None:
-            cpu.plan(self._blocked, self._goal)
+            cpu.plan(self.mirrored_blocked(), self._goal)
         self._active = cpu
 
     def _call(self, method: str, *args: object, **kwargs: object) -> Any:
@@ -103,6 +106,7 @@ class FallbackPlanner(Planner):
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
         stats = self._call("plan", blocked, goal)
         self._blocked = np.array(blocked, dtype=bool, copy=True)
+        self._pending.clear()
         self._goal = (int(goal[0]), int(goal[1]))
         return stats
 
@@ -125,12 +129,38 @@ class FallbackPlanner(Planner):
         self._mirror(cells, blocked)
         return result
 
+    FLUSH_AT = 64
+    """Pending changes that trigger a flush into the mirror (bounds memory and flush time)."""
+
     def _mirror(self, cells: np.ndarray, blocked: np.ndarray) -> None:
         if self._blocked is None:
             return
-        cells = np.asarray(cells, dtype=np.int64).ravel()
-        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
-        self._blocked.reshape(-1)[cells] = values
+        # Copies: the caller may reuse its arrays.
+        self._pending.append((np.array(cells, dtype=np.int64), np.array(blocked, dtype=bool)))
+        if len(self._pending) >= self.FLUSH_AT:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Write the pending changes into the mirror in one scatter, the latest value of each
+        cell winning (as if applied one by one)."""
+        if not self._pending or self._blocked is None:
+            self._pending.clear()
+            return
+        cells = [c.ravel() for c, _ in self._pending]
+        values = [
+            np.broadcast_to(v.ravel(), c.shape)
+            for c, (_, v) in zip(cells, self._pending, strict=True)
+        ]
+        self._pending.clear()
+        flat_cells, flat_values = np.concatenate(cells), np.concatenate(values)
+        # A scatter with repeated indices keeps no defined value: keep each cell's last one.
+        last, at = np.unique(flat_cells[::-1], return_index=True)
+        self._blocked.reshape(-1)[last] = flat_values[::-1][at]
+
+    def mirrored_blocked(self) -> np.ndarray | None:
+        """The host mirror of the blocked map, every successful change applied."""
+        self._flush()
+        return self._blocked
 
     # -- queries ---------------------------------------------------------------------------------
 

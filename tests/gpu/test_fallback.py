@@ -11,6 +11,8 @@ import logging
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from daemon.planning import cuda_available, make_planner
 from daemon.planning.dijkstra import dijkstra_field
@@ -94,6 +96,35 @@ def test_fault_switches_to_cpu_and_replays_the_call(method, nth, caplog):
     assert planner.fell_back and "injected" in planner.fallback_reason
     assert any("continues on the CPU" in r.message for r in caplog.records)
     assert planner.goal == goal and planner.shape == blocked.shape
+
+
+changes = st.lists(  # deltas of a 10 x 10 map: cells (repeats allowed), one value or one each
+    st.lists(st.integers(0, 99), max_size=12).flatmap(
+        lambda cells: st.tuples(
+            st.just(cells), st.booleans() | st.lists(st.booleans(), min_size=len(cells),
+                                                     max_size=len(cells))
+        )
+    ),
+    max_size=3 * FallbackPlanner.FLUSH_AT,
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(changes)
+def test_the_mirror_keeps_every_change_in_order(deltas):
+    """The host mirror, written in batches, equals the map with each change applied in turn
+    (the last value of a cell winning), and a fallback starts the CPU from it."""
+    planner = FallbackPlanner(ReferencePlanner(), cpu_factory=lambda: make_planner("reference"))
+    truth = np.zeros((10, 10), dtype=bool)
+    planner.plan(truth, (0, 0))
+    for cells, values in deltas:
+        planner.update(np.array(cells, dtype=np.int64), np.array(values, dtype=bool))
+        each = values if isinstance(values, list) else [values] * len(cells)
+        for cell, value in zip(cells, each, strict=True):
+            truth.reshape(-1)[cell] = value
+    assert np.array_equal(planner.mirrored_blocked(), truth)
+    planner._switch(DeviceFault("injected"))
+    assert np.array_equal(planner.blocked(), truth)
 
 
 def test_other_errors_are_not_swallowed():
