@@ -2,9 +2,9 @@
 
 CUDA C lives in ``kernels/*.cu`` (and ``*.cuh``) and is compiled once per process and option
 set (cupy also keeps the binaries in its on-disk cache). Everything here is thin: it sizes
-launches, moves bytes through pinned host buffers (so a transfer is one asynchronous copy on
-the stream and one synchronisation, with no pageable staging) and leaves the algorithms to
-the kernels.
+launches, moves bytes through pinned host buffers (a transfer is one asynchronous copy on the
+stream, with no pageable staging, or none at all where the kernel reads and writes the mapped
+buffer itself) and leaves the algorithms to the kernels.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 import threading
+import time
 from pathlib import Path
 
 import cupy as cp
@@ -21,17 +22,22 @@ KERNELS = Path(__file__).with_name("kernels")
 TILE = 32
 THREADS = 1024
 
-# ctrl slots of fast.cu read back after each call: C_BAR (the barrier count the next launch
-# starts from) and the statistics C_EXITS .. C_CHANGED.
+# The I/O words of a call (fast.cu): ctrl slots copied back, C_BAR (the barrier count) and the
+# statistics C_EXITS .. C_CHANGED; the phase stamps (-DPROFILE); the done word, which the last
+# block sets to the call's sequence number; the path (count, status, cells) from IO_PATH.
 CTRL_READ = 13
+P_STAMPS = 48
+IO_DONE = 60
 IO_PATH = 64
-P_STAMPS = 48  # fast.cu -DPROFILE: 8 phase stamps of the global timer
 PARAMS = 8
-"""fast.cu's params words (ndelta, mode, start, goal, ...) before the delta in a call's stage."""
+"""fast.cu's params words (ndelta, mode, start, goal, seq, ...) before the delta."""
 GRAPH_DELTA = 1024  # delta cells the captured call copies up itself (more: one copy before)
-GRAPH_PATH = 2048  # path cells it copies back with the ctrl words (more: one copy after)
-"""fast.cu's 64 ctrl words, then the path: where the path starts in the planner's I/O buffer."""
 C_BAR, C_EXITS, C_ROUNDS, C_TILES, C_SWEEPS, C_RAISED, C_CHANGED = 0, 7, 8, 9, 10, 11, 12
+SPIN_S = 1e-3
+"""How long ``wait_word`` polls before it blocks in the stream's synchronisation: a step at
+400² takes 0.05-0.3 ms, and a poll sees the word within a microsecond, where the
+synchronisation's wake-up costs tens. Longer calls (a plan from scratch at 2000² and up) then
+wait in the synchronisation, which releases the GIL for the daemon's event loop."""
 
 DEVICE_LOCK = threading.Lock()
 """One planning call on the device at a time: the persistent kernel's grid barrier needs every
@@ -66,22 +72,32 @@ def resident_blocks(k: cp.RawKernel, threads: int = THREADS) -> int:
 
 
 class Pinned:
-    """A page-locked host buffer and the copies between it and device arrays."""
+    """A page-locked host buffer and the copies between it and device arrays. ``mapped``: also
+    mapped into the device's address space (``device_ptr``), for kernels that read and write
+    it directly (zero-copy), at PCIe latency per access."""
 
-    def __init__(self, count: int, dtype: type = np.int32) -> None:
+    def __init__(self, count: int, dtype: type = np.int32, *, mapped: bool = False) -> None:
         self.dtype = np.dtype(dtype)
+        self.mapped = mapped
         self.count = 0
+        self.device_ptr = 0
         self._mem = None
         self.array = np.empty(0, dtype=self.dtype)
         self.reserve(count)
 
     def reserve(self, count: int) -> bool:
-        """Room for ``count`` items; True if the buffer moved (its contents are not kept)."""
+        """Room for ``count`` items, zeroed when it moves; True if the buffer moved (the old
+        contents are not kept, and ``device_ptr`` changes)."""
         if count <= self.count:
             return False
         count = max(count, 2 * self.count)
-        self._mem = cp.cuda.alloc_pinned_memory(count * self.dtype.itemsize)
+        flags = cp.cuda.runtime.hostAllocMapped if self.mapped else 0
+        mem = cp.cuda.PinnedMemory(count * self.dtype.itemsize, flags)
+        self._mem = cp.cuda.PinnedMemoryPointer(mem, 0)
         self.array = np.frombuffer(self._mem, dtype=self.dtype, count=count)
+        self.array[:] = 0
+        if self.mapped:
+            self.device_ptr = int(cp.cuda.runtime.pointerGetAttributes(mem.ptr).devicePointer)
         self.count = count
         return True
 
@@ -112,6 +128,27 @@ class Pinned:
 def synchronize() -> None:
     """Wait for the stream; an asynchronous CUDA fault surfaces here as a cupy error."""
     cp.cuda.get_current_stream().synchronize()
+
+
+def wait_word(words: np.ndarray, at: int, value: int) -> None:
+    """Wait until a kernel has set ``words[at]`` (host-mapped) to ``value``: poll it for up to
+    ``SPIN_S``, then synchronise the stream. A CUDA fault surfaces as a cupy error from the
+    synchronisation (a faulted kernel never sets the word); a launch that ends without
+    setting it is a bug, reported as RuntimeError."""
+    spins = 0
+    deadline = 0.0
+    while words[at] != value:
+        spins += 1
+        if spins & 63:
+            continue
+        now = time.perf_counter()
+        if not deadline:
+            deadline = now + SPIN_S
+        elif now > deadline:
+            synchronize()
+            if words[at] != value:
+                raise RuntimeError("a planning launch ended without marking its result done")
+            return
 
 
 def encode_delta(

@@ -6,8 +6,9 @@ Two variants (``kernels/``):
   settle in shared memory; a tile is relaxed as soon as a neighbour's border change flags it
   (or in grid-wide rounds, ``sched=0``), so an EDS update works around the change; in
   ``update_and_path`` the same launch then extracts the path, recomputing the tile exits only
-  where g changed. Per step: the delta up (one copy), one launch, statistics and path down
-  (one copy and the only synchronisation).
+  where g changed. Per step: one replayed CUDA graph (the params and delta copied up, the
+  launch), and the launch writes statistics and path straight into page-locked host memory
+  mapped into the device; the host polls the launch's done word instead of synchronising.
 - ``paper`` (``cuda_paper.py``, ``paper.cu``): Díaz-Toro et al.'s Figure 4 form, for
   comparison: read-only and write-only maps for g, pred and incon, one ``kernel_planner``
   launch per iteration and ``flag_stop`` read back after each.
@@ -27,6 +28,7 @@ the path's cells come back. Test hook: ``inject_fault(exc)`` makes the next publ
 
 from __future__ import annotations
 
+import struct
 import time
 
 import cupy as cp
@@ -90,10 +92,14 @@ class CudaPlanner(PaperForm, Planner):
             for k, v in (("SCANS", scans), ("SCHED", sched), ("MIN_BLOCKS", min_blocks))
         )
         self._defines += ("PROFILE=1",) if profile else ()  # phase_ns
-        # The host mirror of ``_io``: fast.cu's ctrl words, then the path (see _allocate).
-        self._io_host = ck.Pinned(ck.IO_PATH + 2 + 1024, np.int32)
-        # The pinned stage of a call: fast.cu's params words, then the delta (see _stage_delta).
+        # A call's results, written by fast.cu itself (mapped): the ctrl words, the done word,
+        # then the path (see _allocate); the path kernels' results are copied here too.
+        self._io_host = ck.Pinned(ck.IO_PATH + 2 + 2 * 1024, np.int32, mapped=True)
+        # A call's input, copied to ``_params`` on the device: the params words, then the delta
+        # (see _stage_delta). Not read in place: 100+ blocks reading the same host words at
+        # the start of a launch wait ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
         self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32)
+        self._seq = 0  # the sequence number of the last fast call (its done word)
         self._params = self._delta = cp.zeros(0, dtype=np.int32)
         self._graph: cp.cuda.graph.Graph | None = None
         self._path_guess = 256
@@ -124,11 +130,10 @@ class CudaPlanner(PaperForm, Planner):
         self._path_cap = int(min(n, 4 * (h + w) + 1024))
         # One device buffer holds fast.cu's ctrl words (barrier count, statistics) and then the
         # path, so a replanning step reads both back with one copy and one synchronisation.
-        self._io = cp.zeros(ck.IO_PATH + 2 + self._path_cap, dtype=np.int32)
+        self._io = cp.zeros(ck.IO_PATH + 2 + 2 * self._path_cap, dtype=np.int32)
         self._ctrl = self._io[: ck.IO_PATH].view(np.uint32)
         self._path_d = self._io[ck.IO_PATH :]
-        self._io_host.reserve(ck.IO_PATH + 2 + self._path_cap)
-        self._path_copy = min(self._path_cap, ck.GRAPH_PATH)  # cells read back with the ctrl words
+        self._io_host.reserve(ck.IO_PATH + 2 + 2 * self._path_cap)
         self._set_params_size(ck.PARAMS + ck.GRAPH_DELTA)
         tiles = -(-h // ck.TILE) * -(-w // ck.TILE)
         self._tiles = tiles
@@ -167,7 +172,7 @@ class CudaPlanner(PaperForm, Planner):
         h, w = self._shape
         cells = np.asarray(cells)
         if self._stage.reserve(ck.PARAMS + cells.size):
-            self._graph = None
+            self._graph = None  # it holds the stage's address
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
@@ -233,39 +238,41 @@ class CudaPlanner(PaperForm, Planner):
         with ck.DEVICE_LOCK:
             n = self._stage_delta(cells, blocked)
             self._launch_fast(not full, n, start[0] * self._shape[1] + start[1] if fused else -1)
+            self._wait_fast()
             if inside:
-                path = self._path_locked(start, copied=self._path_copy if fused else None)
+                path = self._path_locked(start, fused=fused)
             else:
-                ck.synchronize()
                 path = np.empty((0, 2), dtype=np.int32)
             iterations, touched = self._read_fast_stats()
         stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
         self.last_stats = stats
         return stats, path
 
-    def _ctrl_host(self) -> np.ndarray:
-        """The host copy of the ctrl words read back after the last fast launch."""
-        return self._io_host.array[: ck.CTRL_READ].view(np.uint32)
-
     def _run_fast(self, eds: bool, n_delta: int) -> tuple[int, int]:
         self._launch_fast(eds, n_delta)
-        ck.synchronize()
+        self._wait_fast()
         return self._read_fast_stats()
 
+    def _wait_fast(self) -> None:
+        """Wait for the last fast call: fast.cu's last block sets the done word last."""
+        ck.wait_word(self._io_host.array, ck.IO_DONE, self._seq)
+
     def _read_fast_stats(self) -> tuple[int, int]:
-        st = self._ctrl_host().tolist()
+        st = struct.unpack_from(f"{ck.CTRL_READ}I", self._io_host.array)
         self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
         self.tiles, self.exit_tiles = st[ck.C_TILES], st[ck.C_EXITS]
         return st[ck.C_ROUNDS], self.raised_cells + st[ck.C_CHANGED]
 
     def _launch_fast(self, eds: bool, n_delta: int, start: int = -1) -> None:
         """Queue one fast call: params and delta up, the launch (repair; with ``start`` >= 0, a
-        flat cell, the path from it too), the ctrl words and the first ``_path_copy`` path
-        cells down. The caller synchronises. With ``use_graph`` the three replay as one
-        captured CUDA graph: one call from Python instead of three with 12 kernel arguments."""
-        head = self._stage.array  # scalar stores: a tuple assignment costs several times more
-        head[0], head[1], head[2] = n_delta, 1 if eds else 0, start
-        head[3] = self._goal[0] * self._shape[1] + self._goal[1]
+        flat cell, the path from it too), which writes its results into the mapped I/O
+        buffer; ``_wait_fast`` waits for them. With ``use_graph`` the copy and the launch
+        replay as one captured CUDA graph: one call from Python instead of two, one of them
+        with 12 kernel arguments packed by CuPy."""
+        self._seq = self._seq % 0x7FFFFFFF + 1
+        goal = self._goal[0] * self._shape[1] + self._goal[1]
+        # fast.cu's params [ndelta, mode, start, goal, seq]: one call, not five numpy stores.
+        struct.pack_into("5i", self._stage.array, 0, n_delta, int(eds), start, goal, self._seq)
         if not self.use_graph:
             self._queue_fast(ck.PARAMS + n_delta)
             return
@@ -282,10 +289,9 @@ class CudaPlanner(PaperForm, Planner):
         self._k_fast()(
             (self._blocks,), (ck.THREADS,),
             (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
-             np.int32(h), np.int32(w), self._exits, self._segs, self._path_d,
-             np.int32(self._path_cap)),
+             np.int32(h), np.int32(w), self._exits, self._segs,
+             np.uint64(self._io_host.device_ptr), np.int32(self._path_cap)),
         )  # fmt: skip
-        self._io_host.from_device(self._io, ck.IO_PATH + 2 + self._path_copy)
 
     def _capture(self) -> cp.cuda.graph.Graph:
         """The fast call as a CUDA graph (it holds the buffers' addresses, so any reallocation
@@ -324,40 +330,39 @@ class CudaPlanner(PaperForm, Planner):
         with ck.DEVICE_LOCK:
             return self._path_locked(start)
 
-    def _path_locked(self, start: Cell, copied: int | None = None) -> np.ndarray:
-        """Read the path from ``start`` back (lock held), launching the path kernel unless the
-        fast call queued before extracted it and copies its first ``copied`` cells back (then
-        one synchronisation serves the whole step). Longer paths come back in chunks."""
+    def _path_locked(self, start: Cell, fused: bool = False) -> np.ndarray:
+        """The path from ``start`` (lock held): with ``fused``, the one the fast call just
+        wrote into the mapped I/O buffer; else from a launch of the path kernel, copied back.
+        Paths longer than the buffer come in chunks, each continued by the path kernel."""
         w = self._shape[1]
         host, at = self._io_host, ck.IO_PATH
+        words = host.array
         chunks: list[np.ndarray] = []
         cur = start[0] * w + start[1]
-        if copied is not None:
-            ck.synchronize()
+        copied = self._path_cap if fused else None
         while True:
             if copied is None:
                 self._launch_path(cur)
                 copied = min(self._path_guess, self._path_cap)
-                host.from_device(self._io, 2 + copied, offset=at)
+                host.from_device(self._io, 2 + 2 * copied, offset=at)
                 ck.synchronize()
-            count, status = int(host.array[at]), int(host.array[at + 1])
+            count, status = struct.unpack_from("2i", words, 4 * at)
             if count > copied:
-                host.from_device(self._io, count - copied, offset=at + 2 + copied)
+                host.from_device(self._io, 2 * (count - copied), offset=at + 2 + 2 * copied)
                 ck.synchronize()
             self._path_guess = max(256, 2 * count)
-            cells = host.array[at + 2 : at + 2 + count]
-            chunks.append(cells.copy() if not chunks else cells[1:].copy())
-            if status != 1:
+            # The kernels write (row, column) pairs: the path as the caller gets it.
+            cells = words[at + 2 : at + 2 + 2 * count].reshape(count, 2)
+            if status != 1:  # the last chunk, copied out below
+                chunks.append(cells if not chunks else cells[1:])
                 break
-            cur, copied = int(cells[-1]), None
+            chunks.append(cells.copy() if not chunks else cells[1:].copy())
+            cur, copied = int(cells[-1, 0]) * w + int(cells[-1, 1]), None
         if status == 2:
             return np.empty((0, 2), dtype=np.int32)
         if status == 3:
             raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
-        flat = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
-        path = np.empty((flat.size, 2), dtype=np.int32)
-        np.divmod(flat, w, out=(path[:, 0], path[:, 1]))
-        return path
+        return chunks[0].copy() if len(chunks) == 1 else np.concatenate(chunks)
 
     def _launch_path(self, cur: int) -> None:
         h, w = self._shape
@@ -375,8 +380,8 @@ class CudaPlanner(PaperForm, Planner):
 
     def phase_ns(self) -> np.ndarray:
         """With ``profile=True``, after a fused ``update_and_path``: ns of the launch's phases as
-        block 0 saw them (fast.cu PROFILE): init, delta and seeds, EDS raise and reset, the
-        relaxation, the stale tiles' exits, the hops, block 0's segments."""
+        block 0 saw them (fast.cu PROFILE): init (the params read), delta and seeds, EDS raise
+        and reset, the relaxation, the stale tiles' exits, the hops, block 0's segments."""
         stamps = self._io_host.array[ck.P_STAMPS : ck.P_STAMPS + 8].view(np.uint32)
         return (np.diff(stamps.astype(np.int64)) % 2**32).astype(np.int64)
 

@@ -209,6 +209,31 @@ def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(config):
         assert np.array_equal(path, reference_path(planner.costs(), blocked, start))
 
 
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("config", CONFIGS[:4])  # fast: the kernel reads the delta in place
+def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
+    """The captured graph copies up the first 1024 cells of a delta, a longer one gets a copy
+    of its own first, and one longer than the pinned stage moves it (and the graph is
+    captured again on the new address); statistics and path come back through the mapped
+    results every time."""
+    rng = np.random.default_rng(9)
+    h, w = 150, 170
+    blocked, goal = random_map(rng, (h, w), 0.2)
+    planner = cuda_planner(config)
+    planner.plan(blocked, goal)
+    for size in (10, 3000, 20, 12000, 5):
+        cells = rng.choice(h * w, size=size, replace=False)
+        values = rng.random(size) < 0.3
+        values[cells == goal[0] * w + goal[1]] = False
+        blocked.reshape(-1)[cells] = values
+        start = (int(rng.integers(h)), int(rng.integers(w)))
+        stats, path = planner.update_and_path(cells, values, start, full=size == 20)
+        g = dijkstra_field(blocked, goal)
+        assert np.array_equal(planner.costs(), g), f"delta of {size}"
+        assert np.array_equal(path, reference_path(g, blocked, start))
+        assert stats.iterations >= 1 and (size < 1000 or stats.cells_touched > 0)
+
+
 def test_encode_delta_keeps_the_last_value_of_a_cell_and_checks_bounds():
     from daemon.planning.cuda_kernels import encode_delta
 

@@ -25,6 +25,12 @@
 // region (set at allocation), ctrl zero at allocation. Everything that changes from step to
 // step is read from device memory (params, and the barrier count the last launch ended with
 // in ctrl[C_BASE]), so the host can replay the same launch as a CUDA graph.
+//
+// The results go straight to the host: io is page-locked host memory mapped into the device.
+// The launch writes the path there, and the block that finishes last copies the statistics
+// and then sets io[IO_DONE] to the call's sequence number, which the host polls: no copy
+// after the launch and no stream synchronisation. (The params come the other way by a copy:
+// every block reading the same host words at its start queues ~100 µs of PCIe reads.)
 
 #ifndef SCHED
 #define SCHED 1
@@ -45,6 +51,12 @@
 #define C_TILES 9     // tiles processed (all phases)
 #define C_LONGEST 13  // SCHED 1: the longest chain of visits of the relaxation
 #define C_BASE 14     // the barrier count the last launch ended with (the next one starts there)
+#define C_VISIT 16    // -DPROFILE, 5 words: relax_async's SM cycles summed over blocks (P_*)
+#define P_IDLE 0      // polls that found no flag
+#define P_TAKE 1      // the poll that took a tile
+#define P_LOAD 2      // loading the tile and its halo
+#define P_SOLVE 3     // settling it
+#define P_PUBLISH 4   // storing it, flagging neighbours, the statistics
 
 // -DPROFILE: block 0's thread 0 stamps the global timer (ns, low 32 bits) into ctrl[48 + i]
 // at the end of each phase (cuda_planner.CudaPlanner.phase_ns reads them).
@@ -139,12 +151,20 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (blockIdx.x >= G.ntiles) return;
     unsigned idle = 0, longest = 0;
+#ifdef PROFILE
+    long long prof[5] = {0, 0, 0, 0, 0}, clk = clock64();
+#endif
     while (true) {
         int visited = 0;
         for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * NTHREADS) {
             // The first chunk's pass also reads the work count, for the test below.
             int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
                                      base == (int)blockIdx.x ? work : nullptr, &s_work);
+#ifdef PROFILE
+            long long now = clock64();
+            prof[count ? P_TAKE : P_IDLE] += now - clk;
+            clk = now;
+#endif
             for (int i = 0; i < count; ++i) {
                 int tile = s_list[i];
                 int k = threadIdx.x;
@@ -166,6 +186,13 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                     longest = max(longest, d);
                 }
                 __syncthreads();  // shared tile buffers are reused by the next tile
+#ifdef PROFILE
+                now = clock64();
+                prof[P_LOAD] += s_visit_mark[0] - clk;
+                prof[P_SOLVE] += s_visit_mark[1] - s_visit_mark[0];
+                prof[P_PUBLISH] += now - s_visit_mark[1];
+                clk = now;
+#endif
             }
             // The flags this block set are counted before its visits are uncounted.
             if (count && threadIdx.x == 0) atomicSub(work, (unsigned)count);
@@ -182,26 +209,36 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
         if (++idle == IDLE_LIMIT) __trap();  // a lost flag would otherwise hang the daemon
     }
     if (threadIdx.x == 0) atomicMax(ctrl + C_LONGEST, longest);
+#ifdef PROFILE
+    if (threadIdx.x == 0)
+        for (int k = 0; k < 5; ++k) atomicAdd(ctrl + C_VISIT + k, (unsigned)(prof[k] >> 4));
+#endif
 }
 
-// params of a call: [ndelta, mode, start, goal, 0, 0, 0, 0], then the delta.
+// params of a call: [ndelta, mode, start, goal, seq, 0, 0, 0], then the delta.
 #define PARAMS 8
+// io (host-mapped): ctrl words 0 .. IO_DONE - 1 copied at the end, io[IO_DONE] = seq when the
+// call is complete, the path from IO_PATH (out[0] cells, out[1] status, then row and column
+// of each cell).
+#define IO_DONE 60
+#define IO_PATH 64
 
 // The planning call.
 //   mode 0 (DSS): apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   mode 1 (EDS): apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
-//   start >= 0: then the path from start into out (path_exits.cuh).
+//   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
 // delta[i] = cell * 2 + new_blocked. flags: 5 * ntiles (ping, pong, seeds, stale, depth).
 extern "C" __global__ void __launch_bounds__(NTHREADS, MIN_BLOCKS)
 plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int* params,
-                unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* out,
+                unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* io,
                 int cap) {
     __shared__ int gs[HT][HT];
     __shared__ unsigned char bs[TILE][TILE + 1];
     __shared__ unsigned char rs[HT][HT];
     __shared__ int s_list[NTHREADS];
     __shared__ int s_n;
+    __shared__ int s_params[5];
     Grid G;
     G.h = h; G.w = w;
     G.tiles_x = (w + TILE - 1) / TILE;
@@ -213,33 +250,34 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
     unsigned* stale = flags + 3 * G.ntiles;
     unsigned* depth = flags + 4 * G.ntiles;
     int tid = blockIdx.x * NTHREADS + threadIdx.x, stride = gridDim.x * NTHREADS;
-    const int ndelta = params[0], mode = params[1], start = params[2], goal = params[3];
-    const int* delta = params + PARAMS;
-    G.goal = goal;
-    // Thread 0's barrier target. Block 0 writes C_BASE back only after the last barrier, when
-    // every block has read it.
-    unsigned bar = ((volatile unsigned*)ctrl)[C_BASE];
     STAMP(0);
-
-    // Round 0: counters, the delta, the seeds of the first phase.
-    if (tid == 0) {
-        for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
-        ctrl[C_EXITS] = 0;
-        for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
-    }
-    for (int i = tid; i < G.ntiles; i += stride) depth[i] = 0;
-    grid_barrier(ctrl, &bar);
+    if (threadIdx.x < 5) s_params[threadIdx.x] = params[threadIdx.x];
+    __syncthreads();
+    const int ndelta = s_params[0], mode = s_params[1], start = s_params[2], goal = s_params[3];
+    const int* delta = params + PARAMS;
+    int* out = io + IO_PATH;
+    G.goal = goal;
+    // Thread 0's barrier target. The last block writes C_BASE back only after the last
+    // arrival, when every block has read it.
+    unsigned bar = ((volatile unsigned*)ctrl)[C_BASE];
     STAMP(1);
+
+    // Round 0: the delta, the seeds of the first phase. (The counters and depth were zeroed
+    // by the last call's last block, or at allocation: no barrier needed first.)
     unsigned* cnt1 = ctrl + C_CNT + 1;
     if (mode == 0) {
-        for (int i = tid; i < ndelta; i += stride) blocked[delta[i] >> 1] = delta[i] & 1;
+        for (int i = tid; i < ndelta; i += stride) {
+            int code = delta[i];
+            blocked[code >> 1] = code & 1;
+        }
         for (int i = tid; i < h * w; i += stride) g[i] = INF;
         for (int i = tid; i < G.ntiles; i += stride) stale[i] = 1u;
         if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
         for (int i = tid; i < ndelta; i += stride) {
-            int cell = delta[i] >> 1;
-            unsigned char now = delta[i] & 1;
+            int code = delta[i];
+            int cell = code >> 1;
+            unsigned char now = code & 1;
             if (__ldcg(blocked + cell) == now) continue;
             blocked[cell] = now;
             int cy = cell / w, cx = cell % w;
@@ -307,5 +345,25 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
         walk_segments(g, h, w, segs, out, ctrl, gs, code);
         STAMP(7);
     }
-    if (tid == 0) ctrl[C_BASE] = bar;
+    // The result to the host: the last block in copies the ctrl words (statistics, stamps),
+    // zeroes the counters and depth for the next call and, after everything it and every
+    // other block wrote, sets the done word.
+    if (grid_arrive_last(ctrl, &bar)) {
+        if (threadIdx.x < IO_DONE) io[threadIdx.x] = (int)__ldcg(ctrl + threadIdx.x);
+        __syncthreads();  // every word is copied before it is zeroed
+        if (threadIdx.x == 0) {
+            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
+            ctrl[C_EXITS] = 0;
+            for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
+            for (int i = C_VISIT; i < C_VISIT + 5; ++i) ctrl[i] = 0;
+            ctrl[C_BASE] = bar;
+        }
+        for (int i = threadIdx.x; i < G.ntiles; i += NTHREADS) depth[i] = 0;
+        __threadfence_system();
+        __syncthreads();
+        if (threadIdx.x == 0) {
+            __threadfence_system();
+            ((volatile int*)io)[IO_DONE] = s_params[4];
+        }
+    }
 }

@@ -35,6 +35,23 @@ __device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
     __syncthreads();
 }
 
+// The launch's last barrier, arrival only: every block's writes, the host's mapped memory
+// included, are fenced before it arrives; returns true in the block that arrives last (every
+// thread of it), which alone goes on to publish the result. The others leave at once.
+__device__ bool grid_arrive_last(unsigned* ctrl, unsigned* target) {
+    __shared__ int s_last;
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        *target += gridDim.x;
+        __threadfence_system();
+        unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
+        s_last = arrived == *target;
+        if (s_last) __threadfence_system();
+    }
+    __syncthreads();
+    return s_last != 0;
+}
+
 // Set flag t; count it in *cnt if it was clear (so *cnt is the number of flags set).
 __device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t) {
     if (atomicExch(flags + t, 1u) == 0u) atomicAdd(cnt, 1u);

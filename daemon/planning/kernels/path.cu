@@ -11,7 +11,7 @@
 //
 // out[0] = cells written, out[1] = status (0 reached the goal, 1 stopped after `cap`
 // cells: call again from the last one, 2 start unreachable, 3 field inconsistent),
-// out[2 ...] = flat cell indices.
+// out[2 + 2k], out[3 + 2k] = row and column of the k-th cell (the host's (n, 2) path as is).
 
 #ifndef WIN
 #define WIN 64
@@ -76,7 +76,10 @@ walk_path(const int* g, int h, int w, int start, int* out, int cap) {
                               (cx == 0 || cx - 1 >= ox) && (cx == w - 1 || cx + 1 < ox + WIN);
                 if (!inside) break;
                 if (n == cap) { status = 1; done = 1; break; }
-                if (lane == 0) out[2 + n] = cy * w + cx;
+                if (lane == 0) {
+                    out[2 + 2 * n] = cy;
+                    out[3 + 2 * n] = cx;
+                }
                 ++n;
                 if (gc == 0) { done = 1; break; }
                 int ny = cy + my_dr, nx = cx + my_dc;

@@ -12,7 +12,8 @@
 //
 // out[0] = cells written, out[1] = status (0 reached the goal, 1 stopped before exceeding
 // `cap` cells: call again from the last one, 2 start unreachable, 3 field inconsistent),
-// out[2 ...] = flat cell indices. ctrl[P_SEG..P_NSEGS] pass values between the phases.
+// out[2 + 2k], out[3 + 2k] = row and column of the k-th cell. ctrl[P_SEG..P_NSEGS] pass
+// values between the phases.
 #pragma once
 #include "neighbours.cuh"
 
@@ -142,7 +143,8 @@ __device__ void walk_segments(const int* g, int h, int w, const int4* segs, int*
         if (threadIdx.x == 0) {
             int ly = y - oy, lx = x - ox;
             for (int i = 0; i < s.y; ++i) {
-                out[2 + s.z + i] = (oy + ly) * w + ox + lx;
+                out[2 + 2 * (s.z + i)] = oy + ly;  // row, column: the host's path as is
+                out[3 + 2 * (s.z + i)] = ox + lx;
                 int c = code[ly][lx];
                 if (c >= CODE_GOAL) break;
                 ly += NB_DR[c];

@@ -19,6 +19,20 @@
 #define C_RAISED 11   // cells raised to INF by EDS
 #define C_CHANGED 12  // cells whose g the relaxation lowered
 
+// -DPROFILE: thread 0 notes the SM clock when a visit's tile is loaded and when it has
+// settled (fast.cu's relax_async splits a visit's time with them).
+#ifdef PROFILE
+__shared__ long long s_visit_mark[2];
+#define VISIT_MARK(k)                                   \
+    do {                                                \
+        if (threadIdx.x == 0) s_visit_mark[k] = clock64(); \
+    } while (0)
+#else
+#define VISIT_MARK(k) \
+    do {              \
+    } while (0)
+#endif
+
 // Tile offsets for the edge bits N S W E NW NE SW SE.
 __constant__ int EDGE_DY[8] = {-1, 1, 0, 0, -1, -1, 1, 1};
 __constant__ int EDGE_DX[8] = {0, 0, -1, 1, -1, 1, -1, 1};
@@ -83,15 +97,22 @@ __device__ __forceinline__ TileCell tile_cell(const Grid& G, int t) {
     return c;
 }
 
-// Load g of the tile and its halo into gs (cells outside the map read INF).
+// g at halo-tile index i (sy = i / HT, sx = i % HT) of the tile at (oy, ox); INF outside.
+__device__ __forceinline__ int halo_g(const Grid& G, const int* g, int oy, int ox, int i) {
+    int y = oy + i / HT - 1, x = ox + i % HT - 1;
+    return (y >= 0 && x >= 0 && y < G.h && x < G.w) ? __ldcg(g + y * G.w + x) : INF;
+}
+
+// Load g of the tile and its halo into gs (cells outside the map read INF). HT * HT = 1156
+// cells for 1024 threads: both loads of a thread are issued before either is stored, so a
+// visit waits for one L2 round trip here, not two.
 __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*gs)[HT]) {
-    for (int i = threadIdx.x; i < HT * HT; i += NTHREADS) {
-        int sy = i / HT, sx = i % HT;
-        int y = oy + sy - 1, x = ox + sx - 1;
-        int v = INF;
-        if (y >= 0 && x >= 0 && y < G.h && x < G.w) v = __ldcg(g + y * G.w + x);
-        gs[sy][sx] = v;
-    }
+    static_assert(HT * HT <= 2 * NTHREADS, "two cells per thread");
+    const int i0 = threadIdx.x, i1 = threadIdx.x + NTHREADS;
+    int v0 = halo_g(G, g, oy, ox, i0);
+    int v1 = i1 < HT * HT ? halo_g(G, g, oy, ox, i1) : INF;
+    gs[i0 / HT][i0 % HT] = v0;
+    if (i1 < HT * HT) gs[i1 / HT][i1 % HT] = v1;
 }
 
 #if SCANS >= 1
@@ -115,6 +136,7 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
     int before = gs[y + 1][x + 1];
     if (is_goal && !blk) gs[y + 1][x + 1] = 0;
     __syncthreads();
+    VISIT_MARK(0);
 #if SCANS >= 1
     unsigned seg[4];
 #pragma unroll
@@ -151,6 +173,7 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
         __syncthreads();
 #endif
     }
+    VISIT_MARK(1);
     int after = gs[y + 1][x + 1];
     bool changed = inside && after != before;
     if (changed) {
