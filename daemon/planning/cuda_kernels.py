@@ -3,8 +3,8 @@
 CUDA C lives in ``kernels/*.cu`` (and ``*.cuh``) and is compiled once per process and option
 set (cupy also keeps the binaries in its on-disk cache). Everything here is thin: it sizes
 launches, moves bytes through pinned host buffers (a transfer is one asynchronous copy on the
-stream, with no pageable staging, or none at all where the kernel reads and writes the mapped
-buffer itself) and leaves the algorithms to the kernels.
+stream, with no pageable staging, or none at all where a kernel writes into a mapped buffer
+itself) and leaves the algorithms to the kernels.
 """
 
 from __future__ import annotations

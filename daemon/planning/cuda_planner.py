@@ -128,8 +128,8 @@ class CudaPlanner(PaperForm, Planner):
         self._blocked_d = cp.zeros(n, dtype=np.uint8)
         self._g = cp.full(n, INF, dtype=np.int32)
         self._path_cap = int(min(n, 4 * (h + w) + 1024))
-        # One device buffer holds fast.cu's ctrl words (barrier count, statistics) and then the
-        # path, so a replanning step reads both back with one copy and one synchronisation.
+        # One device buffer holds fast.cu's ctrl words (barrier count, statistics; the launch
+        # copies them into _io_host itself) and then the path kernels' output, copied back.
         self._io = cp.zeros(ck.IO_PATH + 2 + 2 * self._path_cap, dtype=np.int32)
         self._ctrl = self._io[: ck.IO_PATH].view(np.uint32)
         self._path_d = self._io[ck.IO_PATH :]
