@@ -155,13 +155,7 @@ class FastCpuPlanner(Planner):
         s = self._padded(start)
         if self._blk[s] or self._g[s] >= INF:
             return np.empty((0, 2), dtype=np.int32)
-        out = np.empty(int(self._g[s]) // 10 + 2, dtype=np.int64)
-        n = k.follow_path(self._blk, self._g, self._off, self._cost, s, out)
-        if n < 0:
-            raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
-        width = self._shape[1] + 2
-        cells = out[:n]
-        return np.stack((cells // width - 1, cells % width - 1), axis=1).astype(np.int32)
+        return k.path_cells(self._blk, self._g, self._off, self._cost, s, self._shape[1] + 2)
 
     @property
     def goal(self) -> Cell:

@@ -240,12 +240,8 @@ class PaperCpuPlanner(Planner):
         width = self._shape[1] + 2
         off = (NEIGHBOUR_DR.astype(np.int64) * width + NEIGHBOUR_DC).astype(np.int64)
         s = (start[0] + 1) * width + start[1] + 1
-        out = np.empty(self.cost_at(start) // 10 + 2, dtype=np.int64)
         g, blk = self.g_r.reshape(-1), self.blocked_map.reshape(-1).view(np.uint8)
-        n = dial_numba.follow_path(blk, g, off, NEIGHBOUR_COST.astype(np.int64), s, out)
-        if n < 0:
-            raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
-        return np.stack((out[:n] // width - 1, out[:n] % width - 1), axis=1).astype(np.int32)
+        return dial_numba.path_cells(blk, g, off, NEIGHBOUR_COST.astype(np.int64), s, width)
 
     @property
     def goal(self) -> Cell:

@@ -79,16 +79,22 @@ def _touch(ws, v, epoch):
 
 
 @njit(cache=True)
+def _seed_order(g, seeds):
+    """The seeds' keys (their g) and the order that admits them level by level (stable)."""
+    keys = np.empty(seeds.size, np.int64)
+    for i in range(seeds.size):
+        keys[i] = g[seeds[i]]
+    return keys, np.argsort(keys, kind="mergesort")
+
+
+@njit(cache=True)
 def lower(blocked, g, off, cost, seeds, ws, pool, epoch):
     """Dijkstra with Dial's buckets from ``seeds`` (``g[seed]`` already holds its key).
 
     Every other cell's g must be an achievable cost (an upper bound) — true after ``raise_``.
     Returns (pops, cells touched); ``epoch`` 0 skips the touch count (DSS: every cell once).
     """
-    keys = np.empty(seeds.size, np.int64)
-    for i in range(seeds.size):
-        keys[i] = g[seeds[i]]
-    order = np.argsort(keys, kind="mergesort")
+    keys, order = _seed_order(g, seeds)
     head, meta = _new_queue()
     si = 0
     pending = 0
@@ -154,10 +160,7 @@ def raise_(blocked, g, off, cost, seeds, ws, pool, marked, n_marked, epoch):
     the whole predecessor subtree. Marks them (``ws[:, MARK] = 1``), lists them from
     ``marked[n_marked]`` on and sets their g to INF. Returns (new n_marked, pops, touched).
     """
-    keys = np.empty(seeds.size, np.int64)
-    for i in range(seeds.size):
-        keys[i] = g[seeds[i]]
-    order = np.argsort(keys, kind="mergesort")
+    keys, order = _seed_order(g, seeds)
     head, meta = _new_queue()
     first = n_marked
     si = 0
@@ -306,3 +309,14 @@ def follow_path(blocked, g, off, cost, start, out):
         out[count] = cur
         count += 1
     return count
+
+
+def path_cells(blocked, g, off, cost, start: int, width: int) -> np.ndarray:
+    """``follow_path`` from padded cell ``start`` as (row, column) pairs of the unpadded map
+    (``width``: the padded row length). Raises RuntimeError if g is not a consistent field."""
+    out = np.empty(int(g[start]) // 10 + 2, dtype=np.int64)
+    n = follow_path(blocked, g, off, cost, start, out)
+    if n < 0:
+        cell = (start // width - 1, start % width - 1)
+        raise RuntimeError(f"g is not a consistent cost field on the way from {cell}")
+    return np.stack((out[:n] // width - 1, out[:n] % width - 1), axis=1).astype(np.int32)
