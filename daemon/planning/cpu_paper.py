@@ -66,6 +66,17 @@ class PaperCpuPlanner(Planner):
         cols = np.flatnonzero(self.incon_r[rows[0] : rows[-1] + 1].any(axis=0))
         return slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
 
+    def _begin_iteration(self) -> tuple[slice, slice] | None:
+        """Start an iteration of Figure 4: the write maps begin as copies of the read maps.
+        Returns the block spanning the inconsistent cells, or None (nothing is inconsistent,
+        and incon_w is cleared)."""
+        self.g_w[...] = self.g_r
+        self.pred_w[...] = self.pred_r
+        block = self._active_block()
+        if block is None:
+            self.incon_w[...] = False
+        return block
+
     @staticmethod
     def _neighbour(a: np.ndarray, block: tuple[slice, slice], k: int) -> np.ndarray:
         """View of ``a`` shifted so that element i is cell i's k-th neighbour."""
@@ -88,11 +99,8 @@ class PaperCpuPlanner(Planner):
 
     def _propagate_iteration(self) -> tuple[bool, int]:
         """Inconsistent cells whose pred has g = INF get g = INF. Returns (flag_stop, evaluated)."""
-        self.g_w[...] = self.g_r
-        self.pred_w[...] = self.pred_r
-        block = self._active_block()
+        block = self._begin_iteration()
         if block is None:
-            self.incon_w[...] = False
             return True, 0
         incon, g, pred = self.incon_r[block], self.g_r[block], self.pred_r[block]
         pred_g = np.full(g.shape, INF, dtype=np.int32)
@@ -108,11 +116,8 @@ class PaperCpuPlanner(Planner):
 
     def _relax_iteration(self) -> tuple[bool, int]:
         """Inconsistent cells take the best neighbour's g + cost. Returns (flag_stop, evaluated)."""
-        self.g_w[...] = self.g_r
-        self.pred_w[...] = self.pred_r
-        block = self._active_block()
+        block = self._begin_iteration()
         if block is None:
-            self.incon_w[...] = False
             return True, 0
         incon, g = self.incon_r[block], self.g_r[block]
         best = np.full(g.shape, INF, dtype=np.int32)
