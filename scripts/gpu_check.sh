@@ -4,10 +4,10 @@
 #   2. guidebelt bench --backend cuda, then --backend cpu: 100/200/400 x 20/40/60 % unknown;
 #   3. guidebelt bench, cuda then cpu, 1000 and 2000 at 40 %, each walk capped at $BIG_STEPS
 #      steps (the CPU's DSS at 2000 x 2000 takes ~50 ms a step; rows say "capped");
-#   4. scripts/time_cuda_planner.py: variants at 400 on the recorded walk (two blocks per SM,
-#      so that each of the 169 tiles has a block of its own; the relaxation in
-#      grid-wide rounds instead of asynchronous, launches from Python instead of the CUDA
-#      graph, in-tile Jacobi sweeps instead of scans, the path by its own launch and one warp,
+#   4. scripts/time_cuda_planner.py: variants at 400 on the recorded walk (a launch per call,
+#      replayed as a CUDA graph, instead of the resident loop; two blocks per SM, so that each
+#      of the 169 tiles has a block of its own; the relaxation in grid-wide rounds instead of
+#      asynchronous, launches from Python instead of the CUDA graph, in-tile Jacobi sweeps instead of scans, the path by its own launch and one warp,
 #      the paper's form, each also through update_and_path), and DSS-only at 400, 2000, 4000;
 #   5. scripts/profile_fast_phases.py: where a step's time goes (host parts, launch phases);
 #   6. the short table (scripts/gpu_table.py), then the phases.
@@ -57,7 +57,7 @@ step bench_big_cuda 70 python3 -m daemon.cli.app bench --grid 1000,2000 --unknow
 step bench_big_cpu 100 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
     --backend cpu --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cpu.json"
 }
-has replay && step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:2:2,fast:rounds,fast:direct,fast:0:1,fast:walk,paper,cpu \
+has replay && step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:graph,fast:2:2,fast:rounds,fast:direct,fast:0:1,fast:walk,paper,cpu \
     --grid 400 --unknown 0.4 --dss 400,2000,4000 --json "$OUT/replay.json"
 has phases && {
 step phases 120 python3 scripts/profile_fast_phases.py --grid 400 --dss 400,2000

@@ -6,7 +6,7 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
-VARIANTS=${VARIANTS:-fast,fast:rounds}
+VARIANTS=${VARIANTS:-fast,fast:graph}
 DSS=${DSS:-400,2000}
 OUT=${GPU_CHECK_OUT:-out/gpu_quick}
 mkdir -p "$OUT"

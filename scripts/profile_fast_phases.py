@@ -2,7 +2,8 @@
 
 Replays the recorded courtyard walk (``scripts/time_cuda_planner.py``'s recording) through the
 steps of ``CudaPlanner.update_and_path``, timed one by one on the host (delta encoding into
-the pinned stage, the launch call: the graph's or the direct launch, the wait for the done
+the pinned stage, the launch call: the post to the resident loop, the graph's or the direct
+launch (``--launch``), the wait for the done
 word, decoding the path, the statistics), with the kernel compiled with ``-DPROFILE`` so that
 block 0 stamps the global timer at the end of each phase of the launch. Prints medians in µs,
 per mode (EDS, DSS), and DSS-only plans on the whole inflated map.
@@ -34,7 +35,7 @@ from daemon.planning.cuda_planner import CudaPlanner
 PHASES = ("init", "delta", "raise+reset", "relax", "exits", "hops", "segments")
 VISIT = ("take", "load", "solve", "publish")  # fast.cu C_VISIT: P_TAKE .. P_PUBLISH
 C_VISIT = 16
-HOST = ("encode", "launch", "wait", "path", "stats")
+HOST = ("encode", "launch", "wait", "path", "stats")  # launch: the post, with the resident loop
 
 
 def fused_step(p: CudaPlanner, cells, values, start, full: bool) -> list[float]:
@@ -51,6 +52,13 @@ def fused_step(p: CudaPlanner, cells, values, start, full: bool) -> list[float]:
     p._read_fast_stats()
     t.append(time.perf_counter())
     return list(np.diff(t) * 1e6)
+
+
+def planner(args: argparse.Namespace) -> CudaPlanner:
+    return CudaPlanner(
+        "fast", scans=args.scans, sched=args.sched, use_graph=args.launch != "direct",
+        resident=args.launch == "resident", profile=True,
+    )  # fmt: skip
 
 
 def gap(kind: str, scratch: np.ndarray) -> None:
@@ -94,16 +102,17 @@ def main() -> None:
     ap.add_argument("--dss", default="400,2000")
     ap.add_argument("--sched", type=int, default=1)
     ap.add_argument("--scans", type=int, default=2)
-    ap.add_argument("--no-graph", action="store_true", help="direct launches (use_graph=False)")
+    ap.add_argument(
+        "--launch", choices=("resident", "graph", "direct"), default="resident",
+        help="how a call reaches the device: the resident loop, a CUDA graph, a direct launch",
+    )  # fmt: skip
     ap.add_argument("--gap", choices=("none", "work", "sleep"), default="none")
     ap.add_argument("--walk-only", action="store_true")
     args = ap.parse_args()
     rec, _ = record(args.grid, 0.4, None)
     blocked, goal = rec.initial
     for mode in ("eds", "dss"):
-        p = CudaPlanner(
-            "fast", scans=args.scans, sched=args.sched, use_graph=not args.no_graph, profile=True
-        )
+        p = planner(args)
         p.plan(blocked, goal)
         host, dev, visits, sweeps, split = [], [], [], [], []
         scratch = np.random.default_rng(0).random((args.grid, args.grid))
@@ -122,9 +131,7 @@ def main() -> None:
         report(label, host, dev, extra, split if mode == "dss" else None)
     for size in [] if args.walk_only else [int(s) for s in args.dss.split(",") if s]:
         sc, blocked_full, _ = dss_case(size)
-        p = CudaPlanner(
-            "fast", scans=args.scans, sched=args.sched, use_graph=not args.no_graph, profile=True
-        )
+        p = planner(args)
         p.plan(blocked_full, sc.goal)
         none = np.empty(0, np.int64), np.empty(0, bool)
         host, dev, split = [], [], []

@@ -76,9 +76,10 @@ class Recorder(Planner):
 
 
 def make(spec: str) -> Planner:
-    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm]][:walk][:rounds][:direct]`` (``walk``:
-    the path by path.cu after the repair; ``rounds``: the relaxation in grid-wide rounds,
-    ``sched=0``; ``direct``: launches from Python instead of the captured graph)."""
+    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm]][:walk][:rounds][:graph|:direct]``
+    (``walk``: the path by path.cu after the repair; ``rounds``: the relaxation in grid-wide
+    rounds, ``sched=0``; ``graph``: a launch per call, replayed as a CUDA graph, instead of the
+    resident loop; ``direct``: a launch per call from Python)."""
     if spec == "cpu":
         return make_planner("cpu", "fast")
     from daemon.planning.cuda_planner import CudaPlanner
@@ -90,9 +91,11 @@ def make(spec: str) -> Planner:
     sched = 0 if "rounds" in parts else 1
     scans, blocks = [*(int(p) for p in parts if p.isdigit()), 2, 1][:2]
     graph = "direct" not in parts
+    resident = "graph" not in parts and "direct" not in parts
     return CudaPlanner(
-        "fast", scans=scans, sched=sched, min_blocks=blocks, path_mode=mode, use_graph=graph
-    )
+        "fast", scans=scans, sched=sched, min_blocks=blocks, path_mode=mode, use_graph=graph,
+        resident=resident,
+    )  # fmt: skip
 
 
 def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:

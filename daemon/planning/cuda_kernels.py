@@ -101,6 +101,11 @@ class Pinned:
         self.count = count
         return True
 
+    @property
+    def memory(self) -> object:
+        """The allocation itself: holding it keeps the buffer alive after ``reserve`` moves."""
+        return self._mem
+
     def to_device(self, dst: cp.ndarray, count: int, offset: int = 0) -> None:
         """Copy ``count`` items from item ``offset`` to ``dst`` at the same offset
         (asynchronous on the current stream)."""

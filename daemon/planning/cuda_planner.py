@@ -2,13 +2,15 @@
 
 Two variants (``kernels/``):
 
-- ``fast`` (default, ``fast.cu``): one persistent launch per replanning step. 32 x 32 tiles
-  settle in shared memory; a tile is relaxed as soon as a neighbour's border change flags it
-  (or in grid-wide rounds, ``sched=0``), so an EDS update works around the change; in
-  ``update_and_path`` the same launch then extracts the path, recomputing the tile exits only
-  where g changed. Per step: one replayed CUDA graph (the params and delta copied up, the
-  launch), and the launch writes statistics and path straight into page-locked host memory
-  mapped into the device; the host polls the launch's done word instead of synchronising.
+- ``fast`` (default, ``fast.cu``): every block of the device works on one planning call at a
+  time. 32 x 32 tiles settle in shared memory; a tile is relaxed as soon as a neighbour's
+  border change flags it (or in grid-wide rounds, ``sched=0``), so an EDS update works around
+  the change; in ``update_and_path`` the same call then extracts the path, recomputing the
+  tile exits only where g changed. The call writes statistics and path straight into
+  page-locked host memory mapped into the device; the host polls its done word instead of
+  synchronising. By default a resident loop (``cuda_resident.py``) serves the calls: the
+  host posts a step into a mapped mailbox and pays no launch. With ``resident=False`` each
+  call is a launch, replayed as a CUDA graph (the params and delta copied up, the launch).
 - ``paper`` (``cuda_paper.py``, ``paper.cu``): Díaz-Toro et al.'s Figure 4 form, for
   comparison: read-only and write-only maps for g, pred and incon, one ``kernel_planner``
   launch per iteration and ``flag_stop`` read back after each.
@@ -28,14 +30,16 @@ the path's cells come back. Test hook: ``inject_fault(exc)`` makes the next publ
 
 from __future__ import annotations
 
-import struct
 import time
 
 import cupy as cp
 import numpy as np
 
 from . import cuda_kernels as ck
+from . import cuda_resident
+from .cuda_launch import FastLaunch
 from .cuda_paper import PaperForm
+from .cuda_path import PathReader
 from .grid import INF, Cell, in_bounds
 from .interface import Planner, UpdateStats, checked_plan_input
 
@@ -45,7 +49,7 @@ PATH_MODES = ("tiles", "walk")
 ``walk``: path.cu, one warp walks every cell in a shared-memory window."""
 
 
-class CudaPlanner(PaperForm, Planner):
+class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
     """EDS/DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
 
     ``fast`` options (BENCHMARKS.md, "Planning on the GPU", compares them): ``scans`` the
@@ -54,7 +58,9 @@ class CudaPlanner(PaperForm, Planner):
     tile is relaxed as soon as a neighbour flags it, the default; 0 grid-wide rounds),
     ``min_blocks`` blocks per SM the kernel is compiled for (1: 64 registers, no spills),
     ``path_mode`` (``PATH_MODES``; with ``tiles`` the fast launch of ``update_and_path`` also
-    extracts the path). Calls are serialised on the device (``cuda_kernels.DEVICE_LOCK``): the
+    extracts the path), ``resident`` (``fast``: a resident loop serves the calls, the
+    default; else a launch per call, ``use_graph`` picking a replayed CUDA graph or direct
+    launches). Calls are serialised on the device (``cuda_kernels.DEVICE_LOCK``): the
     persistent kernel needs every block resident.
 
     ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and reset; with
@@ -72,6 +78,7 @@ class CudaPlanner(PaperForm, Planner):
         path_mode: str = "tiles",
         max_blocks: int | None = None,
         use_graph: bool = True,
+        resident: bool = True,
         profile: bool = False,
     ) -> None:
         if variant not in VARIANTS:
@@ -80,6 +87,8 @@ class CudaPlanner(PaperForm, Planner):
             raise ValueError(f"unknown path_mode {path_mode!r}; choose one of {PATH_MODES}")
         self.path_mode = path_mode
         self.use_graph = use_graph  # fast: replay each step as a captured CUDA graph
+        self.resident = resident and variant == "fast"
+        self._loop: cuda_resident.ResidentLoop | None = None
         self.max_blocks = max_blocks  # caps the persistent grid (experiments; None: all resident)
         self.variant = variant
         self.name = f"cuda-{variant}"
@@ -95,10 +104,12 @@ class CudaPlanner(PaperForm, Planner):
         # A call's results, written by fast.cu itself (mapped): the ctrl words, the done word,
         # then the path (see _allocate); the path kernels' results are copied here too.
         self._io_host = ck.Pinned(ck.IO_PATH + 2 + 2 * 1024, np.int32, mapped=True)
-        # A call's input, copied to ``_params`` on the device: the params words, then the delta
-        # (see _stage_delta). Not read in place: 100+ blocks reading the same host words at
-        # the start of a launch wait ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
-        self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32)
+        # A call's input: the params words, then the delta (see _stage_delta). Mapped: the
+        # resident loop's mailbox (its block 0 copies the params words to the device, every
+        # block reads its part of the delta); a launched call copies it all to ``_params``
+        # first, since 100+ blocks reading the same host words at the start of a launch wait
+        # ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
+        self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32, mapped=True)
         self._seq = 0  # the sequence number of the last fast call (its done word)
         self._params = self._delta = cp.zeros(0, dtype=np.int32)
         self._graph: cp.cuda.graph.Graph | None = None
@@ -122,6 +133,8 @@ class CudaPlanner(PaperForm, Planner):
     # -- state ----------------------------------------------------------------------------------
 
     def _allocate(self, shape: tuple[int, int]) -> None:
+        self._drop_loop()  # it holds the old buffers
+        cuda_resident.evict()  # the fills below are kernels
         h, w = shape
         n = h * w
         self._shape = shape
@@ -152,16 +165,15 @@ class CudaPlanner(PaperForm, Planner):
             # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth.
             self._flags = cp.zeros(5 * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
-            k = self._k_fast()
-            self._blocks = int(min(tiles, ck.resident_blocks(k), self.max_blocks or tiles))
+            # Both kernels run with this grid, all of whose blocks must be resident at once.
+            fits = min(ck.resident_blocks(self._k_fast()), ck.resident_blocks(self._k_loop()))
+            self._blocks = int(min(tiles, fits, self.max_blocks or tiles))
         else:
             self._allocate_paper(n)
 
-    def _k_fast(self) -> cp.RawKernel:
-        return ck.kernel("fast", "plan_persistent", self._defines)
-
     def _set_params_size(self, size: int) -> None:
         """A device buffer for the params words and a delta of up to ``size - PARAMS`` cells."""
+        self._drop_loop()
         self._params = cp.zeros(size, dtype=np.int32)
         self._delta = self._params[ck.PARAMS :]  # the paper's kernels take the delta alone
         self._graph = None  # it holds the buffers' addresses
@@ -171,12 +183,25 @@ class CudaPlanner(PaperForm, Planner):
         call (fast: ``_launch_fast``; paper: ``_run_paper``). Returns its length."""
         h, w = self._shape
         cells = np.asarray(cells)
-        if self._stage.reserve(ck.PARAMS + cells.size):
+        if ck.PARAMS + cells.size > self._stage.count:
+            self._drop_loop()  # it polls the stage, which moves
+            self._stage.reserve(ck.PARAMS + cells.size)
             self._graph = None  # it holds the stage's address
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
         return n
+
+    def _claim(self) -> None:
+        """Before work on the device (lock held): stop any other planner's resident loop,
+        which holds every SM."""
+        if cuda_resident.active() not in (None, self._loop):
+            cuda_resident.evict()
+
+    def _drop_loop(self) -> None:
+        if self._loop is not None:
+            self._loop.stop()
+            self._loop = None
 
     def _require_plan(self) -> None:
         if self._shape == (0, 0):
@@ -189,10 +214,12 @@ class CudaPlanner(PaperForm, Planner):
         self._check_fault()
         blocked, shape, goal = checked_plan_input(blocked, goal)
         with ck.DEVICE_LOCK:
+            self._claim()
             if shape != self._shape:
                 self._allocate(shape)
             self._goal = goal
             self._blocked_d.set(np.ascontiguousarray(blocked, dtype=np.uint8).ravel())
+            ck.synchronize()  # a resident loop runs on its own stream: the map is there first
             return self._run(eds=False, n_delta=0, t0=t0)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
@@ -206,6 +233,7 @@ class CudaPlanner(PaperForm, Planner):
         self._check_fault()
         self._require_plan()
         with ck.DEVICE_LOCK:
+            self._claim()
             n = self._stage_delta(cells, blocked)
             return self._run(eds=eds, n_delta=n, t0=t0)
 
@@ -236,6 +264,7 @@ class CudaPlanner(PaperForm, Planner):
         inside = in_bounds(self._shape, start)
         fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
+            self._claim()
             n = self._stage_delta(cells, blocked)
             self._launch_fast(not full, n, start[0] * self._shape[1] + start[1] if fused else -1)
             self._wait_fast()
@@ -247,64 +276,6 @@ class CudaPlanner(PaperForm, Planner):
         stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
         self.last_stats = stats
         return stats, path
-
-    def _run_fast(self, eds: bool, n_delta: int) -> tuple[int, int]:
-        self._launch_fast(eds, n_delta)
-        self._wait_fast()
-        return self._read_fast_stats()
-
-    def _wait_fast(self) -> None:
-        """Wait for the last fast call: fast.cu's last block sets the done word last."""
-        ck.wait_word(self._io_host.array, ck.IO_DONE, self._seq)
-
-    def _read_fast_stats(self) -> tuple[int, int]:
-        st = struct.unpack_from(f"{ck.CTRL_READ}I", self._io_host.array)
-        self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
-        self.tiles, self.exit_tiles = st[ck.C_TILES], st[ck.C_EXITS]
-        return st[ck.C_ROUNDS], self.raised_cells + st[ck.C_CHANGED]
-
-    def _launch_fast(self, eds: bool, n_delta: int, start: int = -1) -> None:
-        """Queue one fast call: params and delta up, the launch (repair; with ``start`` >= 0, a
-        flat cell, the path from it too), which writes its results into the mapped I/O
-        buffer; ``_wait_fast`` waits for them. With ``use_graph`` the copy and the launch
-        replay as one captured CUDA graph: one call from Python instead of two, one of them
-        with 12 kernel arguments packed by CuPy."""
-        self._seq = self._seq % 0x7FFFFFFF + 1
-        goal = self._goal[0] * self._shape[1] + self._goal[1]
-        # fast.cu's params [ndelta, mode, start, goal, seq]: one call, not five numpy stores.
-        struct.pack_into("5i", self._stage.array, 0, n_delta, int(eds), start, goal, self._seq)
-        if not self.use_graph:
-            self._queue_fast(ck.PARAMS + n_delta)
-            return
-        if self._graph is None:
-            self._graph = self._capture()
-        if n_delta > ck.GRAPH_DELTA:  # the graph's own copy takes the first GRAPH_DELTA cells
-            rest = ck.PARAMS + ck.GRAPH_DELTA
-            self._stage.to_device(self._params, n_delta - ck.GRAPH_DELTA, offset=rest)
-        self._graph.launch()
-
-    def _queue_fast(self, up: int) -> None:
-        h, w = self._shape
-        self._stage.to_device(self._params, up)
-        self._k_fast()(
-            (self._blocks,), (ck.THREADS,),
-            (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
-             np.int32(h), np.int32(w), self._exits, self._segs,
-             np.uint64(self._io_host.device_ptr), np.int32(self._path_cap)),
-        )  # fmt: skip
-
-    def _capture(self) -> cp.cuda.graph.Graph:
-        """The fast call as a CUDA graph (it holds the buffers' addresses, so any reallocation
-        sets ``_graph`` to None and the next call captures again)."""
-        self._k_fast()  # compiled and loaded before the capture
-        side = cp.cuda.Stream(non_blocking=True)
-        with side:
-            side.begin_capture()
-            try:
-                self._queue_fast(ck.PARAMS + ck.GRAPH_DELTA)
-            finally:
-                graph = side.end_capture()
-        return graph
 
     # -- queries --------------------------------------------------------------------------------
 
@@ -328,55 +299,13 @@ class CudaPlanner(PaperForm, Planner):
         if self._shape == (0, 0) or not in_bounds(self._shape, start):
             return np.empty((0, 2), dtype=np.int32)
         with ck.DEVICE_LOCK:
+            self._claim()
+            if self.resident and self.path_mode == "tiles":
+                # A call with no change: the loop extracts the path, no launch.
+                self._launch_fast(True, 0, start[0] * self._shape[1] + start[1])
+                self._wait_fast()
+                return self._path_locked(start, fused=True)
             return self._path_locked(start)
-
-    def _path_locked(self, start: Cell, fused: bool = False) -> np.ndarray:
-        """The path from ``start`` (lock held): with ``fused``, the one the fast call just
-        wrote into the mapped I/O buffer; else from a launch of the path kernel, copied back.
-        Paths longer than the buffer come in chunks, each continued by the path kernel."""
-        w = self._shape[1]
-        host, at = self._io_host, ck.IO_PATH
-        words = host.array
-        chunks: list[np.ndarray] = []
-        cur = start[0] * w + start[1]
-        copied = self._path_cap if fused else None
-        while True:
-            if copied is None:
-                self._launch_path(cur)
-                copied = min(self._path_guess, self._path_cap)
-                host.from_device(self._io, 2 + 2 * copied, offset=at)
-                ck.synchronize()
-            count, status = struct.unpack_from("2i", words, 4 * at)
-            if count > copied:
-                host.from_device(self._io, 2 * (count - copied), offset=at + 2 + 2 * copied)
-                ck.synchronize()
-            self._path_guess = max(256, 2 * count)
-            # The kernels write (row, column) pairs: the path as the caller gets it.
-            cells = words[at + 2 : at + 2 + 2 * count].reshape(count, 2)
-            if status != 1:  # the last chunk, copied out below
-                chunks.append(cells if not chunks else cells[1:])
-                break
-            chunks.append(cells.copy() if not chunks else cells[1:].copy())
-            cur, copied = int(cells[-1, 0]) * w + int(cells[-1, 1]), None
-        if status == 2:
-            return np.empty((0, 2), dtype=np.int32)
-        if status == 3:
-            raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
-        return chunks[0].copy() if len(chunks) == 1 else np.concatenate(chunks)
-
-    def _launch_path(self, cur: int) -> None:
-        h, w = self._shape
-        hw, start, cap = (np.int32(h), np.int32(w)), np.int32(cur), np.int32(self._path_cap)
-        if self.path_mode == "walk":
-            ck.kernel("path", "walk_path")((1,), (ck.THREADS,), (self._g, *hw, start,
-                                                                 self._path_d, cap))  # fmt: skip
-            return
-        ck.kernel("path_tiles", "path_tiles")(
-            (self._path_blocks,), (128,),
-            (self._g, *hw, start, self._exits, self._segs, self._path_d, cap, self._path_ctrl,
-             np.uint32(self._path_bar)),
-        )  # fmt: skip
-        self._path_bar = (self._path_bar + 2 * self._path_blocks) % 2**32
 
     def phase_ns(self) -> np.ndarray:
         """With ``profile=True``, after a fused ``update_and_path``: ns of the launch's phases as

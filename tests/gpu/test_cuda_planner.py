@@ -20,13 +20,15 @@ pytestmark = [
 ]
 
 # fast with each in-tile relaxation (scan level), 1 and 2 blocks per SM, both schedules of the
-# relaxation, a persistent grid of 3 blocks (each block owns many tiles), direct launches
-# instead of the captured graph, both path kernels; and the paper's form.
+# relaxation, a persistent grid of 3 blocks (each block owns many tiles), each way a call
+# reaches the device (the resident loop, a captured graph, direct launches), both path
+# kernels; and the paper's form.
 CONFIGS = [
     pytest.param(("fast", {}), id="fast"),
     pytest.param(("fast", {"sched": 0}), id="fast-rounds"),
     pytest.param(("fast", {"max_blocks": 3}), id="fast-3blocks"),
-    pytest.param(("fast", {"use_graph": False}), id="fast-direct"),
+    pytest.param(("fast", {"resident": False}), id="fast-graph"),
+    pytest.param(("fast", {"resident": False, "use_graph": False}), id="fast-direct"),
     pytest.param(("fast", {"scans": 0, "min_blocks": 2}), id="fast-jacobi-2blk"),
     pytest.param(("fast", {"scans": 1, "min_blocks": 1}), id="fast-rowcol-1blk"),
     pytest.param(("fast", {"path_mode": "walk"}), id="fast-walkpath"),
@@ -210,12 +212,12 @@ def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(config):
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("config", CONFIGS[:4])  # fast: the kernel reads the delta in place
+@pytest.mark.parametrize("config", CONFIGS[:5])  # fast: resident, graph and direct
 def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
     """The captured graph copies up the first 1024 cells of a delta, a longer one gets a copy
-    of its own first, and one longer than the pinned stage moves it (and the graph is
-    captured again on the new address); statistics and path come back through the mapped
-    results every time."""
+    of its own first, and one longer than the pinned stage moves it (the graph is captured
+    again on the new address, the resident loop is stopped and started on it); statistics and
+    path come back through the mapped results every time."""
     rng = np.random.default_rng(9)
     h, w = 150, 170
     blocked, goal = random_map(rng, (h, w), 0.2)

@@ -118,7 +118,8 @@ CONFIGS = [
     pytest.param(("fast", {}), id="fast"),
     pytest.param(("fast", {"sched": 0}), id="fast-rounds"),
     pytest.param(("fast", {"max_blocks": 3}), id="fast-3blocks"),
-    pytest.param(("fast", {"use_graph": False}), id="fast-direct"),
+    pytest.param(("fast", {"resident": False}), id="fast-graph"),
+    pytest.param(("fast", {"resident": False, "use_graph": False}), id="fast-direct"),
     pytest.param(("fast", {"path_mode": "walk"}), id="fast-walkpath"),
     pytest.param(("paper", {}), id="paper"),
 ]

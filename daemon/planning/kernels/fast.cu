@@ -223,16 +223,21 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 #define IO_DONE 60
 #define IO_PATH 64
 
-// The planning call.
+// The planning call, run by every block: in a launch of its own (plan_persistent) or once per
+// request of the resident loop (plan_resident, resident.cuh).
 //   mode 0 (DSS): apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   mode 1 (EDS): apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
-// delta[i] = cell * 2 + new_blocked. flags: 5 * ntiles (ping, pong, seeds, stale, depth).
-extern "C" __global__ void __launch_bounds__(NTHREADS, MIN_BLOCKS)
-plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int* params,
-                unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* io,
-                int cap) {
+// params: device memory, [ndelta, mode, start, goal, seq]; delta[i] = cell * 2 + new_blocked,
+// in device memory or in the host's mapped mailbox (read with ld.cv: never a cached copy).
+// flags: 5 * ntiles (ping, pong, seeds, stale, depth). *bar: thread 0's barrier target.
+// Not inlined: inside the resident loop the inlined body spilled 160 bytes a thread (ptxas
+// -v), called it spills 52, and plan_persistent's 64 drop to the same 52.
+__device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
+                          const int* params, const int* delta, unsigned* flags, unsigned* ctrl,
+                          int h, int w, int2* exits, int4* segs, int* io, int cap,
+                          unsigned* bar_ptr) {
     __shared__ int gs[HT][HT];
     __shared__ unsigned char bs[TILE][TILE + 1];
     __shared__ unsigned char rs[HT][HT];
@@ -251,15 +256,12 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
     unsigned* depth = flags + 4 * G.ntiles;
     int tid = blockIdx.x * NTHREADS + threadIdx.x, stride = gridDim.x * NTHREADS;
     STAMP(0);
-    if (threadIdx.x < 5) s_params[threadIdx.x] = params[threadIdx.x];
+    if (threadIdx.x < 5) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
     __syncthreads();
     const int ndelta = s_params[0], mode = s_params[1], start = s_params[2], goal = s_params[3];
-    const int* delta = params + PARAMS;
     int* out = io + IO_PATH;
     G.goal = goal;
-    // Thread 0's barrier target. The last block writes C_BASE back only after the last
-    // arrival, when every block has read it.
-    unsigned bar = ((volatile unsigned*)ctrl)[C_BASE];
+    unsigned bar = *bar_ptr;
     STAMP(1);
 
     // Round 0: the delta, the seeds of the first phase. (The counters and depth were zeroed
@@ -267,7 +269,7 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
     unsigned* cnt1 = ctrl + C_CNT + 1;
     if (mode == 0) {
         for (int i = tid; i < ndelta; i += stride) {
-            int code = delta[i];
+            int code = __ldcv(delta + i);
             blocked[code >> 1] = code & 1;
         }
         for (int i = tid; i < h * w; i += stride) g[i] = INF;
@@ -275,7 +277,7 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
         if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
         for (int i = tid; i < ndelta; i += stride) {
-            int code = delta[i];
+            int code = __ldcv(delta + i);
             int cell = code >> 1;
             unsigned char now = code & 1;
             if (__ldcg(blocked + cell) == now) continue;
@@ -366,4 +368,19 @@ plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int
             ((volatile int*)io)[IO_DONE] = s_params[4];
         }
     }
+    if (threadIdx.x == 0) *bar_ptr = bar;  // thread 0's target is the block's
 }
+
+// One planning call per launch (replayed as a CUDA graph by the host). The barrier target
+// starts where the last launch ended (ctrl[C_BASE]); the last block writes it back only after
+// the last arrival, when every block has read it.
+extern "C" __global__ void __launch_bounds__(NTHREADS, MIN_BLOCKS)
+plan_persistent(int* g, unsigned char* blocked, unsigned char* raised, const int* params,
+                unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* io,
+                int cap) {
+    unsigned bar = ((volatile unsigned*)ctrl)[C_BASE];
+    plan_call(g, blocked, raised, params, params + PARAMS, flags, ctrl, h, w, exits, segs, io, cap,
+              &bar);
+}
+
+#include "resident.cuh"

@@ -1,0 +1,84 @@
+"""How the cuda backend's path comes back to the host (``CudaPlanner`` mixes this in).
+
+The ``fast`` call writes the path into the mapped I/O buffer itself; otherwise a launch of a
+path kernel writes it on the device and it is copied back. A path longer than the buffer
+comes in chunks, each continued by a launch of the path kernel from the chunk's last cell.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import cupy as cp
+import numpy as np
+
+from . import cuda_kernels as ck
+from . import cuda_resident
+from .grid import Cell
+
+
+class PathReader:
+    """The path's read-back over ``CudaPlanner``'s buffers (see ``CudaPlanner._allocate``)."""
+
+    _shape: tuple[int, int]
+    _io_host: ck.Pinned
+    _io: cp.ndarray
+    _g: cp.ndarray
+    _exits: cp.ndarray
+    _segs: cp.ndarray
+    _path_d: cp.ndarray
+    _path_ctrl: cp.ndarray
+    _path_cap: int
+    _path_guess: int
+    _path_blocks: int
+    _path_bar: int
+    path_mode: str
+
+    def _path_locked(self, start: Cell, fused: bool = False) -> np.ndarray:
+        """The path from ``start`` (lock held): with ``fused``, the one the fast call just
+        wrote into the mapped I/O buffer; else from a launch of the path kernel, copied back.
+        Paths longer than the buffer come in chunks, each continued by the path kernel."""
+        w = self._shape[1]
+        host, at = self._io_host, ck.IO_PATH
+        words = host.array
+        chunks: list[np.ndarray] = []
+        cur = start[0] * w + start[1]
+        copied = self._path_cap if fused else None
+        while True:
+            if copied is None:
+                self._launch_path(cur)
+                copied = min(self._path_guess, self._path_cap)
+                host.from_device(self._io, 2 + 2 * copied, offset=at)
+                ck.synchronize()
+            count, status = struct.unpack_from("2i", words, 4 * at)
+            if count > copied:
+                host.from_device(self._io, 2 * (count - copied), offset=at + 2 + 2 * copied)
+                ck.synchronize()
+            self._path_guess = max(256, 2 * count)
+            # The kernels write (row, column) pairs: the path as the caller gets it.
+            cells = words[at + 2 : at + 2 + 2 * count].reshape(count, 2)
+            if status != 1:  # the last chunk, copied out below
+                chunks.append(cells if not chunks else cells[1:])
+                break
+            chunks.append(cells.copy() if not chunks else cells[1:].copy())
+            cur, copied = int(cells[-1, 0]) * w + int(cells[-1, 1]), None
+        if status == 2:
+            return np.empty((0, 2), dtype=np.int32)
+        if status == 3:
+            raise RuntimeError(f"g is not a consistent cost field on the way from {start}")
+        return chunks[0].copy() if len(chunks) == 1 else np.concatenate(chunks)
+
+    def _launch_path(self, cur: int) -> None:
+        cuda_resident.evict()  # its grid barrier needs SMs a resident loop holds
+        h, w = self._shape
+        hw, start, cap = (np.int32(h), np.int32(w)), np.int32(cur), np.int32(self._path_cap)
+        if self.path_mode == "walk":
+            ck.kernel("path", "walk_path")((1,), (ck.THREADS,), (self._g, *hw, start,
+                                                                 self._path_d, cap))  # fmt: skip
+            return
+        ck.kernel("path_tiles", "path_tiles")(
+            (self._path_blocks,), (128,),
+            (self._g, *hw, start, self._exits, self._segs, self._path_d, cap, self._path_ctrl,
+             np.uint32(self._path_bar)),
+        )  # fmt: skip
+        self._path_bar = (self._path_bar + 2 * self._path_blocks) % 2**32

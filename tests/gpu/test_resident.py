@@ -1,0 +1,171 @@
+"""The resident loop (``cuda_resident.py``, ``kernels/resident.cuh``) on the GPU.
+
+Calls posted to a running loop are served without a launch and stay bit-exact with the
+reference Dijkstra; a loop that ended idle starts again; calls racing the loop's own idle exit
+are not lost; planners take turns on the device; copies leave a loop running, and a launch of
+the path kernel makes it stop and come back.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from daemon.planning import cuda_available
+from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.interface import reference_path
+
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device"),
+    pytest.mark.timeout(120),
+]
+
+
+@pytest.fixture(autouse=True)
+def _no_loop_left():
+    """Each test starts and ends with no loop holding the device (another test's kernels would
+    wait for its idle exit)."""
+    from daemon.planning import cuda_resident
+
+    cuda_resident.evict()
+    yield
+    cuda_resident.evict()
+
+
+def case(seed: int, shape=(70, 90), steps=24):
+    """A map, a goal and steps of (cells, values, start): patches that open and close."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    blocked = rng.random(shape) < 0.25
+    goal = (int(rng.integers(h)), int(rng.integers(w)))
+    blocked[goal] = False
+    out = []
+    for _ in range(steps):
+        cy, cx, r = int(rng.integers(h)), int(rng.integers(w)), int(rng.integers(1, 6))
+        ys, xs = np.mgrid[max(cy - r, 0) : min(cy + r + 1, h), max(cx - r, 0) : min(cx + r + 1, w)]
+        cells = (ys * w + xs).ravel().astype(np.int64)
+        values = rng.random(cells.size) < 0.6
+        out.append((cells, values, (int(rng.integers(h)), int(rng.integers(w)))))
+    return blocked, goal, out
+
+
+def planner():
+    from daemon.planning.cuda_planner import CudaPlanner
+
+    return CudaPlanner("fast")
+
+
+def walk(p, blocked, goal, steps, between=None):
+    """Run the steps through ``update_and_path`` (every third one DSS), checking each."""
+    truth = blocked.copy()
+    for i, (cells, values, start) in enumerate(steps):
+        if between is not None:
+            between(i)
+        truth.reshape(-1)[cells] = values
+        _, path = p.update_and_path(cells, values, start, full=i % 3 == 2)
+        g = dijkstra_field(truth, goal)
+        assert np.array_equal(p.costs(), g), f"step {i}"
+        assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
+    return truth
+
+
+def test_steps_are_served_by_one_launch(monkeypatch):
+    from daemon.planning import cuda_resident
+
+    # the reference Dijkstra between steps is slow Python: no idle exit meanwhile
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
+    blocked, goal, steps = case(1)
+    p = planner()
+    p.plan(blocked, goal)
+    walk(p, blocked, goal, steps)
+    assert p._loop is not None and cuda_resident.active() is p._loop
+    # plan() and every step went to the same launch (costs() is a copy: it does not stop it)
+    assert p._loop.launches == 1
+
+
+def test_a_loop_that_ended_idle_starts_again(monkeypatch):
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 1.0)
+    blocked, goal, steps = case(2, steps=10)
+    p = planner()
+    p.plan(blocked, goal)
+    walk(p, blocked, goal, steps, between=lambda i: time.sleep(0.01))
+    assert p._loop.launches == 1 + len(steps)
+
+
+def test_calls_racing_the_idle_exit_are_not_lost(monkeypatch):
+    """The loop ends a few µs after each call, so posts land just before, during and after
+    its exit; ``wait`` starts it again when it ended without taking the call."""
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 0.005)
+    blocked, goal, steps = case(3, steps=40)
+    rng = np.random.default_rng(3)
+    gaps = rng.choice([0.0, 2e-6, 5e-6, 2e-5, 1e-4], size=len(steps))
+    p = planner()
+    p.plan(blocked, goal)
+
+    def spin(i: int) -> None:
+        end = time.perf_counter() + gaps[i]
+        while time.perf_counter() < end:
+            pass
+
+    walk(p, blocked, goal, steps, between=spin)
+    assert p._loop.launches > 1
+
+
+def test_planners_take_turns_on_the_device(monkeypatch):
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
+
+    cases = [case(4), case(5, shape=(40, 120))]
+    planners = [planner(), planner()]
+    truths = []
+    for p, (blocked, goal, _) in zip(planners, cases, strict=True):
+        p.plan(blocked, goal)
+        truths.append(blocked.copy())
+    for i in range(len(cases[0][2])):
+        for k, p in enumerate(planners):
+            blocked, goal, steps = cases[k]
+            cells, values, start = steps[i]
+            truths[k].reshape(-1)[cells] = values
+            _, path = p.update_and_path(cells, values, start)
+            assert cuda_resident.active() is p._loop  # the other one was stopped
+            g = dijkstra_field(truths[k], goal)
+            assert np.array_equal(p.costs(), g)
+            assert np.array_equal(path, reference_path(g, truths[k], start))
+    # each call started its planner's loop again: the other planner had stopped it
+    assert [p._loop.launches for p in planners] == [1 + len(cases[0][2])] * 2
+
+
+def test_queries_keep_the_loop_and_path_launches_stop_it(monkeypatch):
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
+
+    # Walls across every other row: a path longer than the path buffer, so its read-back
+    # launches the path kernel, which must stop the loop first.
+    h, w = 64, 64
+    blocked = np.zeros((h, w), bool)
+    for r in range(1, h, 2):
+        blocked[r, :] = True
+        blocked[r, w - 1 if r % 4 == 1 else 0] = False
+    goal, start = (0, 0), (h - 2, w // 2)
+    p = planner()
+    p.plan(blocked, goal)
+    loop = p._loop
+    g = dijkstra_field(blocked, goal)
+    assert p.cost_at(start) == g[start] and np.array_equal(p.blocked(), blocked)
+    assert cuda_resident.active() is loop and loop.launches == 1
+    path = p.path(start)  # longer than the buffer: continued by path kernel launches
+    assert len(path) > p._path_cap
+    assert np.array_equal(path, reference_path(g, blocked, start))
+    assert cuda_resident.active() is None
+    short = (2, 5)
+    assert np.array_equal(p.path(short), reference_path(g, blocked, short))
+    assert cuda_resident.active() is loop and loop.launches == 2
