@@ -29,6 +29,9 @@ CTRL_READ = 13
 P_STAMPS = 48
 IO_DONE = 60
 IO_PATH = 64
+IO_REJECT = 58
+"""resident.cuh: the rejection bits of a delta block 0 refused (0 after any served call)."""
+REJECT_RANGE, REJECT_ORDER = 1, 2
 PARAMS = 8
 """fast.cu's params words (ndelta, mode, start, goal, seq, ...) before the delta."""
 GRAPH_DELTA = 1024  # delta cells the captured call copies up itself (more: one copy before)
@@ -172,8 +175,7 @@ def encode_delta(
     if values.dtype != np.bool_ or values.shape != cells.shape:
         values = np.broadcast_to(values.astype(bool).ravel(), cells.shape)
     if n > 1 and not np.greater(cells[1:], cells[:-1]).all():
-        rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
-        cells, values = rev_unique, values[::-1][rev_idx]
+        cells, values = unique_last(cells, values)
         n = cells.size
     if cells[0] < 0 or cells[-1] >= n_cells:
         raise IndexError(f"a cell index is outside the map of {n_cells} cells")
@@ -181,3 +183,11 @@ def encode_delta(
     np.left_shift(cells, 1, out=codes, casting="unsafe")
     np.bitwise_or(codes, values, out=codes)
     return codes
+
+
+def unique_last(cells: np.ndarray, values: np.ndarray | bool) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique ``cells`` (int64) and, for each, the value it was given last."""
+    cells = np.asarray(cells, dtype=np.int64).ravel()
+    values = np.broadcast_to(np.asarray(values, dtype=bool).ravel(), cells.shape)
+    rev_unique, rev_idx = np.unique(cells[::-1], return_index=True)
+    return rev_unique, values[::-1][rev_idx]

@@ -51,17 +51,36 @@ class FastLaunch:
     def _k_loop(self) -> cp.RawKernel:
         return ck.kernel("fast", "plan_resident", self._defines)
 
-    def _run_fast(self, eds: bool, n_delta: int) -> tuple[int, int]:
-        self._launch_fast(eds, n_delta)
-        self._wait_fast()
-        return self._read_fast_stats()
+    def _call_fast(
+        self, eds: bool, cells: np.ndarray | None, blocked: np.ndarray | None, start: int = -1
+    ) -> None:
+        """One fast call (lock held): stage the delta (none: ``cells`` is None), launch or
+        post, wait. The resident loop refuses cells out of order (a cell twice, say): they are
+        sorted on the host, each cell keeping its last value, and posted again."""
+        n = 0 if cells is None else self._stage_delta(cells, blocked)
+        self._launch_fast(eds, n, start)
+        if self._wait_fast():
+            return
+        assert cells is not None and blocked is not None  # an empty delta is in order
+        cells, blocked = ck.unique_last(cells, blocked)
+        self._launch_fast(eds, self._stage_delta(cells, blocked), start)
+        if not self._wait_fast():
+            raise RuntimeError("the resident loop refused a sorted delta")
 
-    def _wait_fast(self) -> None:
-        """Wait for the last fast call: fast.cu's last block sets the done word last."""
-        if self._loop is not None:
-            self._loop.wait(self._io_host.array, self._seq)
-        else:
-            ck.wait_word(self._io_host.array, ck.IO_DONE, self._seq)
+    def _wait_fast(self) -> bool:
+        """Wait for the last fast call: fast.cu's last block sets the done word last. False if
+        the resident loop refused its delta as out of order; IndexError (nothing applied) if a
+        cell lies outside the map."""
+        io = self._io_host.array
+        if self._loop is None:
+            ck.wait_word(io, ck.IO_DONE, self._seq)
+            return True
+        self._loop.wait(io, self._seq)
+        reject = int(io[ck.IO_REJECT])
+        if reject & ck.REJECT_RANGE:
+            h, w = self._shape
+            raise IndexError(f"a cell index is outside the map of {h * w} cells")
+        return not reject
 
     def _read_fast_stats(self) -> tuple[int, int]:
         st = struct.unpack_from(f"{ck.CTRL_READ}I", self._io_host.array)

@@ -179,8 +179,11 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._graph = None  # it holds the buffers' addresses
 
     def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
-        """Encode the delta into the pinned stage after the params words; it goes up with the
-        call (fast: ``_launch_fast``; paper: ``_run_paper``). Returns its length."""
+        """The delta into the stage after the params words; it goes with the call (fast:
+        ``_launch_fast``; paper: ``_run_paper``). Returns its length. For the resident loop it
+        goes raw (``_stage_raw``); else encoded and checked here (``encode_delta``)."""
+        if self.resident:
+            return self._stage_raw(cells, blocked)
         h, w = self._shape
         cells = np.asarray(cells)
         if ck.PARAMS + cells.size > self._stage.count:
@@ -190,6 +193,26 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
+        return n
+
+    def _stage_raw(self, cells: np.ndarray, blocked: np.ndarray) -> int:
+        """Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy copies,
+        which cast and broadcast as needed; the loop checks the cells' range and order."""
+        cells = cells if isinstance(cells, np.ndarray) else np.asarray(cells)
+        if cells.ndim != 1:
+            cells = cells.ravel()
+        n = cells.size
+        words = ck.PARAMS + (9 * n + 3) // 4
+        if words > self._stage.count:
+            self._drop_loop()  # it polls the stage, which moves
+            self._stage.reserve(words)
+            self._graph = None
+        if ck.PARAMS + n > self._params.size:
+            self._set_params_size(2 * (ck.PARAMS + n))
+        stage = self._stage.array
+        stage.view(np.int64)[ck.PARAMS // 2 : ck.PARAMS // 2 + n] = cells
+        at = 4 * ck.PARAMS + 8 * n
+        stage.view(np.uint8)[at : at + n] = blocked
         return n
 
     def _claim(self) -> None:
@@ -220,7 +243,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
             self._goal = goal
             self._blocked_d.set(np.ascontiguousarray(blocked, dtype=np.uint8).ravel())
             ck.synchronize()  # a resident loop runs on its own stream: the map is there first
-            return self._run(eds=False, n_delta=0, t0=t0)
+            return self._run(False, t0)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         return self._change(cells, blocked, eds=True)
@@ -234,14 +257,21 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._require_plan()
         with ck.DEVICE_LOCK:
             self._claim()
-            n = self._stage_delta(cells, blocked)
-            return self._run(eds=eds, n_delta=n, t0=t0)
+            return self._run(eds, t0, cells, blocked)
 
-    def _run(self, eds: bool, n_delta: int, t0: float) -> UpdateStats:
+    def _run(
+        self,
+        eds: bool,
+        t0: float,
+        cells: np.ndarray | None = None,
+        blocked: np.ndarray | None = None,
+    ) -> UpdateStats:
         if self.variant == "fast":
-            iterations, touched = self._run_fast(eds, n_delta)
+            self._call_fast(eds, cells, blocked)
+            iterations, touched = self._read_fast_stats()
         else:
-            iterations, touched = self._run_paper(eds, n_delta)
+            n = 0 if cells is None else self._stage_delta(cells, blocked)
+            iterations, touched = self._run_paper(eds, n)
         stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
         self.last_stats = stats
         return stats
@@ -265,9 +295,9 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
             self._claim()
-            n = self._stage_delta(cells, blocked)
-            self._launch_fast(not full, n, start[0] * self._shape[1] + start[1] if fused else -1)
-            self._wait_fast()
+            self._call_fast(
+                not full, cells, blocked, start[0] * self._shape[1] + start[1] if fused else -1
+            )
             if inside:
                 path = self._path_locked(start, fused=fused)
             else:
@@ -302,8 +332,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
             self._claim()
             if self.resident and self.path_mode == "tiles":
                 # A call with no change: the loop extracts the path, no launch.
-                self._launch_fast(True, 0, start[0] * self._shape[1] + start[1])
-                self._wait_fast()
+                self._call_fast(True, None, None, start[0] * self._shape[1] + start[1])
                 return self._path_locked(start, fused=True)
             return self._path_locked(start)
 

@@ -169,3 +169,37 @@ def test_queries_keep_the_loop_and_path_launches_stop_it(monkeypatch):
     short = (2, 5)
     assert np.array_equal(p.path(short), reference_path(g, blocked, short))
     assert cuda_resident.active() is loop and loop.launches == 2
+
+
+def test_deltas_out_of_order_or_out_of_the_map(monkeypatch):
+    """The loop checks the raw delta on the device: cells out of order are sorted on the host
+    and posted again (a cell's last value wins); a cell outside the map rejects the whole
+    delta with IndexError, nothing applied, and the loop goes on serving."""
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
+    blocked, goal, _ = case(6)
+    h, w = blocked.shape
+    p = planner()
+    p.plan(blocked, goal)
+    free = [int(c) for c in np.flatnonzero(~blocked.ravel()) if c != goal[0] * w + goal[1]][:3]
+    a, b, c = free
+    # a twice: blocked, then free again (last wins); b blocked; c listed before a
+    cells = np.array([a, b, c, a], dtype=np.int32)  # int32: the copy into the mailbox casts
+    values = np.array([True, True, False, False])
+    p.update(cells, values)
+    truth = blocked.copy()
+    truth.reshape(-1)[[b, c]] = [True, False]
+    assert np.array_equal(p.blocked(), truth)
+    assert np.array_equal(p.costs(), dijkstra_field(truth, goal))
+    before = p.costs()
+    for bad in ([c, h * w], [-1], [h * w + 5, a]):
+        with pytest.raises(IndexError):
+            p.update(np.array(bad), np.array([True] * len(bad)))
+        assert np.array_equal(p.costs(), before) and np.array_equal(p.blocked(), truth)
+    _, path = p.update_and_path(np.array([a]), np.array([True]), (0, 0))
+    truth.reshape(-1)[a] = True
+    g = dijkstra_field(truth, goal)
+    assert np.array_equal(p.costs(), g)
+    assert np.array_equal(path, reference_path(g, truth, (0, 0)))
+    assert p._loop.launches == 1

@@ -230,10 +230,11 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
 // params: device memory, [ndelta, mode, start, goal, seq]; delta[i] = cell * 2 + new_blocked,
-// in device memory or in the host's mapped mailbox (read with ld.cv: never a cached copy).
+// in device memory, read with ld.cv (the resident loop rewrites it between calls: never an
+// L1 copy from an earlier call).
 // flags: 5 * ntiles (ping, pong, seeds, stale, depth). *bar: thread 0's barrier target.
-// Not inlined: inside the resident loop the inlined body spilled 160 bytes a thread (ptxas
-// -v), called it spills 52, and plan_persistent's 64 drop to the same 52.
+// Not inlined: inside the resident loop the inlined body spilled 160 bytes a thread (ptxas -v)
+// and the relaxation ran 20 % slower; called, plan_persistent's spills drop from 64 to 52.
 __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
                           const int* params, const int* delta, unsigned* flags, unsigned* ctrl,
                           int h, int w, int2* exits, int4* segs, int* io, int cap,

@@ -3,13 +3,15 @@
 // mapped memory instead of a launch.
 //
 // The host's mailbox `mail` is page-locked host memory mapped into the device: the params
-// words (ndelta, mode, start, goal, seq), a spare word, MB_STOP, MB_POST, then the delta. The host writes a
-// call's params and delta, then MB_POST = seq, last (x86 keeps stores in order). Block 0's
-// thread 0 polls MB_POST and MB_STOP over PCIe; on a new seq its block copies the params words
-// into device memory, and it publishes the command to the other blocks in ctrl[C_CMD] and
-// ctrl[C_GO], a generation count that only grows, which they poll in L2. Every block reads
-// the params from device memory: 132 blocks reading the same host words queue their PCIe
-// reads one behind another (BENCHMARKS.md), one block's reads do not.
+// words (ndelta, mode, start, goal, seq), a spare word, MB_STOP, MB_POST, then the delta raw
+// (take_delta). The host writes a call's params and delta, then MB_POST = seq, last (x86
+// keeps stores in order). Block 0's thread 0 polls MB_POST and MB_STOP over PCIe; on a new
+// seq its block checks the delta and copies params and encoded delta into device memory, and
+// it publishes the command to the other blocks in ctrl[C_CMD] and ctrl[C_GO], a generation
+// count that only grows, which they poll in L2. Every block reads the params from device
+// memory: 132 blocks reading the same host words queue their PCIe reads one behind another
+// (BENCHMARKS.md), one block's reads do not. The checks on the device spare the host's
+// Python a numpy call per check, which costs most right after the host did other work.
 //
 // The host never needs to know whether a loop is running: a call it posts just as the loop
 // ends idle is left unserved, the host sees the stream idle with its done word unset, and
@@ -29,33 +31,71 @@ __device__ __forceinline__ unsigned long long global_ns() {
     return t;
 }
 
-// Block 0: wait for a posted call, the stop word or the idle limit; copy a call's params into
-// device memory; publish the command. *served: the seq of the last call taken (thread 0).
-__device__ int take_command(const int* mail, int* params, unsigned* ctrl, int* served,
-                            unsigned idle_us) {
-    __shared__ int s_cmd;
-    if (threadIdx.x == 0) {
-        unsigned long long since = global_ns();
-        int cmd = CMD_EXIT;
-        while (true) {
-            int2 box = __ldcv((const int2*)(mail + MB_STOP));  // one PCIe read: stop, post
-            if (box.x) break;
-            if (box.y != *served) {
-                *served = box.y;
-                cmd = CMD_RUN;
-                break;
-            }
-            if (global_ns() - since > 1000ull * idle_us) break;
-            __nanosleep(200);
-        }
-        __threadfence_system();  // the params are read after MB_POST
-        s_cmd = cmd;
+// Block 0, a posted call's delta: the host writes it raw (cells as int64 after the params
+// words, then one byte per cell, 1 = blocked) and block 0 checks and encodes it into device
+// memory (params + PARAMS, cell * 2 + blocked) before any block reads it. Returns 0, or the
+// REJECT_* bits: then nothing is applied and the call ends with only the done word.
+#define REJECT_RANGE 1    // a cell outside the map
+#define REJECT_ORDER 2    // cells not strictly increasing (the host sorts and posts again)
+#define IO_REJECT 58      // io word the rejection bits go to (0 after any served call)
+__device__ __noinline__ int take_delta(const int* mail, int* params, int n, int cells_total) {
+    // A cell as (low, high) 32-bit words: inside the map iff high == 0 and low < cells_total
+    // (64-bit arithmetic here made ptxas spill more in plan_call, whose registers it shares).
+    const int2* cells = (const int2*)(mail + PARAMS);
+    const signed char* values = (const signed char*)(cells + n);
+    int bad = 0;
+    for (int i = threadIdx.x; i < n; i += NTHREADS) {
+        int2 c = __ldcv(cells + i);  // the three PCIe reads go out together
+        int2 before = i > 0 ? __ldcv(cells + i - 1) : make_int2(-1, -1);
+        int blocked = __ldcv(values + i) != 0;
+        if (c.y != 0 || (unsigned)c.x >= (unsigned)cells_total) bad |= REJECT_RANGE;
+        else if (before.y == 0 && c.x <= before.x) bad |= REJECT_ORDER;
+        params[PARAMS + i] = 2 * c.x + blocked;
     }
-    __syncthreads();
-    if (s_cmd == CMD_RUN && threadIdx.x < 5) params[threadIdx.x] = __ldcv(mail + threadIdx.x);
-    __syncthreads();
+    int range = __syncthreads_or(bad & REJECT_RANGE);
+    int order = __syncthreads_or(bad & REJECT_ORDER);
+    return (range ? REJECT_RANGE : 0) | (order ? REJECT_ORDER : 0);
+}
+
+// Block 0: wait for a posted call, the stop word or the idle limit; copy a call's params and
+// delta into device memory; publish the command. A rejected delta ends its call here (the
+// rejection bits, then the done word) and block 0 waits for the next one. *served: the seq
+// of the last call taken (thread 0).
+__device__ __noinline__ int take_command(const int* mail, int* params, unsigned* ctrl, int* io,
+                            int* served, unsigned idle_us, int cells_total) {
+    __shared__ int s_cmd, s_params[5];
+    while (true) {
+        if (threadIdx.x == 0) {
+            unsigned long long since = global_ns();
+            int cmd = CMD_EXIT;
+            while (true) {
+                int2 box = __ldcv((const int2*)(mail + MB_STOP));  // one PCIe read: stop, post
+                if (box.x) break;
+                if (box.y != *served) {
+                    *served = box.y;
+                    cmd = CMD_RUN;
+                    break;
+                }
+                if (global_ns() - since > 1000ull * idle_us) break;
+                __nanosleep(200);
+            }
+            __threadfence_system();  // the params and delta are read after MB_POST
+            s_cmd = cmd;
+        }
+        __syncthreads();
+        if (s_cmd != CMD_RUN) break;
+        if (threadIdx.x < 5) s_params[threadIdx.x] = params[threadIdx.x] = __ldcv(mail + threadIdx.x);
+        __syncthreads();
+        int reject = take_delta(mail, params, s_params[0], cells_total);
+        if (!reject) break;
+        if (threadIdx.x == 0) {
+            io[IO_REJECT] = reject;
+            __threadfence_system();
+            ((volatile int*)io)[IO_DONE] = s_params[4];
+        }
+    }
     if (threadIdx.x == 0) {
-        __threadfence();  // the params before the generation that announces them
+        __threadfence();  // the params and delta before the generation that announces them
         ctrl[C_CMD] = (unsigned)s_cmd;
         __threadfence();
         atomicAdd(ctrl + C_GO, 1u);
@@ -96,10 +136,10 @@ plan_resident(int* g, unsigned char* blocked, unsigned char* raised, int* params
     // Every block has read C_GO before block 0 can move it.
     grid_barrier(ctrl, &s_bar);
     while (true) {
-        int cmd = blockIdx.x == 0 ? take_command(mail, params, ctrl, &s_served, idle_us)
+        int cmd = blockIdx.x == 0 ? take_command(mail, params, ctrl, io, &s_served, idle_us, h * w)
                                   : await_command(ctrl, &s_gen);
         if (cmd != CMD_RUN) break;
-        plan_call(g, blocked, raised, params, mail + PARAMS, flags, ctrl, h, w, exits, segs, io,
+        plan_call(g, blocked, raised, params, params + PARAMS, flags, ctrl, h, w, exits, segs, io,
                   cap, &s_bar);
     }
     // Nothing arrives at a barrier after the exit command: every block's target is the same.
