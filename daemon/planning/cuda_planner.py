@@ -202,7 +202,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         if cells.ndim != 1:
             cells = cells.ravel()
         n = cells.size
-        words = ck.PARAMS + (9 * n + 3) // 4
+        words = ck.PARAMS + 2 * ((9 * n + 7) // 8)  # even: the stage is viewed as int64 too
         if words > self._stage.count:
             self._drop_loop()  # it polls the stage, which moves
             self._stage.reserve(words)

@@ -223,7 +223,7 @@ def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
     blocked, goal = random_map(rng, (h, w), 0.2)
     planner = cuda_planner(config)
     planner.plan(blocked, goal)
-    for size in (10, 3000, 20, 12000, 5):
+    for size in (10, 2001, 3000, 20, 12000, 5):  # 2001: a stage of an odd length before
         cells = rng.choice(h * w, size=size, replace=False)
         values = rng.random(size) < 0.3
         values[cells == goal[0] * w + goal[1]] = False
