@@ -38,9 +38,13 @@ class PathReader:
         """The path from ``start`` (lock held): with ``fused``, the one the fast call just
         wrote into the mapped I/O buffer; else from a launch of the path kernel, copied back.
         Paths longer than the buffer come in chunks, each continued by the path kernel."""
-        w = self._shape[1]
         host, at = self._io_host, ck.IO_PATH
         words = host.array
+        if fused:  # the common case first: one chunk, complete, already in host memory
+            count, status = struct.unpack_from("2i", words, 4 * at)
+            if status == 0:
+                return words[at + 2 : at + 2 + 2 * count].reshape(count, 2).copy()
+        w = self._shape[1]
         chunks: list[np.ndarray] = []
         cur = start[0] * w + start[1]
         copied = self._path_cap if fused else None

@@ -110,6 +110,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         # first, since 100+ blocks reading the same host words at the start of a launch wait
         # ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
         self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32, mapped=True)
+        self._stage_views: tuple[np.ndarray, ...] = (np.empty(0),)  # see _stage_raw
         self._seq = 0  # the sequence number of the last fast call (its done word)
         self._params = self._delta = cp.zeros(0, dtype=np.int32)
         self._graph: cp.cuda.graph.Graph | None = None
@@ -209,10 +210,13 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
             self._graph = None
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
-        stage = self._stage.array
-        stage.view(np.int64)[ck.PARAMS // 2 : ck.PARAMS // 2 + n] = cells
+        if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now
+            stage = self._stage.array
+            self._stage_views = (stage, stage.view(np.int64), stage.view(np.uint8))
+        _, as_int64, as_bytes = self._stage_views
+        as_int64[ck.PARAMS // 2 : ck.PARAMS // 2 + n] = cells
         at = 4 * ck.PARAMS + 8 * n
-        stage.view(np.uint8)[at : at + n] = blocked
+        as_bytes[at : at + n] = blocked
         return n
 
     def _claim(self) -> None:

@@ -24,13 +24,15 @@
 // at once (the barriers spin), one launch at a time per device, flags zero but for the stale
 // region (set at allocation), ctrl zero at allocation. Everything that changes from step to
 // step is read from device memory (params, and the barrier count the last launch ended with
-// in ctrl[C_BASE]), so the host can replay the same launch as a CUDA graph.
+// in ctrl[C_BASE]), so the host can replay the same launch as a CUDA graph, or a resident
+// loop (resident.cuh) can run one call after another in a single launch.
 //
 // The results go straight to the host: io is page-locked host memory mapped into the device.
 // The launch writes the path there, and the block that finishes last copies the statistics
 // and then sets io[IO_DONE] to the call's sequence number, which the host polls: no copy
-// after the launch and no stream synchronisation. (The params come the other way by a copy:
-// every block reading the same host words at its start queues ~100 µs of PCIe reads.)
+// after the launch and no stream synchronisation. (The params come the other way through
+// device memory: every block reading the same host words at its start queues ~100 µs of PCIe
+// reads.)
 
 #ifndef SCHED
 #define SCHED 1
