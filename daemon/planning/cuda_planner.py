@@ -87,7 +87,9 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
             raise ValueError(f"unknown path_mode {path_mode!r}; choose one of {PATH_MODES}")
         self.path_mode = path_mode
         self.use_graph = use_graph  # fast: replay each step as a captured CUDA graph
-        self.resident = resident and variant == "fast"
+        # The loop serves fused calls; with the path by its own launch (walk) every step would
+        # stop it for that launch and start it again.
+        self.resident = resident and variant == "fast" and path_mode == "tiles"
         self._loop: cuda_resident.ResidentLoop | None = None
         self.max_blocks = max_blocks  # caps the persistent grid (experiments; None: all resident)
         self.variant = variant

@@ -74,8 +74,9 @@ class ResidentLoop:
         _ACTIVE = self
 
     def wait(self, io: np.ndarray, seq: int) -> None:
-        """Until the loop has set ``io[IO_DONE]`` to ``seq``. Spins for ``ck.SPIN_S``, then
-        sleeps between polls (the GIL is free for the daemon's event loop during long plans).
+        """Until the loop has set ``io[IO_DONE]`` to ``seq``. Spins; after ``ck.SPIN_S`` each
+        poll first yields the GIL (the daemon's event loop runs during long plans; a sleep of
+        any length would add Linux's 50 µs timer slack to the wait).
         Every ``CHECK_S`` the stream is queried: a CUDA fault is raised as a cupy error, and a
         loop that ended before taking the call (idle) is started again, once."""
         at = ck.IO_DONE
@@ -88,7 +89,7 @@ class ResidentLoop:
                 continue
             now = time.perf_counter()
             if now - t0 > ck.SPIN_S:
-                time.sleep(50e-6)
+                time.sleep(0)  # a long call: let the daemon's other threads have the GIL
             if now - last < CHECK_S:
                 continue
             last = now
