@@ -1,7 +1,7 @@
 """The host side of fast.cu's resident loop (``kernels/resident.cuh``).
 
 A resident loop is one launch of ``plan_resident`` that serves the planning calls of one
-planner until it is stopped or has been idle for ``idle_ms``. A call costs the host the
+planner until it is stopped or has been idle for ``IDLE_MS``. A call costs the host the
 stores of its params and delta into the mailbox (page-locked host memory mapped into the
 device) and of ``MB_POST`` last; the loop writes the results back into the mapped I/O buffer
 and sets the done word, as a launched call does. While the user walks, a step pays no launch.
