@@ -56,7 +56,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
     in-tile relaxation (0 Jacobi sweeps, 1 + row/column scans, 2 + diagonal scans: the
     default, fastest for large DSS), ``sched`` the relaxation's schedule (1 asynchronous: a
     tile is relaxed as soon as a neighbour flags it, the default; 0 grid-wide rounds),
-    ``min_blocks`` blocks per SM the kernel is compiled for (1: 64 registers, no spills),
+    ``min_blocks`` blocks per SM the kernel is compiled for (1: 64 registers a thread),
     ``path_mode`` (``PATH_MODES``; with ``tiles`` the fast launch of ``update_and_path`` also
     extracts the path), ``resident`` (``fast``: a resident loop serves the calls, the
     default; else a launch per call, ``use_graph`` picking a replayed CUDA graph or direct
@@ -107,9 +107,9 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         # then the path (see _allocate); the path kernels' results are copied here too.
         self._io_host = ck.Pinned(ck.IO_PATH + 2 + 2 * 1024, np.int32, mapped=True)
         # A call's input: the params words, then the delta (see _stage_delta). Mapped: the
-        # resident loop's mailbox (its block 0 copies the params words to the device, every
-        # block reads its part of the delta); a launched call copies it all to ``_params``
-        # first, since 100+ blocks reading the same host words at the start of a launch wait
+        # resident loop's mailbox (its block 0 copies the params and the checked, encoded
+        # delta into ``_params`` on the device); a launched call copies it all there first.
+        # Never read in place by every block: 100+ blocks reading the same host words wait
         # ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
         self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32, mapped=True)
         self._stage_views: tuple[np.ndarray, ...] = (np.empty(0),)  # see _stage_raw
