@@ -16,6 +16,7 @@ import cupy as cp
 import numpy as np
 
 from . import cuda_kernels as ck
+from . import cuda_resident
 from .grid import INF
 
 PAPER_THREADS = 256
@@ -62,6 +63,7 @@ class PaperForm:
         return changed
 
     def _run_paper(self, eds: bool, n_delta: int) -> tuple[int, int]:
+        cuda_resident.evict()  # a resident loop holds the SMs these launches need
         h, w = self._shape
         n = h * w
         goal = np.int32(self._goal[0] * w + self._goal[1])

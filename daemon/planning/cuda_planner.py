@@ -189,9 +189,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
             return self._stage_raw(cells, blocked)
         h, w = self._shape
         cells = np.asarray(cells)
-        if ck.PARAMS + cells.size > self._stage.count:
-            self._drop_loop()  # it polls the stage, which moves
-            self._stage.reserve(ck.PARAMS + cells.size)
+        if self._stage.reserve(ck.PARAMS + cells.size):
             self._graph = None  # it holds the stage's address
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
@@ -221,12 +219,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         as_bytes[at : at + n] = blocked
         return n
 
-    def _claim(self) -> None:
-        """Before work on the device (lock held): stop any other planner's resident loop,
-        which holds every SM."""
-        if cuda_resident.active() not in (None, self._loop):
-            cuda_resident.evict()
-
     def _drop_loop(self) -> None:
         if self._loop is not None:
             self._loop.stop()
@@ -243,7 +235,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._check_fault()
         blocked, shape, goal = checked_plan_input(blocked, goal)
         with ck.DEVICE_LOCK:
-            self._claim()
             if shape != self._shape:
                 self._allocate(shape)
             self._goal = goal
@@ -262,7 +253,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._check_fault()
         self._require_plan()
         with ck.DEVICE_LOCK:
-            self._claim()
             return self._run(eds, t0, cells, blocked)
 
     def _run(
@@ -300,7 +290,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         inside = in_bounds(self._shape, start)
         fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
-            self._claim()
             self._call_fast(
                 not full, cells, blocked, start[0] * self._shape[1] + start[1] if fused else -1
             )
@@ -335,7 +324,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         if self._shape == (0, 0) or not in_bounds(self._shape, start):
             return np.empty((0, 2), dtype=np.int32)
         with ck.DEVICE_LOCK:
-            self._claim()
             if self.resident and self.path_mode == "tiles":
                 # A call with no change: the loop extracts the path, no launch.
                 self._call_fast(True, None, None, start[0] * self._shape[1] + start[1])
