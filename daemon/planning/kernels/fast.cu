@@ -13,8 +13,10 @@
 //
 // SCHED selects the schedule of the relaxation (compile-time, -DSCHED=n):
 //   0  grid-wide rounds: every flagged tile once, a grid barrier, the tiles flagged meanwhile;
-//   1  asynchronous (default): block b owns tiles b, b + gridDim.x, ... and relaxes each as
-//      soon as it is flagged, so the wave moves at the pace of one tile instead of a round.
+//   1  asynchronous: block b owns tiles b, b + gridDim.x, ... and relaxes each as soon as
+//      it is flagged, so the wave moves at the pace of one tile instead of a round;
+//   2  as 1, but while a block owns at most HELD_MAX tiles it holds them in shared memory
+//      and polls their halos, which cuts a round trip or two per tile (relax_held.cuh).
 // The EDS raise and reset phases always run in rounds (a few per step).
 //
 // With start >= 0 the launch then extracts the path from `start` (path_exits.cuh), reusing
@@ -47,7 +49,7 @@
 
 // ctrl layout (unsigned ints): C_BAR 0 and C_RELEASE 32 (grid_sync.cuh), C_SWEEPS ..
 // C_CHANGED 10..12 (tile_relax.cuh), P_* 40..42 (path_exits.cuh), and:
-#define C_CNT 2       // 3 rotating counters of tiles flagged for the next round
+#define C_CNT 2       // 3 rotating sums of the flag counts set for the next round
 #define C_EXITS 7     // tiles whose path exits were recomputed
 #define C_ROUNDS 8    // grid-wide rounds; with SCHED 1 the relaxation adds its longest chain of visits
 #define C_TILES 9     // tiles processed (all phases)
@@ -84,18 +86,24 @@
 #define OP_RESET 2
 
 // Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
-// s_list, clearing their flags (one atomic each: a read first would cost a second round trip
-// on the wave's critical path). With `watch`, the block's last thread reads *watch into
-// *s_watch in the same pass. Returns how many tiles, the same in every thread of the block.
+// s_list (take_flag: one atomic each; a read first would cost a second round trip on the
+// wave's critical path). With `watch`, the block's last thread reads *watch into *s_watch in
+// the same pass; with `s_sum`, the flags' counts are summed there. Returns how many tiles,
+// the same in every thread of the block.
 __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, int* s_n,
-                            const unsigned* watch = nullptr, unsigned* s_watch = nullptr) {
+                            const unsigned* watch = nullptr, unsigned* s_watch = nullptr,
+                            unsigned* s_sum = nullptr) {
     __syncthreads();  // every thread has read the previous count
-    if (threadIdx.x == 0) *s_n = 0;
+    if (threadIdx.x == 0) {
+        *s_n = 0;
+        if (s_sum) *s_sum = 0;
+    }
     __syncthreads();
     int t = base + threadIdx.x * gridDim.x;
-    if (t < ntiles && atomicExch(flags + t, 0u)) {
+    unsigned count = t < ntiles ? take_flag(flags, t) : 0u;
+    if (count) {
         s_list[atomicAdd(s_n, 1)] = t;
-        __threadfence();  // what the flagging block published is read after the flag was taken
+        if (s_sum) atomicAdd(s_sum, count);
     }
     if (watch && threadIdx.x == NTHREADS - 1) *s_watch = *((volatile const unsigned*)watch);
     __syncthreads();
@@ -103,8 +111,8 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 }
 
 // One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
-// tiles for the next round in `next` (count in ctrl[C_CNT + (r + 1) % 3]). Returns the number
-// of tiles flagged for the next round, the same in every block.
+// tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
+// count, 0 when no tile is flagged for the next round, the same in every block.
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
                               unsigned* stale, unsigned* ctrl, int r, int* g,
                               const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
@@ -143,13 +151,14 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
 
 #define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
 
-// SCHED 1: the relaxation without rounds. *work counts the flags set plus the visits under
-// way; the phase ends when it reaches 0, which is final, since only a visit sets a flag.
+// SCHED 1: the relaxation without rounds. *work is the sum of the flags' counts, set or taken
+// by a visit under way (a block uncounts what it took after its visits have flagged their
+// neighbours); the phase ends when it reaches 0, which is final, since only a visit sets a flag.
 // depth[t]: the longest chain of visits that flagged t (a statistic: the rounds it replaces).
 __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
                             unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
                             int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
-    __shared__ unsigned s_work;
+    __shared__ unsigned s_work, s_taken;
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (blockIdx.x >= G.ntiles) return;
     unsigned idle = 0, longest = 0;
@@ -161,7 +170,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
         for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * NTHREADS) {
             // The first chunk's pass also reads the work count, for the test below.
             int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
-                                     base == (int)blockIdx.x ? work : nullptr, &s_work);
+                                     base == (int)blockIdx.x ? work : nullptr, &s_work, &s_taken);
 #ifdef PROFILE
             long long now = clock64();
             prof[count ? P_TAKE : P_IDLE] += now - clk;
@@ -178,8 +187,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                     int n = tile_across(G, tile, k);
                     if (n >= 0) {
                         atomicMax(depth + n, d);
-                        __threadfence();  // the tile's g and the depth before the flag
-                        flag_tile(dirty, work, n);
+                        flag_tile(dirty, work, n, true);  // after the tile's g and the depth
                     }
                 }
                 mark_exits_stale(G, tile, bits, k - 32, stale);
@@ -196,8 +204,8 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 clk = now;
 #endif
             }
-            // The flags this block set are counted before its visits are uncounted.
-            if (count && threadIdx.x == 0) atomicSub(work, (unsigned)count);
+            // The flags this block set are counted before the ones it took are uncounted.
+            if (count && threadIdx.x == 0) atomicSub(work, s_taken);
             visited += count;
         }
         if (visited) {
@@ -216,6 +224,8 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
         for (int k = 0; k < 5; ++k) atomicAdd(ctrl + C_VISIT + k, (unsigned)(prof[k] >> 4));
 #endif
 }
+
+#include "relax_held.cuh"
 
 // params of a call: [ndelta, mode, start, goal, seq, 0, 0, 0], then the delta.
 #define PARAMS 8
@@ -315,13 +325,19 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         ++r;
     }
     STAMP(3);
-#if SCHED == 1
+#if SCHED >= 1
     // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
     // Every block enters, even with nothing pending: a block that is late to read `pending`
     // may find the count already changed by the others' visits.
     (void)pending;
-    relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
-                bs, s_list, &s_n);
+    unsigned* dirty = (r & 1) ? pong : ping;
+#if SCHED == 2
+    if ((G.ntiles + gridDim.x - 1) / gridDim.x <= HELD_MAX)
+        relax_held(G, dirty, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked);
+    else
+#endif
+        relax_async(G, dirty, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs, bs,
+                    s_list, &s_n);
     grid_barrier(ctrl, &bar);
     if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
 #else

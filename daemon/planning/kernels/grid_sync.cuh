@@ -52,7 +52,34 @@ __device__ bool grid_arrive_last(unsigned* ctrl, unsigned* target) {
     return s_last != 0;
 }
 
-// Set flag t; count it in *cnt if it was clear (so *cnt is the number of flags set).
-__device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t) {
-    if (atomicExch(flags + t, 1u) == 0u) atomicAdd(cnt, 1u);
+// A flag is a count: flag_tile adds one to flags[t], after adding one to *cnt (so *cnt is the
+// sum of the counts set), and take_flag reads and clears it. Both adds are reductions the
+// setter never waits for. With `release`, a fence between them makes everything the setter
+// wrote before, the count included, visible to the block that takes the flag: that block's
+// loads then see the data, and its uncounting never overtakes the count.
+__device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t,
+                                          bool release = false) {
+    atomicAdd(cnt, 1u);
+    if (release) __threadfence();
+    atomicAdd(flags + t, 1u);
+}
+
+// A load that orders this thread's later loads after it (an acquire: no full fence).
+__device__ __forceinline__ unsigned load_acquire(const unsigned* p) {
+    unsigned v;
+    asm volatile("ld.acquire.gpu.global.b32 %0, [%1];" : "=r"(v) : "l"(p) : "memory");
+    return v;
+}
+
+// Take flag t: its count, and 0 left in its place. An acquire (on sm_90 the exchange, then an
+// L1 invalidation), so this thread's later loads, and the block's after a barrier, see what
+// the flag's setters wrote before it; __threadfence() after a plain exchange would add a full
+// fence, about 340 ns on an H100 (BENCHMARKS.md), on the wave's path at every tile.
+__device__ __forceinline__ unsigned take_flag(unsigned* flags, int t) {
+    unsigned count;
+    asm volatile("atom.acquire.gpu.global.exch.b32 %0, [%1], 0;"
+                 : "=r"(count)
+                 : "l"(flags + t)
+                 : "memory");
+    return count;
 }

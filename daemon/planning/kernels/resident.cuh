@@ -95,8 +95,9 @@ __device__ __noinline__ int take_command(const int* mail, int* params, unsigned*
         }
     }
     if (threadIdx.x == 0) {
-        __threadfence();  // the params and delta before the generation that announces them
         ctrl[C_CMD] = (unsigned)s_cmd;
+        // The command, and the params and delta the block wrote before its last barrier,
+        // before the generation that announces them (one fence: it covers the block's writes).
         __threadfence();
         atomicAdd(ctrl + C_GO, 1u);
     }
@@ -107,10 +108,8 @@ __device__ __noinline__ int take_command(const int* mail, int* params, unsigned*
 __device__ int await_command(unsigned* ctrl, unsigned* gen) {
     __shared__ int s_cmd;
     if (threadIdx.x == 0) {
-        volatile unsigned* go = ctrl + C_GO;
-        while (*go == *gen) __nanosleep(100);
+        while (load_acquire(ctrl + C_GO) == *gen) __nanosleep(100);
         *gen += 1;
-        __threadfence();
         s_cmd = (int)((volatile unsigned*)ctrl)[C_CMD];
     }
     __syncthreads();

@@ -119,20 +119,17 @@ __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*g
 #include "tile_scans.cuh"
 #endif
 
-// Relax one tile until it settles. Returns the edge bits of cells that changed, and
-// CHANGED_ANY if any did.
-__device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
-                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+// Relax the tile held in gs (its g and halo; bs: 1 for blocked cells and cells outside the
+// map, the caller's barrier after filling both) until it settles, then store the cells that
+// changed into g. Returns the edge bits of cells that changed, and CHANGED_ANY if any did.
+__device__ unsigned settle_tile(const Grid& G, int t, int* g, int (*gs)[HT],
+                                unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
     __shared__ unsigned s_bits;
     const TileCell c = tile_cell(G, t);
-    const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
-    const bool inside = c.inside;
-    bool blk = !inside || __ldcg(blocked + idx) != 0;
-    bool is_goal = inside && idx == G.goal;
+    const int y = c.y, x = c.x;
+    const bool blk = bs[y][x] != 0;
+    const bool is_goal = c.inside && c.idx == G.goal;
     if (threadIdx.x == 0) s_bits = 0;
-    load_tile_g(G, g, oy, ox, gs);
-    bs[y][x] = blk ? 1 : 0;
-    __syncthreads();
     int before = gs[y + 1][x + 1];
     if (is_goal && !blk) gs[y + 1][x + 1] = 0;
     __syncthreads();
@@ -175,11 +172,11 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
     }
     VISIT_MARK(1);
     int after = gs[y + 1][x + 1];
-    bool changed = inside && after != before;
+    bool changed = c.inside && after != before;
     if (changed) {
         // Made visible to other blocks by the fence of whichever thread flags a neighbour
         // after the barrier below (fences are cumulative over the block's barrier).
-        __stcg(g + idx, after);
+        __stcg(g + c.idx, after);
         atomicOr(&s_bits, edge_bits(y, x) | CHANGED_ANY);
     }
     unsigned total = __syncthreads_count(changed);
@@ -188,6 +185,17 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
         atomicAdd(sweeps + (C_CHANGED - C_SWEEPS), total);
     }
     return s_bits;
+}
+
+// Load tile t and its halo into gs and bs, and settle it (settle_tile).
+__device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
+                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+    const TileCell c = tile_cell(G, t);
+    bool blk = !c.inside || __ldcg(blocked + c.idx) != 0;
+    load_tile_g(G, g, c.oy, c.ox, gs);
+    bs[c.y][c.x] = blk ? 1 : 0;
+    __syncthreads();
+    return settle_tile(G, t, g, gs, bs, sweeps);
 }
 
 // EDS step 1, one tile: a cell is raised when every neighbour that supports its g (a tight
