@@ -76,12 +76,10 @@ class Recorder(Planner):
 
 
 def make(spec: str) -> Planner:
-    """``cpu``, ``paper`` or
-    ``fast[:scans[:blocks_per_sm]][:walk][:rounds|:held][:graph|:direct]`` (``walk``: the path
-    by path.cu after the repair; ``rounds``: the relaxation in grid-wide rounds, ``sched=0``;
-    ``held``: tiles held in shared memory, ``sched=2``; ``graph``: a launch per call, replayed
-    as a CUDA graph, instead of the resident loop; ``direct``: a launch per call from
-    Python)."""
+    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm]][:walk][:rounds][:graph|:direct]``
+    (``walk``: the path by path.cu after the repair; ``rounds``: the relaxation in grid-wide
+    rounds, ``sched=0``; ``graph``: a launch per call, replayed as a CUDA graph, instead of the
+    resident loop; ``direct``: a launch per call from Python)."""
     if spec == "cpu":
         return make_planner("cpu", "fast")
     from daemon.planning.cuda_planner import CudaPlanner
@@ -90,7 +88,7 @@ def make(spec: str) -> Planner:
         return CudaPlanner("paper")
     parts = spec.split(":")[1:]
     mode = "walk" if "walk" in parts else "tiles"
-    sched = 0 if "rounds" in parts else 2 if "held" in parts else 1
+    sched = 0 if "rounds" in parts else 1
     scans, blocks = [*(int(p) for p in parts if p.isdigit()), 2, 1][:2]
     graph = "direct" not in parts
     resident = "graph" not in parts and "direct" not in parts

@@ -101,7 +101,7 @@ class FastLaunch:
         if self.resident:
             if self._loop is None:
                 self._loop = self._new_loop()
-            self._loop.post(self._seq)
+            self._loop.post(self._seq, n_delta)
             return
         cuda_resident.evict()
         if not self.use_graph:

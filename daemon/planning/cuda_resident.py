@@ -27,8 +27,9 @@ import numpy as np
 
 from . import cuda_kernels as ck
 
-MB_STOP, MB_POST = 6, 7
-"""Mailbox words (resident.cuh): the stop request and the seq of the call posted last."""
+MB_STOP, MB_POST = 5, 6
+"""Mailbox words (resident.cuh): the stop request; the seq of the call posted last, with its
+delta's length in the next word (MB_POST is 8-byte aligned: both go in one store)."""
 IDLE_MS = 50.0
 """How long a loop waits for the next call before it ends and frees the device: longer than
 the gap between a walk's steps (sensing and inflation, ~1-5 ms), short enough that a
@@ -49,20 +50,24 @@ class ResidentLoop:
     ) -> None:
         self._launch = launch
         self._mail = mail
+        self._post = mail[MB_POST : MB_POST + 2].view(np.int64)  # (seq, delta length), one store
         self._keep = keep
         self.stream = cp.cuda.Stream(non_blocking=True)
         self.launches = 0  # how many times the loop was (re)started (statistics, tests)
         self._running = False  # a launch is queued that was not seen to end
         self._served_at = 0.0  # perf_counter when the last call was seen done
 
-    def post(self, seq: int) -> None:
+    def post(self, seq: int, n_delta: int) -> None:
         """Hand the loop the call whose params and delta are in the mailbox: ``seq`` is its
-        params' seq. Starts the loop if none runs (any other planner's loop is stopped)."""
+        params' seq, ``n_delta`` its delta's length. Starts the loop if none runs (any other
+        planner's loop is stopped)."""
         if _ACTIVE is not self:
             evict()
         if self._running and time.perf_counter() - self._served_at > 0.5e-3 * IDLE_MS:
             self._ended()  # the loop may have ended idle: then start it now, not in wait
-        self._mail[MB_POST] = seq  # last: x86 makes the earlier stores visible first
+        # Last, as one 8-byte store: x86 makes the earlier stores visible first, and the loop
+        # reads seq and length in one PCIe read, so it fetches params and delta together.
+        self._post[0] = (n_delta << 32) | seq
         if not self._running:
             self._start()
 

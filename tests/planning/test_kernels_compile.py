@@ -20,7 +20,6 @@ KERNELS = Path(__file__).resolve().parents[2] / "daemon" / "planning" / "kernels
 VARIANTS = [
     ("fast", ("SCANS=2", "SCHED=1", "MIN_BLOCKS=1")),
     ("fast", ("SCANS=2", "SCHED=0", "MIN_BLOCKS=1")),
-    ("fast", ("SCANS=2", "SCHED=2", "MIN_BLOCKS=1")),
     ("fast", ("SCANS=0", "SCHED=1", "MIN_BLOCKS=2")),
     ("fast", ("SCANS=1", "SCHED=1", "MIN_BLOCKS=1")),
     ("fast", ("SCANS=2", "SCHED=1", "MIN_BLOCKS=1", "PROFILE=1")),

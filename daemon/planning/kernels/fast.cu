@@ -13,10 +13,8 @@
 //
 // SCHED selects the schedule of the relaxation (compile-time, -DSCHED=n):
 //   0  grid-wide rounds: every flagged tile once, a grid barrier, the tiles flagged meanwhile;
-//   1  asynchronous: block b owns tiles b, b + gridDim.x, ... and relaxes each as soon as
-//      it is flagged, so the wave moves at the pace of one tile instead of a round;
-//   2  as 1, but while a block owns at most HELD_MAX tiles it holds them in shared memory
-//      and polls their halos, which cuts a round trip or two per tile (relax_held.cuh).
+//   1  asynchronous (default): block b owns tiles b, b + gridDim.x, ... and relaxes each as
+//      soon as it is flagged, so the wave moves at the pace of one tile instead of a round.
 // The EDS raise and reset phases always run in rounds (a few per step).
 //
 // With start >= 0 the launch then extracts the path from `start` (path_exits.cuh), reusing
@@ -158,10 +156,13 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
 __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
                             unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
                             int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
-    __shared__ unsigned s_work, s_taken;
+    // The block's statistics are summed here and added to ctrl once, at the end: atomics per
+    // visit would share a cache line with the work count that every block polls.
+    __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (blockIdx.x >= G.ntiles) return;
-    unsigned idle = 0, longest = 0;
+    if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
+    unsigned idle = 0, longest = 0, visits = 0;
 #ifdef PROFILE
     long long prof[5] = {0, 0, 0, 0, 0}, clk = clock64();
 #endif
@@ -182,7 +183,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 // The depth statistic is loaded by the threads that use it, and used only after
                 // the relaxation: a load that a barrier waits for would delay every visit.
                 unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
-                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, ctrl + C_SWEEPS);
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats);
                 if (k < 8 && (bits & (1u << k))) {
                     int n = tile_across(G, tile, k);
                     if (n >= 0) {
@@ -192,7 +193,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 }
                 mark_exits_stale(G, tile, bits, k - 32, stale);
                 if (threadIdx.x == 0) {
-                    atomicAdd(ctrl + C_TILES, 1u);
+                    ++visits;
                     longest = max(longest, d);
                 }
                 __syncthreads();  // shared tile buffers are reused by the next tile
@@ -218,14 +219,17 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
         if (s_work == 0u) break;
         if (++idle == IDLE_LIMIT) __trap();  // a lost flag would otherwise hang the daemon
     }
-    if (threadIdx.x == 0) atomicMax(ctrl + C_LONGEST, longest);
+    if (threadIdx.x == 0) {  // settle_tile's thread 0 counted into s_stats
+        atomicMax(ctrl + C_LONGEST, longest);
+        atomicAdd(ctrl + C_TILES, visits);
+        atomicAdd(ctrl + C_SWEEPS, s_stats[0]);
+        atomicAdd(ctrl + C_CHANGED, s_stats[C_CHANGED - C_SWEEPS]);
+    }
 #ifdef PROFILE
     if (threadIdx.x == 0)
         for (int k = 0; k < 5; ++k) atomicAdd(ctrl + C_VISIT + k, (unsigned)(prof[k] >> 4));
 #endif
 }
-
-#include "relax_held.cuh"
 
 // params of a call: [ndelta, mode, start, goal, seq, 0, 0, 0], then the delta.
 #define PARAMS 8
@@ -325,19 +329,13 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         ++r;
     }
     STAMP(3);
-#if SCHED >= 1
+#if SCHED == 1
     // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
     // Every block enters, even with nothing pending: a block that is late to read `pending`
     // may find the count already changed by the others' visits.
     (void)pending;
-    unsigned* dirty = (r & 1) ? pong : ping;
-#if SCHED == 2
-    if ((G.ntiles + gridDim.x - 1) / gridDim.x <= HELD_MAX)
-        relax_held(G, dirty, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked);
-    else
-#endif
-        relax_async(G, dirty, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs, bs,
-                    s_list, &s_n);
+    relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
+                bs, s_list, &s_n);
     grid_barrier(ctrl, &bar);
     if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
 #else

@@ -71,6 +71,17 @@ __device__ __forceinline__ unsigned load_acquire(const unsigned* p) {
     return v;
 }
 
+// Four words of host memory (mapped, 16-byte aligned) in one PCIe read, as an acquire at
+// system scope: the later reads see what the host wrote before the value read here.
+__device__ __forceinline__ int4 load_acquire_sys(const int* p) {
+    int4 v;
+    asm volatile("ld.acquire.sys.global.v4.s32 {%0, %1, %2, %3}, [%4];"
+                 : "=r"(v.x), "=r"(v.y), "=r"(v.z), "=r"(v.w)
+                 : "l"(p)
+                 : "memory");
+    return v;
+}
+
 // Take flag t: its count, and 0 left in its place. An acquire (on sm_90 the exchange, then an
 // L1 invalidation), so this thread's later loads, and the block's after a barrier, see what
 // the flag's setters wrote before it; __threadfence() after a plain exchange would add a full

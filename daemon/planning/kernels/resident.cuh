@@ -3,10 +3,12 @@
 // mapped memory instead of a launch.
 //
 // The host's mailbox `mail` is page-locked host memory mapped into the device: the params
-// words (ndelta, mode, start, goal, seq), a spare word, MB_STOP, MB_POST, then the delta raw
-// (take_delta). The host writes a call's params and delta, then MB_POST = seq, last (x86
-// keeps stores in order). Block 0's thread 0 polls MB_POST and MB_STOP over PCIe; on a new
-// seq its block checks the delta and copies params and encoded delta into device memory, and
+// words (ndelta, mode, start, goal, seq), MB_STOP, MB_POST and MB_COUNT, then the delta raw
+// (take_delta). The host writes a call's params and delta, then MB_POST = seq and MB_COUNT =
+// the delta's length, last and in one 8-byte store (x86 keeps stores in order). Block 0's
+// thread 0 polls the last four words in one PCIe read, an acquire; on a new seq its block
+// reads the params and the delta, whose length it knows, in one round trip, checks the
+// delta and copies params and encoded delta into device memory, and
 // it publishes the command to the other blocks in ctrl[C_CMD] and ctrl[C_GO], a generation
 // count that only grows, which they poll in L2. Every block reads the params from device
 // memory: 132 blocks reading the same host words queue their PCIe reads one behind another
@@ -18,8 +20,9 @@
 // launches again; a new loop serves the mailbox if MB_POST differs from the done word.
 #pragma once
 
-#define MB_STOP 6  // host: 1 asks the loop to end (before any other work on the device)
-#define MB_POST 7  // host: the seq of the call posted last, written after everything else
+#define MB_STOP 5   // host: 1 asks the loop to end (before any other work on the device)
+#define MB_POST 6   // host: the seq of the call posted last, written after everything else,
+#define MB_COUNT 7  // in one store with its delta's length
 #define C_GO 56    // generation count: +1 for each command block 0 publishes
 #define C_CMD 57   // the command of the current generation
 #define CMD_RUN 1
@@ -31,10 +34,12 @@ __device__ __forceinline__ unsigned long long global_ns() {
     return t;
 }
 
-// Block 0, a posted call's delta: the host writes it raw (cells as int64 after the params
-// words, then one byte per cell, 1 = blocked) and block 0 checks and encodes it into device
-// memory (params + PARAMS, cell * 2 + blocked) before any block reads it. Returns 0, or the
-// REJECT_* bits: then nothing is applied and the call ends with only the done word.
+// Block 0, a posted call's params and delta: the params words go to device memory as they
+// are; the host writes the delta raw (cells as int64 after the params words, then one byte
+// per cell, 1 = blocked) and block 0 checks and encodes it into device memory (params +
+// PARAMS, cell * 2 + blocked) before any block reads it. Every read goes out at once: one
+// PCIe round trip. Returns 0, or the REJECT_* bits: then nothing is applied and the call
+// ends with only the done word.
 #define REJECT_RANGE 1    // a cell outside the map
 #define REJECT_ORDER 2    // cells not strictly increasing (the host sorts and posts again)
 #define IO_REJECT 58      // io word the rejection bits go to (0 after any served call)
@@ -43,6 +48,7 @@ __device__ __noinline__ int take_delta(const int* mail, int* params, int n, int 
     // (64-bit arithmetic here made ptxas spill more in plan_call, whose registers it shares).
     const int2* cells = (const int2*)(mail + PARAMS);
     const signed char* values = (const signed char*)(cells + n);
+    int param = threadIdx.x < 5 ? __ldcv(mail + threadIdx.x) : 0;
     int bad = 0;
     for (int i = threadIdx.x; i < n; i += NTHREADS) {
         int2 c = __ldcv(cells + i);  // the three PCIe reads go out together
@@ -52,6 +58,7 @@ __device__ __noinline__ int take_delta(const int* mail, int* params, int n, int 
         else if (before.y == 0 && c.x <= before.x) bad |= REJECT_ORDER;
         params[PARAMS + i] = 2 * c.x + blocked;
     }
+    if (threadIdx.x < 5) params[threadIdx.x] = param;
     int range = __syncthreads_or(bad & REJECT_RANGE);
     int order = __syncthreads_or(bad & REJECT_ORDER);
     return (range ? REJECT_RANGE : 0) | (order ? REJECT_ORDER : 0);
@@ -63,35 +70,35 @@ __device__ __noinline__ int take_delta(const int* mail, int* params, int n, int 
 // of the last call taken (thread 0).
 __device__ __noinline__ int take_command(const int* mail, int* params, unsigned* ctrl, int* io,
                             int* served, unsigned idle_us, int cells_total) {
-    __shared__ int s_cmd, s_params[5];
+    __shared__ int s_cmd, s_count;
     while (true) {
         if (threadIdx.x == 0) {
             unsigned long long since = global_ns();
             int cmd = CMD_EXIT;
             while (true) {
-                int2 box = __ldcv((const int2*)(mail + MB_STOP));  // one PCIe read: stop, post
-                if (box.x) break;
-                if (box.y != *served) {
-                    *served = box.y;
+                // One PCIe read (seq, stop, post, count), an acquire: the params and delta
+                // read after it are the ones the host wrote before the post.
+                int4 box = load_acquire_sys(mail + PARAMS - 4);
+                if (box.y) break;
+                if (box.z != *served) {
+                    *served = box.z;
+                    s_count = box.w;
                     cmd = CMD_RUN;
                     break;
                 }
                 if (global_ns() - since > 1000ull * idle_us) break;
                 __nanosleep(200);
             }
-            __threadfence_system();  // the params and delta are read after MB_POST
             s_cmd = cmd;
         }
         __syncthreads();
         if (s_cmd != CMD_RUN) break;
-        if (threadIdx.x < 5) s_params[threadIdx.x] = params[threadIdx.x] = __ldcv(mail + threadIdx.x);
-        __syncthreads();
-        int reject = take_delta(mail, params, s_params[0], cells_total);
+        int reject = take_delta(mail, params, s_count, cells_total);
         if (!reject) break;
         if (threadIdx.x == 0) {
             io[IO_REJECT] = reject;
             __threadfence_system();
-            ((volatile int*)io)[IO_DONE] = s_params[4];
+            ((volatile int*)io)[IO_DONE] = *served;
         }
     }
     if (threadIdx.x == 0) {
