@@ -122,10 +122,9 @@ __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*g
 // Relax the tile held in gs (its g and halo; bs: 1 for blocked cells and cells outside the
 // map, the caller's barrier after filling both) until it settles, then store the cells that
 // changed into g. Returns the edge bits of cells that changed, and CHANGED_ANY if any did.
-__device__ unsigned settle_tile(const Grid& G, int t, int* g, int (*gs)[HT],
+__device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*gs)[HT],
                                 unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
     __shared__ unsigned s_bits;
-    const TileCell c = tile_cell(G, t);
     const int y = c.y, x = c.x;
     const bool blk = bs[y][x] != 0;
     const bool is_goal = c.inside && c.idx == G.goal;
@@ -134,14 +133,13 @@ __device__ unsigned settle_tile(const Grid& G, int t, int* g, int (*gs)[HT],
     if (is_goal && !blk) gs[y + 1][x + 1] = 0;
     __syncthreads();
     VISIT_MARK(0);
-#if SCANS >= 1
-    unsigned seg[4];
-#pragma unroll
-    for (int d = 0; d < 4; ++d) seg[d] = line_segments(d, bs);
-#endif
     // A Jacobi pass over the 8 neighbours, then the scans, until a Jacobi pass changes
     // nothing: that alone proves the tile settled (each scan only chains relations that the
-    // Jacobi pass checks), so the last, confirming pass costs no scans.
+    // Jacobi pass checks), so the last, confirming pass costs no scans. About half the visits
+    // change nothing in their first pass: they never work out their segments.
+#if SCANS >= 1
+    unsigned seg[4] = {0, 0, 0, 0};
+#endif
     unsigned n = 0;
     while (true) {
         bool ch = false;
@@ -158,6 +156,10 @@ __device__ unsigned settle_tile(const Grid& G, int t, int* g, int (*gs)[HT],
         ++n;
         if (!__syncthreads_or(ch)) break;
 #if SCANS >= 1
+        if (n == 1) {
+#pragma unroll
+            for (int d = 0; d < 4; ++d) seg[d] = line_segments(d, bs);
+        }
         scan_line(0, seg[0], gs);
         __syncthreads();
         scan_line(1, seg[1], gs);
@@ -195,7 +197,7 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
     load_tile_g(G, g, c.oy, c.ox, gs);
     bs[c.y][c.x] = blk ? 1 : 0;
     __syncthreads();
-    return settle_tile(G, t, g, gs, bs, sweeps);
+    return settle_tile(G, c, g, gs, bs, sweeps);
 }
 
 // EDS step 1, one tile: a cell is raised when every neighbour that supports its g (a tight

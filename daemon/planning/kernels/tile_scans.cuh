@@ -5,7 +5,8 @@
 // straight or diagonal run of free cells settles in one pass instead of one cell per sweep.
 // A segment ends at a blocked cell (which is a segment of its own) or where a diagonal wraps
 // round the tile. The map does not change during a visit, so each thread works out its four
-// segments once per visit (line_segments) and a scan is then 10 shuffles and no ballot.
+// segments and cells once per visit (line_segments) and a scan is then 10 shuffles, no
+// ballot and no index arithmetic: the settle is bound by instruction issue (32 warps a block).
 
 #pragma once
 
@@ -24,7 +25,8 @@ __device__ __forceinline__ void line_cell(int dir, int* y, int* x, bool* head, b
     }
 }
 
-// This lane's segment on line family dir, packed: first lane | last lane << 8 | blocked << 16.
+// This lane's segment on line family dir, packed: first lane | last lane << 8 | blocked << 16
+// | the cell's index in the halo tile (y + 1) * HT + x + 1 << 20.
 __device__ __forceinline__ unsigned line_segments(int dir, unsigned char (*bs)[TILE + 1]) {
     int y, x, l = threadIdx.x & 31;
     bool head, tail;
@@ -35,18 +37,19 @@ __device__ __forceinline__ unsigned line_segments(int dir, unsigned char (*bs)[T
     unsigned tails = __ballot_sync(FULL, tail) | b | (b >> 1);
     unsigned first = 31 - __clz(heads & ((2u << l) - 1u));     // lane 0 is always a head
     unsigned last = __ffs(tails & ~((1u << l) - 1u)) - 1;      // lane 31 is always a tail
-    return first | (last << 8) | ((blk ? 1u : 0u) << 16);
+    unsigned cell = (unsigned)((y + 1) * HT + x + 1);
+    return first | (last << 8) | ((blk ? 1u : 0u) << 16) | (cell << 20);
 }
 
-// One scan of family dir over the tile; returns whether this thread's cell decreased.
+// One scan of family dir over the tile (seg: line_segments); returns whether this thread's
+// cell decreased.
 __device__ __forceinline__ bool scan_line(int dir, unsigned seg, int (*gs)[HT]) {
-    int y, x, l = threadIdx.x & 31;
-    bool head, tail;
-    line_cell(dir, &y, &x, &head, &tail);
+    int l = threadIdx.x & 31;
     int step = dir < 2 ? 10 : 14;
     int first = seg & 0xFF, last = (seg >> 8) & 0xFF;
     bool blk = (seg >> 16) & 1u;
-    int gv = gs[y + 1][x + 1];
+    int* cell = &gs[0][0] + (seg >> 20);
+    int gv = *cell;
     // forward: min over l' in [first, l] of g[l'] - step*l', then + step*l; backward alike.
     int f = blk ? BIG : gv - step * l;
     int b = blk ? BIG : gv + step * l;
@@ -59,7 +62,7 @@ __device__ __forceinline__ bool scan_line(int dir, unsigned seg, int (*gs)[HT]) 
     }
     int cand = min(f + step * l, b - step * l);
     if (!blk && cand < gv) {
-        gs[y + 1][x + 1] = cand;
+        *cell = cand;
         return true;
     }
     return false;
