@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # The GPU machine's whole check in one device call (BENCHMARKS.md, "Planning on the GPU"):
+#   0. scripts/probe_sync_latency.py: what fences, atomics, barriers and PCIe reads cost here;
 #   1. pytest -m gpu over tests/gpu and tests/planning (the cuda-fast and cuda-paper cases);
 #   2. guidebelt bench --backend cuda, then --backend cpu: 100/200/400 x 20/40/60 % unknown;
 #   3. guidebelt bench, cuda then cpu, 1000 and 2000 at 40 %, each walk capped at $BIG_STEPS
@@ -13,14 +14,14 @@
 #   6. the short table (scripts/gpu_table.py), then the phases.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed.
-# PARTS (default "tests bench replay phases") picks steps, to split the check over two device
-# calls when one would pass the 10-minute limit; scripts/gpu_table.py then reads both folders'
-# files from one folder.
+# PARTS (default "probe tests bench replay phases") picks steps, to split the check over two
+# device calls when one would pass the 10-minute limit; scripts/gpu_table.py then reads both
+# folders' files from one folder.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${GPU_CHECK_OUT:-out/gpu_check}
 BIG_STEPS=${BIG_STEPS:-300}
-PARTS=${PARTS:-tests bench replay phases}
+PARTS=${PARTS:-probe tests bench replay phases}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1 PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
@@ -45,6 +46,7 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"  # a copied checkout may be stale: dirty says so
 } >"$OUT/device.txt"
+has probe && step probe 60 python3 scripts/probe_sync_latency.py
 has tests && step pytest 300 python3 -m pytest -m gpu tests/gpu tests/planning -q \
     -p no:cacheprovider --timeout 120
 has bench && {
@@ -68,4 +70,5 @@ done
 has tests && tail -n 3 "$OUT/pytest.log"
 python3 scripts/gpu_table.py "$OUT"
 has phases && cat "$OUT"/phases*.log
+has probe && cat "$OUT/probe.log"
 exit "$fail"

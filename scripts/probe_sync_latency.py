@@ -1,0 +1,106 @@
+"""What the fast planner's synchronisation costs on this GPU: fences, atomics, barriers, PCIe.
+
+One thread (or one 1024-thread block for the barriers) times each operation with ``clock64``
+around it, the operation's result consumed before the second read of the clock, and prints
+the median over repeats in SM cycles and ns. These are the costs that fast.cu's hand-off
+between tiles and resident.cuh's mailbox are built from (BENCHMARKS.md, "Planning on the GPU").
+
+    python3 scripts/probe_sync_latency.py
+"""
+
+from __future__ import annotations
+
+import cupy as cp
+import numpy as np
+
+SOURCE = r"""
+#define REPS 200
+__device__ __forceinline__ unsigned exch_acquire(unsigned* p) {
+    unsigned v;
+    asm volatile("atom.acquire.gpu.global.exch.b32 %0, [%1], 0;" : "=r"(v) : "l"(p) : "memory");
+    return v;
+}
+// out[r * 16 + i]: cycles of probe i in repeat r. dev: device memory, host: mapped host memory.
+// Each latency is a chain of CHAIN operations, each addressed by the last one's result (so
+// each waits for the one before), divided by CHAIN. Fences block the thread: timed singly.
+#define CHAIN 8
+extern "C" __global__ void probe(unsigned* dev, int* host, long long* out) {
+    const int k = threadIdx.x;
+    unsigned v = 0;
+    for (int r = 0; r < REPS; ++r) {
+        long long t[16] = {0}, a;
+        unsigned* line = dev + (r % 64) * 32;  // a fresh line each repeat
+        __syncthreads();
+        if (k == 0) {
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = atomicExch(line + (v & 1u), 0u);
+            t[0] = (clock64() - a) / CHAIN;
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = exch_acquire(line + 2 + (v & 1u));
+            t[1] = (clock64() - a) / CHAIN;
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = atomicAdd(line + 4 + (v & 1u), 0u);
+            t[2] = (clock64() - a) / CHAIN;
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = __ldcg(line + 6 + (v & 1u));
+            t[3] = (clock64() - a) / CHAIN;
+            a = clock64(); __threadfence(); t[4] = clock64() - a;
+            __stcg((int*)line + 8, r);
+            a = clock64(); __threadfence(); t[5] = clock64() - a;
+            a = clock64(); __threadfence_system(); t[6] = clock64() - a;
+            host[r % 64] = r;
+            a = clock64(); __threadfence_system(); t[7] = clock64() - a;
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = (unsigned)__ldcv(host + 64 + (v & 1u));
+            t[8] = (clock64() - a) / CHAIN;
+        }
+        __syncthreads();
+        a = clock64();
+        __syncthreads();
+        t[9] = clock64() - a;
+        a = clock64();
+        int any = __syncthreads_or(k == 5);
+        t[10] = clock64() - a;
+        if (k == 0)
+            for (int i = 0; i < 11; ++i) out[r * 16 + i] = t[i];
+        if (k == 0 && any == 12345) out[0] = v;  // keeps the chains
+    }
+}
+"""
+
+NAMES = (
+    "atomicExch on L2",
+    "atom.acquire.exch (take_flag)",
+    "atomicAdd on L2",
+    "ld.cg from L2",
+    "__threadfence, nothing pending",
+    "st.cg + __threadfence",
+    "__threadfence_system",
+    "store to mapped host + fence.sys",
+    "ld.cv from mapped host (PCIe)",
+    "__syncthreads, 1024 threads",
+    "__syncthreads_or, 1024 threads",
+)
+
+
+def main() -> None:
+    kernel = cp.RawModule(code=SOURCE).get_function("probe")
+    reps = 200
+    dev = cp.zeros(64 * 32 + 64, dtype=cp.uint32)
+    mem = cp.cuda.PinnedMemory(128 * 4, cp.cuda.runtime.hostAllocMapped)
+    host_ptr = cp.cuda.runtime.pointerGetAttributes(mem.ptr).devicePointer
+    out = cp.zeros(reps * 16, dtype=cp.int64)
+    for _ in range(2):  # the first launch warms caches and the module
+        kernel((1,), (1024,), (dev, np.uintp(host_ptr), out))
+        cp.cuda.runtime.deviceSynchronize()
+    cycles = out.get().reshape(reps, 16)[20:]
+    mhz = cp.cuda.Device().attributes["ClockRate"] / 1e3
+    name = cp.cuda.runtime.getDeviceProperties(0)["name"].decode()
+    print(f"{name}, SM clock {mhz:.0f} MHz (nominal); median of {len(cycles)} repeats")
+    for i, label in enumerate(NAMES):
+        med = float(np.median(cycles[:, i]))
+        print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
+
+
+if __name__ == "__main__":
+    main()
