@@ -324,7 +324,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         if self._shape == (0, 0) or not in_bounds(self._shape, start):
             return np.empty((0, 2), dtype=np.int32)
         with ck.DEVICE_LOCK:
-            if self.resident and self.path_mode == "tiles":
+            if self.resident:  # which implies the fused path (path_mode "tiles")
                 # A call with no change: the loop extracts the path, no launch.
                 self._call_fast(True, None, None, start[0] * self._shape[1] + start[1])
                 return self._path_locked(start, fused=True)

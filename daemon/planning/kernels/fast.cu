@@ -64,13 +64,10 @@
 // at the end of each phase (cuda_planner.CudaPlanner.phase_ns reads them).
 #define P_STAMPS 48
 #ifdef PROFILE
-#define STAMP(i)                                                                  \
-    do {                                                                          \
-        if (blockIdx.x == 0 && threadIdx.x == 0) {                                \
-            unsigned long long t_;                                                \
-            asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t_));                \
-            ctrl[P_STAMPS + (i)] = (unsigned)t_;                                  \
-        }                                                                         \
+#define STAMP(i)                                                   \
+    do {                                                           \
+        if (blockIdx.x == 0 && threadIdx.x == 0)                   \
+            ctrl[P_STAMPS + (i)] = (unsigned)global_ns();          \
     } while (0)
 #else
 #define STAMP(i) \

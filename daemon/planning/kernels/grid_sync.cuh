@@ -64,6 +64,13 @@ __device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t,
     atomicAdd(flags + t, 1u);
 }
 
+// The global timer, ns (resident.cuh's idle limit, fast.cu's -DPROFILE stamps).
+__device__ __forceinline__ unsigned long long global_ns() {
+    unsigned long long t;
+    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));
+    return t;
+}
+
 // A load that orders this thread's later loads after it (an acquire: no full fence).
 __device__ __forceinline__ unsigned load_acquire(const unsigned* p) {
     unsigned v;

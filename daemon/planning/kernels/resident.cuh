@@ -20,6 +20,7 @@
 // launches again; a new loop serves the mailbox if MB_POST differs from the done word.
 #pragma once
 
+#define MB_BOX 4    // the four words block 0 polls in one read: seq, stop, post, count
 #define MB_STOP 5   // host: 1 asks the loop to end (before any other work on the device)
 #define MB_POST 6   // host: the seq of the call posted last, written after everything else,
 #define MB_COUNT 7  // in one store with its delta's length
@@ -27,12 +28,6 @@
 #define C_CMD 57   // the command of the current generation
 #define CMD_RUN 1
 #define CMD_EXIT 2
-
-__device__ __forceinline__ unsigned long long global_ns() {
-    unsigned long long t;
-    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));
-    return t;
-}
 
 // Block 0, a posted call's params and delta: the params words go to device memory as they
 // are; the host writes the delta raw (cells as int64 after the params words, then one byte
@@ -78,7 +73,7 @@ __device__ __noinline__ int take_command(const int* mail, int* params, unsigned*
             while (true) {
                 // One PCIe read (seq, stop, post, count), an acquire: the params and delta
                 // read after it are the ones the host wrote before the post.
-                int4 box = load_acquire_sys(mail + PARAMS - 4);
+                int4 box = load_acquire_sys(mail + MB_BOX);
                 if (box.y) break;
                 if (box.z != *served) {
                     *served = box.z;
