@@ -61,8 +61,25 @@ extern "C" __global__ void probe(unsigned* dev, int* host, long long* out) {
         a = clock64();
         int any = __syncthreads_or(k == 5);
         t[10] = clock64() - a;
+        // PCIe reads issued together: does the SM overlap them? (resident.cuh's take_delta)
+        if (k == 0) {
+            a = clock64();
+            int x0 = __ldcv(host + 64), x1 = __ldcv(host + 80), x2 = __ldcv(host + 96),
+                x3 = __ldcv(host + 112);
+            v += (unsigned)(x0 + x1 + x2 + x3);
+            t[11] = clock64() - a;
+        }
+        __syncthreads();
+        a = clock64();
+        any = __syncthreads_or(k < 96 && __ldcv(host + 64 + (k & 63)) == 12345);
+        t[12] = clock64() - a;
+        a = clock64();
+        any += __syncthreads_or(k < 72 && (__ldcv((const long long*)(host + 128) + k) +
+                                           __ldcv((const long long*)(host + 128) + k + 1) +
+                                           __ldcv((const signed char*)(host + 320) + k)) == 12345);
+        t[13] = clock64() - a;
         if (k == 0)
-            for (int i = 0; i < 11; ++i) out[r * 16 + i] = t[i];
+            for (int i = 0; i < 14; ++i) out[r * 16 + i] = t[i];
         if (k == 0 && any == 12345) out[0] = v;  // keeps the chains
     }
 }
@@ -80,6 +97,9 @@ NAMES = (
     "ld.cv from mapped host (PCIe)",
     "__syncthreads, 1024 threads",
     "__syncthreads_or, 1024 threads",
+    "4 ld.cv from mapped host, one thread",
+    "96 threads, one ld.cv each + barrier",
+    "72 threads, 3 ld.cv each + barrier",
 )
 
 
@@ -87,7 +107,7 @@ def main() -> None:
     kernel = cp.RawModule(code=SOURCE).get_function("probe")
     reps = 200
     dev = cp.zeros(64 * 32 + 64, dtype=cp.uint32)
-    mem = cp.cuda.PinnedMemory(128 * 4, cp.cuda.runtime.hostAllocMapped)
+    mem = cp.cuda.PinnedMemory(512 * 4, cp.cuda.runtime.hostAllocMapped)
     host_ptr = cp.cuda.runtime.pointerGetAttributes(mem.ptr).devicePointer
     out = cp.zeros(reps * 16, dtype=cp.int64)
     for _ in range(2):  # the first launch warms caches and the module

@@ -203,7 +203,9 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         if cells.ndim != 1:
             cells = cells.ravel()
         n = cells.size
-        words = ck.PARAMS + 2 * ((9 * n + 7) // 8)  # even: the stage is viewed as int64 too
+        # Whole 16-byte chunks (the loop reads the stage in chunks), so even: it is viewed as
+        # int64 too.
+        words = ck.PARAMS + 4 * ((9 * n + 15) // 16)
         if words > self._stage.count:
             self._drop_loop()  # it polls the stage, which moves
             self._stage.reserve(words)

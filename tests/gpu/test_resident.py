@@ -203,3 +203,47 @@ def test_deltas_out_of_order_or_out_of_the_map(monkeypatch):
     assert np.array_equal(p.costs(), g)
     assert np.array_equal(path, reference_path(g, truth, (0, 0)))
     assert p._loop.launches == 1
+
+
+def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
+    """take_delta reads the mailbox in passes of TAKE_CELLS (1024) cells: a long delta is
+    applied whole; a repeated cell whose two entries straddle a pass boundary is caught as out
+    of order (its last value wins after the host sorts it); a cell outside the map in a later
+    pass rejects the whole delta."""
+    from daemon.planning import cuda_resident
+
+    monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
+    rng = np.random.default_rng(11)
+    h, w = 100, 129
+    blocked = rng.random((h, w)) < 0.2
+    goal = (50, 64)
+    blocked[goal] = False
+    p = planner()
+    p.plan(blocked, goal)
+    truth = blocked.copy()
+    others = np.array([c for c in range(h * w) if c != goal[0] * w + goal[1]], dtype=np.int64)
+    cells = others[: 3 * 1024 + 100]  # four passes
+    values = rng.random(cells.size) < 0.3
+    _, path = p.update_and_path(cells, values, (0, 0))
+    truth.reshape(-1)[cells] = values
+    g = dijkstra_field(truth, goal)
+    assert np.array_equal(p.costs(), g)
+    assert np.array_equal(path, reference_path(g, truth, (0, 0)))
+    for x in others[2000:2005]:
+        # entries 1023 and 1024 both name x: blocked, then free (the last wins)
+        dup = np.concatenate([np.sort(rng.choice(others[others < x], 1023, replace=False)),
+                              [x, x]])
+        vals = np.zeros(dup.size, dtype=bool)
+        vals[1023] = True
+        p.update(dup, vals)
+        truth.reshape(-1)[dup] = vals
+        truth.reshape(-1)[x] = False
+        assert np.array_equal(p.blocked(), truth)
+        assert np.array_equal(p.costs(), dijkstra_field(truth, goal))
+    before, known = p.costs(), p.blocked()
+    bad = others[:1500].copy()
+    bad[1400] = h * w  # in the second pass
+    with pytest.raises(IndexError):
+        p.update(np.sort(bad), np.ones(bad.size, dtype=bool))
+    assert np.array_equal(p.costs(), before) and np.array_equal(p.blocked(), known)
+    assert p._loop.launches == 1
