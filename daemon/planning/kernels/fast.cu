@@ -375,7 +375,8 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             ctrl[C_BASE] = bar;
         }
         for (int i = threadIdx.x; i < G.ntiles; i += NTHREADS) depth[i] = 0;
-        __threadfence_system();
+        // One fence, thread 0's after the barrier, orders every thread's writes above before
+        // the done word (fences are cumulative over the block's barrier).
         __syncthreads();
         if (threadIdx.x == 0) {
             __threadfence_system();

@@ -46,7 +46,10 @@ __device__ bool grid_arrive_last(unsigned* ctrl, unsigned* target) {
         __threadfence_system();
         unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
         s_last = arrived == *target;
-        if (s_last) __threadfence_system();
+        // The last block reads what the others counted into ctrl (device memory): an acquire
+        // at device scope; their host writes reach the host before the done word through
+        // their own system fences above.
+        if (s_last) __threadfence();
     }
     __syncthreads();
     return s_last != 0;
