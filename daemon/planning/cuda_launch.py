@@ -16,6 +16,11 @@ import numpy as np
 from . import cuda_kernels as ck
 from . import cuda_resident
 
+# Compiled once: struct's module functions parse the format string at every call, and these
+# run at every step.
+PARAMS_WORDS = struct.Struct("5i")  # fast.cu's params [ndelta, mode, start, goal, seq]
+CTRL_WORDS = struct.Struct(f"{ck.CTRL_READ}I")  # the ctrl words the call copies back
+
 
 class FastLaunch:
     """The fast call's launch over ``CudaPlanner``'s buffers (see ``CudaPlanner._allocate``)."""
@@ -83,7 +88,7 @@ class FastLaunch:
         return not reject
 
     def _read_fast_stats(self) -> tuple[int, int]:
-        st = struct.unpack_from(f"{ck.CTRL_READ}I", self._io_host.array)
+        st = CTRL_WORDS.unpack_from(self._io_host.array)
         self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
         self.tiles, self.exit_tiles = st[ck.C_TILES], st[ck.C_EXITS]
         return st[ck.C_ROUNDS], self.raised_cells + st[ck.C_CHANGED]
@@ -97,7 +102,7 @@ class FastLaunch:
         self._seq = self._seq % 0x7FFFFFFF + 1
         goal = self._goal[0] * self._shape[1] + self._goal[1]
         # fast.cu's params [ndelta, mode, start, goal, seq]: one call, not five numpy stores.
-        struct.pack_into("5i", self._stage.array, 0, n_delta, int(eds), start, goal, self._seq)
+        PARAMS_WORDS.pack_into(self._stage.array, 0, n_delta, int(eds), start, goal, self._seq)
         if self.resident:
             if self._loop is None:
                 self._loop = self._new_loop()

@@ -16,6 +16,8 @@ from . import cuda_kernels as ck
 from . import cuda_resident
 from .grid import Cell
 
+PATH_HEAD = struct.Struct("2i")  # the path's cell count and status (compiled once)
+
 
 class PathReader:
     """The path's read-back over ``CudaPlanner``'s buffers (see ``CudaPlanner._allocate``)."""
@@ -41,7 +43,7 @@ class PathReader:
         host, at = self._io_host, ck.IO_PATH
         words = host.array
         if fused:  # the common case first: one chunk, complete, already in host memory
-            count, status = struct.unpack_from("2i", words, 4 * at)
+            count, status = PATH_HEAD.unpack_from(words, 4 * at)
             if status == 0:
                 return words[at + 2 : at + 2 + 2 * count].reshape(count, 2).copy()
         w = self._shape[1]
@@ -54,7 +56,7 @@ class PathReader:
                 copied = min(self._path_guess, self._path_cap)
                 host.from_device(self._io, 2 + 2 * copied, offset=at)
                 ck.synchronize()
-            count, status = struct.unpack_from("2i", words, 4 * at)
+            count, status = PATH_HEAD.unpack_from(words, 4 * at)
             if count > copied:
                 host.from_device(self._io, 2 * (count - copied), offset=at + 2 + 2 * copied)
                 ck.synchronize()

@@ -23,9 +23,10 @@ import numpy as np
 from .grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, Cell, in_bounds
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class UpdateStats:
-    """What one planning call cost."""
+    """What one planning call cost. (Slots: made at every step, and a frozen dataclass
+    without them takes ~0.9 µs to build, with them ~0.55.)"""
 
     iterations: int
     """Relaxation rounds (whole-grid sweeps for ``paper``, queue pops for ``fast``…)."""
