@@ -9,6 +9,7 @@ call sets the done word in the mapped I/O buffer, which ``_wait_fast`` polls.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 
 import cupy as cp
 import numpy as np
@@ -45,6 +46,7 @@ class FastLaunch:
     _loop: cuda_resident.ResidentLoop | None
     resident: bool
     use_graph: bool
+    while_waiting: Callable[[], None] | None
     sweeps: int
     raised_cells: int
     tiles: int
@@ -64,6 +66,8 @@ class FastLaunch:
         sorted on the host, each cell keeping its last value, and posted again."""
         n = 0 if cells is None else self._stage_delta(cells, blocked)
         self._launch_fast(eds, n, start)
+        if self.while_waiting is not None:
+            self.while_waiting()
         if self._wait_fast():
             return
         assert cells is not None and blocked is not None  # an empty delta is in order

@@ -31,6 +31,7 @@ the path's cells come back. Test hook: ``inject_fault(exc)`` makes the next publ
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import cupy as cp
 import numpy as np
@@ -97,6 +98,10 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
         self._fault: BaseException | None = None
+        # Host work that may run while the device serves a fast call (set by the caller, e.g.
+        # fallback.FallbackPlanner's copies of the change for its mirror): called once, after
+        # the call is posted or launched and before the wait for it.
+        self.while_waiting: Callable[[], None] | None = None
         self.last_stats: UpdateStats | None = None
         self._defines = tuple(
             f"{k}={int(v)}"

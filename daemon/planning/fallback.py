@@ -125,18 +125,41 @@ class FallbackPlanner(Planner):
     ) -> tuple[UpdateStats, np.ndarray]:
         # A failure part-way (the repair done on the device, the path not) replays the whole
         # step on the CPU, which is built from the mirror as it was before the step.
-        result = self._call("update_and_path", cells, blocked, start, full=full)
-        self._mirror(cells, blocked)
+        # The mirror's copies of the change are made while the device works on it, when the
+        # primary offers that (CudaPlanner.while_waiting), and kept only once the step is done.
+        copies: list[tuple[np.ndarray, np.ndarray]] = []
+
+        def copy_change() -> None:
+            copies.append(self._copies(cells, blocked))
+
+        overlap = self._active is self.primary and hasattr(self.primary, "while_waiting")
+        if overlap:
+            self.primary.while_waiting = copy_change  # type: ignore[attr-defined]
+        try:
+            result = self._call("update_and_path", cells, blocked, start, full=full)
+        finally:
+            if overlap:
+                self.primary.while_waiting = None  # type: ignore[attr-defined]
+        self._mirror(cells, blocked, copies[0] if copies else None)
         return result
 
     FLUSH_AT = 64
     """Pending changes that trigger a flush into the mirror (bounds memory and flush time)."""
 
-    def _mirror(self, cells: np.ndarray, blocked: np.ndarray) -> None:
+    @staticmethod
+    def _copies(cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The change as the mirror keeps it: copies, since the caller may reuse its arrays."""
+        return np.array(cells, dtype=np.int64), np.array(blocked, dtype=bool)
+
+    def _mirror(
+        self,
+        cells: np.ndarray,
+        blocked: np.ndarray,
+        copies: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         if self._blocked is None:
             return
-        # Copies: the caller may reuse its arrays.
-        self._pending.append((np.array(cells, dtype=np.int64), np.array(blocked, dtype=bool)))
+        self._pending.append(copies if copies is not None else self._copies(cells, blocked))
         if len(self._pending) >= self.FLUSH_AT:
             self._flush()
 
