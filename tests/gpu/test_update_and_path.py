@@ -234,3 +234,38 @@ def test_fused_walk_with_local_changes_keeps_the_exits_it_reuses_exact(config):
             start = (int(path[3][0]), int(path[3][1]))  # the user walks on
     # a local change leaves most tiles' exits as they were (the start's tile is always redone)
     assert min(recomputed) >= 1 and np.median(recomputed) < tiles / 2, recomputed
+
+
+def test_fallback_copies_the_change_while_the_device_works(monkeypatch):
+    """FallbackPlanner's mirror copies are made through CudaPlanner.while_waiting: after the
+    call is posted (the loop's seq moved on) and before the wait for it; the mirror ends equal
+    to the device's map."""
+    from daemon.planning.cuda_planner import CudaPlanner
+
+    blocked, goal, deltas = steps(4)
+    inner = CudaPlanner("fast")
+    events: list[str] = []
+    copies, wait = FallbackPlanner._copies, inner._wait_fast
+
+    def copy_change(cells, values):
+        events.append("copy")
+        return copies(cells, values)
+
+    def wait_fast() -> bool:
+        events.append("wait")
+        return wait()
+
+    monkeypatch.setattr(FallbackPlanner, "_copies", staticmethod(copy_change))
+    monkeypatch.setattr(inner, "_wait_fast", wait_fast)
+    planner = FallbackPlanner(inner, cpu_factory=lambda: make_planner("reference"))
+    planner.plan(blocked, goal)
+    truth = blocked.copy()
+    for i, (cells, values, start) in enumerate(deltas[:5]):
+        events.clear()
+        planner.update_and_path(cells, values, start, full=i == 4)
+        truth.reshape(-1)[cells] = values
+        # (unsorted cells are posted again after the loop refuses them: a second wait)
+        assert events[:2] == ["copy", "wait"] and events.count("copy") == 1, f"step {i}"
+        assert inner.while_waiting is None
+    assert np.array_equal(planner.mirrored_blocked(), truth)
+    assert np.array_equal(planner.mirrored_blocked(), inner.blocked())
