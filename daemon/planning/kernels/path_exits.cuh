@@ -45,16 +45,18 @@ __device__ __forceinline__ int tile_of(int cell, int w, int tiles_x) {
 }
 
 // Load g of the tile at (oy, ox) and its halo (INF outside the map) and work out each tile
-// cell's next step (code: neighbour index, CODE_GOAL or CODE_STUCK).
+// cell's next step (code: neighbour index, CODE_GOAL or CODE_STUCK). By the `lanes` threads
+// numbered `lane` (the whole block by default; a half with tile_exits' pairs); every thread
+// of the block takes the barriers, those of a group with no tile (oy < 0) too.
 __device__ void load_codes(const int* g, int h, int w, int oy, int ox, int (*gs)[HT],
-                           unsigned char (*code)[TILE]) {
-    for (int i = threadIdx.x; i < HT * HT; i += blockDim.x) {
+                           unsigned char (*code)[TILE], int lane, int lanes) {
+    for (int i = oy < 0 ? HT * HT : lane; i < HT * HT; i += lanes) {
         int sy = i / HT, sx = i % HT;
         int y = oy + sy - 1, x = ox + sx - 1;
         gs[sy][sx] = (y >= 0 && x >= 0 && y < h && x < w) ? __ldcg(g + y * w + x) : INF;
     }
     __syncthreads();
-    for (int i = threadIdx.x; i < TILE * TILE; i += blockDim.x) {
+    for (int i = oy < 0 ? TILE * TILE : lane; i < TILE * TILE; i += lanes) {
         int ly = i / TILE, lx = i % TILE;
         int gc = gs[ly + 1][lx + 1];
         unsigned char c = CODE_STUCK;
@@ -83,13 +85,15 @@ __device__ int2 follow(unsigned char (*code)[TILE], int ly, int lx, int oy, int 
 }
 
 // Phase 1 for tile t: exits[t * BORDER + b] for its border cells; the start's own segment
-// to ctrl[P_SEG..] when the start lies in t. Needs blockDim.x > BORDER.
+// to ctrl[P_SEG..] when the start lies in t. By `lanes` > BORDER threads (load_codes); t < 0:
+// this group has no tile and only takes the barriers.
 __device__ void tile_exits(const int* g, int h, int w, int t, int start, int2* exits,
-                           unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE]) {
+                           unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE],
+                           int lane = threadIdx.x, int lanes = blockDim.x) {
     int tiles_x = (w + TILE - 1) / TILE;
-    int oy = (t / tiles_x) * TILE, ox = (t % tiles_x) * TILE;
-    load_codes(g, h, w, oy, ox, gs, code);
-    int b = threadIdx.x;
+    int oy = t < 0 ? -1 : (t / tiles_x) * TILE, ox = t < 0 ? 0 : (t % tiles_x) * TILE;
+    load_codes(g, h, w, oy, ox, gs, code, lane, lanes);
+    int b = t < 0 ? BORDER + 1 : lane;
     if (b < BORDER) {
         int ly, lx;
         border_cell(b, &ly, &lx);
@@ -129,28 +133,41 @@ __device__ void hop_segments(const int* g, int w, int start, const int2* exits, 
     out[1] = status;
 }
 
-// Phase 3: every block walks its share of the segments again inside their tiles.
+// Phase 3: every block walks its share of the segments again inside their tiles. Thread 0
+// walks into shared memory (gs: g is not needed once the codes are worked out) and the block
+// writes the cells out together, 8 bytes a thread: `out` may be mapped host memory, where one
+// thread's stores, two per cell, would each be a PCIe write of their own. gs must be 8-byte
+// aligned (its declarations say __align__(16)).
+#define WALK_CHUNK 512  // cells per write-out (HT * HT ints hold 578 (row, column) pairs)
 __device__ void walk_segments(const int* g, int h, int w, const int4* segs, int* out,
                               unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE]) {
-    __shared__ int s_nsegs;
+    static_assert(2 * WALK_CHUNK <= HT * HT, "a chunk fits in gs");
+    __shared__ int s_nsegs, s_count;
     if (threadIdx.x == 0) s_nsegs = (int)__ldcg(ctrl + P_NSEGS);
     __syncthreads();
+    int2* cells = (int2*)&gs[0][0];
+    int2* path = (int2*)(out + 2);  // (row, column) pairs: the host's path as is
     for (int k = blockIdx.x; k < s_nsegs; k += gridDim.x) {
         int4 s = __ldcg(segs + k);
         int y = s.x / w, x = s.x % w;
         int oy = (y / TILE) * TILE, ox = (x / TILE) * TILE;
-        load_codes(g, h, w, oy, ox, gs, code);
-        if (threadIdx.x == 0) {
-            int ly = y - oy, lx = x - ox;
-            for (int i = 0; i < s.y; ++i) {
-                out[2 + 2 * (s.z + i)] = oy + ly;  // row, column: the host's path as is
-                out[3 + 2 * (s.z + i)] = ox + lx;
-                int c = code[ly][lx];
-                if (c >= CODE_GOAL) break;
-                ly += NB_DR[c];
-                lx += NB_DC[c];
+        load_codes(g, h, w, oy, ox, gs, code, threadIdx.x, blockDim.x);
+        int ly = y - oy, lx = x - ox;  // thread 0's place on the walk
+        for (int done = 0; done < s.y; done += WALK_CHUNK) {
+            if (threadIdx.x == 0) {
+                int n = 0, end = min(WALK_CHUNK, s.y - done);
+                while (n < end) {
+                    cells[n++] = make_int2(oy + ly, ox + lx);
+                    int c = code[ly][lx];
+                    if (c >= CODE_GOAL) break;
+                    ly += NB_DR[c];
+                    lx += NB_DC[c];
+                }
+                s_count = n;
             }
+            __syncthreads();
+            for (int i = threadIdx.x; i < s_count; i += blockDim.x) path[s.z + done + i] = cells[i];
+            __syncthreads();  // written out before the next chunk, or the next segment's load
         }
-        __syncthreads();  // the tile buffers are reused by the next segment
     }
 }

@@ -10,7 +10,7 @@
 extern "C" __global__ void __launch_bounds__(128)
 path_tiles(const int* g, int h, int w, int start, int2* exits, int4* segs, int* out, int cap,
            unsigned* ctrl, unsigned bar_base) {
-    __shared__ int gs[HT][HT];
+    __shared__ __align__(16) int gs[HT][HT];  // aligned: walk_segments stores int2 pairs in it
     __shared__ unsigned char code[TILE][TILE];
     unsigned bar = bar_base;
     int ntiles = ((w + TILE - 1) / TILE) * ((h + TILE - 1) / TILE);
