@@ -236,6 +236,9 @@ def test_fused_walk_with_local_changes_keeps_the_exits_it_reuses_exact(config):
     assert min(recomputed) >= 1 and np.median(recomputed) < tiles / 2, recomputed
 
 
+@pytest.mark.gpu
+@pytest.mark.timeout(60)
+@pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device")
 def test_fallback_copies_the_change_while_the_device_works(monkeypatch):
     """FallbackPlanner's mirror copies are made through CudaPlanner.while_waiting: after the
     call is posted (the loop's seq moved on) and before the wait for it; the mirror ends equal
