@@ -214,7 +214,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         if words > self._stage.count:
             self._drop_loop()  # it polls the stage, which moves
             self._stage.reserve(words)
-            self._graph = None
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
         if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now

@@ -46,17 +46,17 @@ __device__ __forceinline__ int tile_of(int cell, int w, int tiles_x) {
 
 // Load g of the tile at (oy, ox) and its halo (INF outside the map) and work out each tile
 // cell's next step (code: neighbour index, CODE_GOAL or CODE_STUCK). By the `lanes` threads
-// numbered `lane` (the whole block by default; a half with tile_exits' pairs); every thread
-// of the block takes the barriers, those of a group with no tile (oy < 0) too.
+// numbered `lane` (the whole block, or a half with fast.cu's pairs of tiles); every thread of
+// the block takes the barriers.
 __device__ void load_codes(const int* g, int h, int w, int oy, int ox, int (*gs)[HT],
                            unsigned char (*code)[TILE], int lane, int lanes) {
-    for (int i = oy < 0 ? HT * HT : lane; i < HT * HT; i += lanes) {
+    for (int i = lane; i < HT * HT; i += lanes) {
         int sy = i / HT, sx = i % HT;
         int y = oy + sy - 1, x = ox + sx - 1;
         gs[sy][sx] = (y >= 0 && x >= 0 && y < h && x < w) ? __ldcg(g + y * w + x) : INF;
     }
     __syncthreads();
-    for (int i = oy < 0 ? TILE * TILE : lane; i < TILE * TILE; i += lanes) {
+    for (int i = lane; i < TILE * TILE; i += lanes) {
         int ly = i / TILE, lx = i % TILE;
         int gc = gs[ly + 1][lx + 1];
         unsigned char c = CODE_STUCK;
@@ -85,15 +85,14 @@ __device__ int2 follow(unsigned char (*code)[TILE], int ly, int lx, int oy, int 
 }
 
 // Phase 1 for tile t: exits[t * BORDER + b] for its border cells; the start's own segment
-// to ctrl[P_SEG..] when the start lies in t. By `lanes` > BORDER threads (load_codes); t < 0:
-// this group has no tile and only takes the barriers.
+// to ctrl[P_SEG..] when the start lies in t. By `lanes` > BORDER threads (load_codes).
 __device__ void tile_exits(const int* g, int h, int w, int t, int start, int2* exits,
                            unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE],
                            int lane = threadIdx.x, int lanes = blockDim.x) {
     int tiles_x = (w + TILE - 1) / TILE;
-    int oy = t < 0 ? -1 : (t / tiles_x) * TILE, ox = t < 0 ? 0 : (t % tiles_x) * TILE;
+    int oy = (t / tiles_x) * TILE, ox = (t % tiles_x) * TILE;
     load_codes(g, h, w, oy, ox, gs, code, lane, lanes);
-    int b = t < 0 ? BORDER + 1 : lane;
+    int b = lane;
     if (b < BORDER) {
         int ly, lx;
         border_cell(b, &ly, &lx);
