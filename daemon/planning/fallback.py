@@ -135,7 +135,7 @@ class FallbackPlanner(Planner):
         # Every step runs this: the primary is called directly, not through _call, and the
         # hook is a method bound once (a cold Python call costs 1-2 µs after the caller's
         # other work, a sizeable part of a 0.25 ms step on the GPU; BENCHMARKS.md).
-        primary = self.primary
+        primary, copied = self.primary, None
         if self._active is not primary:
             result = self._active.update_and_path(cells, blocked, start, full=full)
         else:
@@ -151,8 +151,8 @@ class FallbackPlanner(Planner):
                 if self._overlap:
                     primary.while_waiting = None  # type: ignore[attr-defined]
                 self._change = None
-        self._mirror(cells, blocked, self._copied)
-        self._copied = None
+            copied, self._copied = self._copied, None
+        self._mirror(cells, blocked, copied)
         return result
 
     def _copy_change(self) -> None:

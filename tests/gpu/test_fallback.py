@@ -127,6 +127,50 @@ def test_the_mirror_keeps_every_change_in_order(deltas):
     assert np.array_equal(planner.blocked(), truth)
 
 
+class HookedPlanner(ReferencePlanner):
+    """A stand-in for CudaPlanner's update_and_path: runs the ``while_waiting`` hook (where the
+    fallback makes its mirror copies), then fails with ``fault`` on the n-th call."""
+
+    name = "hooked"
+
+    def __init__(self, nth: int, fault: BaseException) -> None:
+        super().__init__()
+        self.while_waiting = None
+        self.left, self.fault = nth, fault
+
+    def update_and_path(self, cells, blocked, start, *, full=False):
+        if self.while_waiting is not None:
+            self.while_waiting()
+        self.left -= 1
+        if self.left == 0:
+            raise self.fault
+        return super().update_and_path(cells, blocked, start, full=full)
+
+
+@pytest.mark.parametrize("nth,bad_at", [(1, 0), (3, 4)], ids=["fault-on-bad", "fault-then-bad"])
+def test_a_step_that_fails_after_its_copies_leaves_the_mirror_exact(nth, bad_at):
+    """update_and_path fails on the device (its nth call) after the hook copied its change:
+    the CPU replays the step from the mirror. A delta with a cell outside the map (before step
+    ``bad_at``) raises and is recorded nowhere, whether the device fault came with it or
+    before it: the mirror, the field and the path stay those of the good steps only."""
+    blocked, goal, start, deltas = scenario(1)
+    hooked = HookedPlanner(nth, DeviceFault("injected"))
+    planner = FallbackPlanner(hooked, cpu_factory=lambda: make_planner("reference"))
+    planner.plan(blocked, goal)
+    truth = blocked.copy()
+    for i, (cells, values) in enumerate(deltas):
+        if i == bad_at:  # out of the map: rejected whole, on whichever backend is active
+            with pytest.raises(IndexError):
+                planner.update_and_path(np.array([cells[0], 30 * 40]), [True, True], start)
+        truth.reshape(-1)[cells] = values
+        stats, path = planner.update_and_path(cells, values, start, full=i % 2 == 1)
+        g = dijkstra_field(truth, goal)
+        assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
+        assert np.array_equal(planner.mirrored_blocked(), truth), f"step {i}"
+        assert hooked.while_waiting is None
+    assert planner.active_backend == "cpu"
+
+
 def test_other_errors_are_not_swallowed():
     planner = FallbackPlanner(ReferencePlanner(), cpu_factory=lambda: make_planner("reference"))
     planner.plan(np.zeros((4, 4), bool), (0, 0))
