@@ -163,7 +163,7 @@ def test_a_step_that_fails_after_its_copies_leaves_the_mirror_exact(nth, bad_at)
             with pytest.raises(IndexError):
                 planner.update_and_path(np.array([cells[0], 30 * 40]), [True, True], start)
         truth.reshape(-1)[cells] = values
-        stats, path = planner.update_and_path(cells, values, start, full=i % 2 == 1)
+        _, path = planner.update_and_path(cells, values, start, full=i % 2 == 1)
         g = dijkstra_field(truth, goal)
         assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
         assert np.array_equal(planner.mirrored_blocked(), truth), f"step {i}"
