@@ -4,6 +4,9 @@ One thread (or one 1024-thread block for the barriers) times each operation with
 around it, the operation's result consumed before the second read of the clock, and prints
 the median over repeats in SM cycles and ns. These are the costs that fast.cu's hand-off
 between tiles and resident.cuh's mailbox are built from (BENCHMARKS.md, "Planning on the GPU").
+On sm_90 and up also what thread block clusters would cost: the cluster-wide barrier and
+reads of another block's shared memory (distributed shared memory, DSMEM), the parts of a
+hand-off between tiles that skips L2 (BENCHMARKS.md, "Clusters" in the notes).
 
     python3 scripts/probe_sync_latency.py
 """
@@ -85,6 +88,80 @@ extern "C" __global__ void probe(unsigned* dev, int* host, long long* out) {
 }
 """
 
+CLUSTER_SOURCE = r"""
+#define REPS 200
+__device__ __forceinline__ unsigned cluster_rank() {
+    unsigned r;
+    asm volatile("mov.u32 %0, %%cluster_ctarank;" : "=r"(r));
+    return r;
+}
+// Every thread of the cluster's blocks; releases this thread's writes to those that waited.
+__device__ __forceinline__ void cluster_sync() {
+    asm volatile("barrier.cluster.arrive.release.aligned;\n\t"
+                 "barrier.cluster.wait.acquire.aligned;" ::: "memory");
+}
+// The address of `p` (this block's shared memory) in block `rank`'s shared memory.
+__device__ __forceinline__ unsigned remote_addr(const void* p, unsigned rank) {
+    unsigned local = (unsigned)__cvta_generic_to_shared(p), remote;
+    asm volatile("mapa.shared::cluster.u32 %0, %1, %2;" : "=r"(remote) : "r"(local), "r"(rank));
+    return remote;
+}
+__device__ __forceinline__ int load_remote(unsigned addr) {
+    int v;
+    asm volatile("ld.shared::cluster.s32 %0, [%1];" : "=r"(v) : "r"(addr) : "memory");
+    return v;
+}
+__device__ __forceinline__ void or_remote(unsigned addr, unsigned v) {
+    asm volatile("red.shared::cluster.or.b32 [%0], %1;" ::"r"(addr), "r"(v) : "memory");
+}
+#define CHAIN 8
+// A cluster of four 1024-thread blocks; rank 0's thread 0 times, out[r * 8 + i] as above.
+extern "C" __global__ void __cluster_dims__(4, 1, 1) probe_cluster(long long* out) {
+    __shared__ int s[64];
+    __shared__ unsigned s_or;
+    const int k = threadIdx.x;
+    const unsigned rank = cluster_rank();
+    if (k < 64) s[k] = 0;
+    if (k == 0) s_or = 0;
+    cluster_sync();
+    const unsigned peer = remote_addr(s, rank ^ 1u);
+    unsigned v = 0;
+    for (int r = 0; r < REPS; ++r) {
+        long long t[8] = {0}, a;
+        cluster_sync();
+        a = clock64();
+        cluster_sync();
+        t[0] = clock64() - a;
+        if (k == 0) {
+            a = clock64();
+            for (int i = 0; i < CHAIN; ++i) v = (unsigned)load_remote(peer + 4u * (v & 1u));
+            t[1] = (clock64() - a) / CHAIN;
+        }
+        __syncthreads();
+        a = clock64();
+        int x = k < 132 ? load_remote(peer + 4u * (unsigned)(k & 63)) : 0;
+        if (k < 64) s[k] = x;  // 0: the same value back
+        __syncthreads();
+        t[2] = clock64() - a;
+        a = clock64();
+        if (k == 0) or_remote(remote_addr(&s_or, rank ^ 1u), 1u);
+        cluster_sync();
+        t[3] = clock64() - a;
+        if (k == 0 && rank == 0)
+            for (int i = 0; i < 4; ++i) out[r * 8 + i] = t[i];
+    }
+    if (k == 0 && rank == 0 && v == 12345u) out[0] = v;  // keeps the chain
+}
+"""
+
+CLUSTER_NAMES = (
+    "cluster barrier, 4 x 1024 threads",
+    "ld.shared::cluster, one thread",
+    "132 threads ld.shared::cluster + bar",
+    "red.shared::cluster + cluster barrier",
+)
+
+
 NAMES = (
     "atomicExch on L2",
     "atom.acquire.exch (take_flag)",
@@ -118,6 +195,17 @@ def main() -> None:
     name = cp.cuda.runtime.getDeviceProperties(0)["name"].decode()
     print(f"{name}, SM clock {mhz:.0f} MHz (nominal); median of {len(cycles)} repeats")
     for i, label in enumerate(NAMES):
+        med = float(np.median(cycles[:, i]))
+        print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
+    if cp.cuda.Device().compute_capability < "90":
+        return
+    cluster = cp.RawModule(code=CLUSTER_SOURCE).get_function("probe_cluster")
+    out = cp.zeros(reps * 8, dtype=cp.int64)
+    for _ in range(2):
+        cluster((4,), (1024,), (out,))
+        cp.cuda.runtime.deviceSynchronize()
+    cycles = out.get().reshape(reps, 8)[20:]
+    for i, label in enumerate(CLUSTER_NAMES):
         med = float(np.median(cycles[:, i]))
         print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
 
