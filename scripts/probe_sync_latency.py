@@ -6,7 +6,8 @@ the median over repeats in SM cycles and ns. These are the costs that fast.cu's 
 between tiles and resident.cuh's mailbox are built from (BENCHMARKS.md, "Planning on the GPU").
 On sm_90 and up also what thread block clusters would cost: the cluster-wide barrier and
 reads of another block's shared memory (distributed shared memory, DSMEM), the parts of a
-hand-off between tiles that skips L2 (BENCHMARKS.md, "Clusters" in the notes).
+hand-off between tiles that skips L2 (BENCHMARKS.md, Notes: "The fifth session of
+2026-11-23").
 
     python3 scripts/probe_sync_latency.py
 """
@@ -180,6 +181,13 @@ NAMES = (
 )
 
 
+def report(cycles: np.ndarray, names: tuple[str, ...], mhz: float) -> None:
+    """Each probe's median over the repeats (rows), in cycles and ns."""
+    for i, label in enumerate(names):
+        med = float(np.median(cycles[:, i]))
+        print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
+
+
 def main() -> None:
     kernel = cp.RawModule(code=SOURCE).get_function("probe")
     reps = 200
@@ -194,9 +202,7 @@ def main() -> None:
     mhz = cp.cuda.Device().attributes["ClockRate"] / 1e3
     name = cp.cuda.runtime.getDeviceProperties(0)["name"].decode()
     print(f"{name}, SM clock {mhz:.0f} MHz (nominal); median of {len(cycles)} repeats")
-    for i, label in enumerate(NAMES):
-        med = float(np.median(cycles[:, i]))
-        print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
+    report(cycles, NAMES, mhz)
     if cp.cuda.Device().compute_capability < "90":
         return
     cluster = cp.RawModule(code=CLUSTER_SOURCE).get_function("probe_cluster")
@@ -204,10 +210,7 @@ def main() -> None:
     for _ in range(2):
         cluster((4,), (1024,), (out,))
         cp.cuda.runtime.deviceSynchronize()
-    cycles = out.get().reshape(reps, 8)[20:]
-    for i, label in enumerate(CLUSTER_NAMES):
-        med = float(np.median(cycles[:, i]))
-        print(f"  {label:34s} {med:7.0f} cycles {med / mhz * 1e3:7.0f} ns")
+    report(out.get().reshape(reps, 8)[20:], CLUSTER_NAMES, mhz)
 
 
 if __name__ == "__main__":
