@@ -1,10 +1,10 @@
 """Where a replanning step's time goes on the GPU: host side and the fused launch's phases.
 
 Replays the recorded courtyard walk (``scripts/time_cuda_planner.py``'s recording) through the
-steps of ``CudaPlanner.update_and_path``, timed one by one on the host (delta encoding into
-the pinned stage, the launch call: the post to the resident loop, the graph's or the direct
-launch (``--launch``), the wait for the done
-word, decoding the path, the statistics), with the kernel compiled with ``-DPROFILE`` so that
+steps of ``CudaPlanner.update_and_path``, timed one by one on the host (the call: the delta
+into the stage, the post to the resident loop or the graph's or the direct launch
+(``--launch``), the wait for the done word and the result words; the path; the
+statistics), with the kernel compiled with ``-DPROFILE`` so that
 block 0 stamps the global timer at the end of each phase of the launch. Prints medians in µs,
 per mode (EDS, DSS), and DSS-only plans on the whole inflated map.
 
@@ -35,17 +35,13 @@ from daemon.planning.cuda_planner import CudaPlanner
 PHASES = ("init", "delta", "raise+reset", "relax", "exits", "hops", "segments")
 VISIT = ("take", "load", "solve", "publish")  # fast.cu C_VISIT: P_TAKE .. P_PUBLISH
 C_VISIT = 16
-HOST = ("encode", "launch", "wait", "path", "stats")  # launch: the post, with the resident loop
+HOST = ("call", "path", "stats")  # call: stage, post or launch, wait, read the result words
 
 
 def fused_step(p: CudaPlanner, cells, values, start, full: bool) -> list[float]:
     """update_and_path's body, with a clock between its parts (µs)."""
     t = [time.perf_counter()]
-    n = p._stage_delta(cells, values)
-    t.append(time.perf_counter())
-    p._launch_fast(not full, n, start[0] * p.shape[1] + start[1])
-    t.append(time.perf_counter())
-    p._wait_fast()
+    p._call_fast(not full, cells, values, start[0] * p.shape[1] + start[1])
     t.append(time.perf_counter())
     p._path_locked(start, fused=True)
     t.append(time.perf_counter())

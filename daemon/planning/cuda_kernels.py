@@ -86,6 +86,7 @@ class Pinned:
         self.device_ptr = 0
         self._mem = None
         self.array = np.empty(0, dtype=self.dtype)
+        self.view = memoryview(self.array)
         self.reserve(count)
 
     def reserve(self, count: int) -> bool:
@@ -99,6 +100,9 @@ class Pinned:
         self._mem = cp.cuda.PinnedMemoryPointer(mem, 0)
         self.array = np.frombuffer(self._mem, dtype=self.dtype, count=count)
         self.array[:] = 0
+        # Python-level reads and stores of single words and struct packs go through this: a
+        # memoryview's item or buffer costs less than numpy's (~1 µs less, cold, per access).
+        self.view = memoryview(self.array)
         if self.mapped:
             self.device_ptr = int(cp.cuda.runtime.pointerGetAttributes(mem.ptr).devicePointer)
         self.count = count
@@ -138,7 +142,7 @@ def synchronize() -> None:
     cp.cuda.get_current_stream().synchronize()
 
 
-def wait_word(words: np.ndarray, at: int, value: int) -> None:
+def wait_word(words: memoryview, at: int, value: int) -> None:
     """Wait until a kernel has set ``words[at]`` (host-mapped) to ``value``: poll it for up to
     ``SPIN_S``, then synchronise the stream. A CUDA fault surfaces as a cupy error from the
     synchronisation (a faulted kernel never sets the word); a launch that ends without

@@ -3,7 +3,8 @@
 Three ways, fastest first: posted to the resident loop (``cuda_resident.py``, the default),
 launched as a replayed CUDA graph (``resident=False``), or launched directly
 (``use_graph=False``). Each way fills the same params words first and ends the same way: the
-call sets the done word in the mapped I/O buffer, which ``_wait_fast`` polls.
+call sets the done word in the mapped I/O buffer, which the host polls, and the host reads
+the call's result words (``RESULT_WORDS``) in one unpack.
 """
 
 from __future__ import annotations
@@ -20,7 +21,14 @@ from . import cuda_resident
 # Compiled once: struct's module functions parse the format string at every call, and these
 # run at every step.
 PARAMS_WORDS = struct.Struct("5i")  # fast.cu's params [ndelta, mode, start, goal, seq]
-CTRL_WORDS = struct.Struct(f"{ck.CTRL_READ}I")  # the ctrl words the call copies back
+RESULT_WORDS = struct.Struct(
+    f"<{ck.CTRL_READ}I{4 * (ck.IO_REJECT - ck.CTRL_READ)}xI{4 * (ck.IO_PATH - ck.IO_REJECT - 1)}x2i"
+)
+"""What a finished call left before its path, in one read: the ctrl words it copies back (the
+statistics), the rejection bits of its delta (resident loop), the fused path's count and
+status. One unpack after the done word instead of three reads: after the walk's other work
+each read of the mapped buffer from Python costs 1-3 µs (BENCHMARKS.md)."""
+R_REJECT, R_COUNT, R_STATUS = ck.CTRL_READ, ck.CTRL_READ + 1, ck.CTRL_READ + 2
 
 
 class FastLaunch:
@@ -30,6 +38,7 @@ class FastLaunch:
     _goal: tuple[int, int]
     _seq: int
     _stage: ck.Pinned
+    _stage_views: tuple[np.ndarray, ...]
     _io_host: ck.Pinned
     _params: cp.ndarray
     _g: cp.ndarray
@@ -40,6 +49,7 @@ class FastLaunch:
     _exits: cp.ndarray
     _segs: cp.ndarray
     _path_cap: int
+    _result: tuple[int, ...]
     _blocks: int
     _defines: tuple[str, ...]
     _graph: cp.cuda.graph.Graph | None
@@ -61,57 +71,100 @@ class FastLaunch:
     def _call_fast(
         self, eds: bool, cells: np.ndarray | None, blocked: np.ndarray | None, start: int = -1
     ) -> None:
-        """One fast call (lock held): stage the delta (none: ``cells`` is None), launch or
-        post, wait. The resident loop refuses cells out of order (a cell twice, say): they are
-        sorted on the host, each cell keeping its last value, and posted again."""
+        """One fast call (lock held), the delta ``cells`` / ``blocked`` (none: ``cells`` is
+        None); the call's result words end in ``_result``. Posted to the resident loop
+        (``_call_resident``) or launched: the delta encoded and checked here, then params and
+        delta copied up with the launch, and the done word polled."""
+        if self.resident:
+            self._call_resident(eds, cells, blocked, start)
+            return
         n = 0 if cells is None else self._stage_delta(cells, blocked)
         self._launch_fast(eds, n, start)
         if self.while_waiting is not None:
             self.while_waiting()
-        if self._wait_fast():
-            return
-        assert cells is not None and blocked is not None  # an empty delta is in order
-        cells, blocked = ck.unique_last(cells, blocked)
-        self._launch_fast(eds, self._stage_delta(cells, blocked), start)
-        if not self._wait_fast():
-            raise RuntimeError("the resident loop refused a sorted delta")
+        ck.wait_word(self._io_host.view, ck.IO_DONE, self._seq)
+        self._result = RESULT_WORDS.unpack_from(self._io_host.view)
 
-    def _wait_fast(self) -> bool:
-        """Wait for the last fast call: fast.cu's last block sets the done word last. False if
-        the resident loop refused its delta as out of order; IndexError (nothing applied) if a
-        cell lies outside the map."""
-        io = self._io_host.array
-        if self._loop is None:
-            ck.wait_word(io, ck.IO_DONE, self._seq)
-            return True
-        self._loop.wait(io, self._seq)
-        reject = int(io[ck.IO_REJECT])
+    def _grow_stage(self, words: int, n: int) -> None:
+        """Room in the mailbox for ``words`` (a delta of ``n`` cells, 8 + 1 bytes a cell after
+        the params words, in whole 16-byte chunks: the loop reads the stage in chunks), and on
+        the device for the loop's copy of the delta. Either move stops the loop: it polls the
+        stage and holds the params buffer."""
+        self._drop_loop()
+        self._stage.reserve(words)
+        if ck.PARAMS + n > self._params.size:
+            self._set_params_size(2 * (ck.PARAMS + n))
+
+    def _call_resident(
+        self,
+        eds: bool,
+        cells: np.ndarray | None,
+        blocked: np.ndarray | None,
+        start: int,
+        again: bool = False,
+    ) -> None:
+        """A call posted to the resident loop: the delta raw into the mailbox, the params, the
+        post, the wait, the result words. Every step of a walk runs this, so
+        it is one function with its rare cases at the end (a cold Python call or numpy access
+        costs ~1 µs after the walk's other work; BENCHMARKS.md). The loop checks the delta:
+        a cell outside the map is an IndexError (nothing applied); cells out of order (a cell
+        twice, say) are sorted here, each keeping its last value, and posted ``again``."""
+        n = 0
+        if cells is not None:
+            # Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy
+            # copies, which cast and broadcast as needed.
+            cells = cells if isinstance(cells, np.ndarray) else np.asarray(cells)
+            if cells.ndim != 1:
+                cells = cells.ravel()
+            n = cells.size
+            words = ck.PARAMS + 4 * ((9 * n + 15) // 16)  # whole 16-byte chunks
+            if words > self._stage.count or ck.PARAMS + n > self._params.size:
+                self._grow_stage(words, n)
+            if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now
+                stage = self._stage.array
+                self._stage_views = (stage, stage.view(np.int64), stage.view(np.uint8))
+            _, as_int64, as_bytes = self._stage_views
+            as_int64[ck.PARAMS // 2 : ck.PARAMS // 2 + n] = cells
+            at = 4 * ck.PARAMS + 8 * n
+            as_bytes[at : at + n] = blocked
+        loop = self._loop  # after staging: a stage that had to grow stopped the loop
+        if loop is None:
+            loop = self._loop = self._new_loop()
+        self._seq = seq = self._seq % 0x7FFFFFFF + 1
+        goal = self._goal[0] * self._shape[1] + self._goal[1]
+        PARAMS_WORDS.pack_into(self._stage.view, 0, n, int(eds), start, goal, seq)
+        loop.post(seq, n)
+        if self.while_waiting is not None and not again:
+            self.while_waiting()
+        io = self._io_host.view
+        loop.wait(io, seq)
+        self._result = result = RESULT_WORDS.unpack_from(io)
+        reject = result[R_REJECT]
+        if not reject:
+            return
         if reject & ck.REJECT_RANGE:
             h, w = self._shape
             raise IndexError(f"a cell index is outside the map of {h * w} cells")
-        return not reject
+        if again or cells is None or blocked is None:
+            raise RuntimeError("the resident loop refused a sorted delta")
+        cells, blocked = ck.unique_last(cells, blocked)
+        self._call_resident(eds, cells, blocked, start, again=True)
 
     def _read_fast_stats(self) -> tuple[int, int]:
-        st = CTRL_WORDS.unpack_from(self._io_host.array)
+        st = self._result
         self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
         self.tiles, self.exit_tiles = st[ck.C_TILES], st[ck.C_EXITS]
         return st[ck.C_ROUNDS], self.raised_cells + st[ck.C_CHANGED]
 
     def _launch_fast(self, eds: bool, n_delta: int, start: int = -1) -> None:
-        """Queue one fast call: params and delta up, the launch (repair; with ``start`` >= 0, a
-        flat cell, the path from it too), which writes its results into the mapped I/O
-        buffer; ``_wait_fast`` waits for them. With ``use_graph`` the copy and the launch
-        replay as one captured CUDA graph: one call from Python instead of two, one of them
-        with 12 kernel arguments packed by CuPy."""
+        """Launch one fast call: params and delta up, the launch (repair; with ``start`` >= 0,
+        a flat cell, the path from it too), which writes its results into the mapped I/O
+        buffer. With ``use_graph`` the copy and the launch replay as one captured CUDA graph:
+        one call from Python instead of two, one of them with 12 kernel arguments packed by
+        CuPy."""
         self._seq = self._seq % 0x7FFFFFFF + 1
         goal = self._goal[0] * self._shape[1] + self._goal[1]
-        # fast.cu's params [ndelta, mode, start, goal, seq]: one call, not five numpy stores.
-        PARAMS_WORDS.pack_into(self._stage.array, 0, n_delta, int(eds), start, goal, self._seq)
-        if self.resident:
-            if self._loop is None:
-                self._loop = self._new_loop()
-            self._loop.post(self._seq, n_delta)
-            return
+        PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, int(eds), start, goal, self._seq)
         cuda_resident.evict()
         if not self.use_graph:
             self._queue_fast(ck.PARAMS + n_delta)

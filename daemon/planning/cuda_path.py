@@ -14,6 +14,7 @@ import numpy as np
 
 from . import cuda_kernels as ck
 from . import cuda_resident
+from .cuda_launch import R_COUNT, R_STATUS
 from .grid import Cell
 
 PATH_HEAD = struct.Struct("2i")  # the path's cell count and status (compiled once)
@@ -32,6 +33,8 @@ class PathReader:
     _path_ctrl: cp.ndarray
     _path_cap: int
     _path_guess: int
+    _result: tuple[int, ...]
+    _pairs: tuple[np.ndarray, np.ndarray]
     _path_blocks: int
     _path_bar: int
     path_mode: str
@@ -43,9 +46,13 @@ class PathReader:
         host, at = self._io_host, ck.IO_PATH
         words = host.array
         if fused:  # the common case first: one chunk, complete, already in host memory
-            count, status = PATH_HEAD.unpack_from(words, 4 * at)
+            # The fast call's result words, read with the statistics once it was done.
+            count, status = self._result[R_COUNT], self._result[R_STATUS]
             if status == 0:
-                return words[at + 2 : at + 2 + 2 * count].reshape(count, 2).copy()
+                if self._pairs[0] is not words:  # the path words as (row, column) pairs
+                    end = words.size - words.size % 2
+                    self._pairs = (words, words[at + 2 : end].reshape(-1, 2))
+                return self._pairs[1][:count].copy()
         w = self._shape[1]
         chunks: list[np.ndarray] = []
         cur = start[0] * w + start[1]

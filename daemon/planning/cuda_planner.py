@@ -111,13 +111,15 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         # A call's results, written by fast.cu itself (mapped): the ctrl words, the done word,
         # then the path (see _allocate); the path kernels' results are copied here too.
         self._io_host = ck.Pinned(ck.IO_PATH + 2 + 2 * 1024, np.int32, mapped=True)
-        # A call's input: the params words, then the delta (see _stage_delta). Mapped: the
+        # A call's input: the params words, then the delta (see _call_resident). Mapped: the
         # resident loop's mailbox (its block 0 copies the params and the checked, encoded
         # delta into ``_params`` on the device); a launched call copies it all there first.
         # Never read in place by every block: 100+ blocks reading the same host words wait
         # ~100 µs for PCIe (BENCHMARKS.md, "Planning on the GPU").
         self._stage = ck.Pinned(ck.PARAMS + ck.GRAPH_DELTA, np.int32, mapped=True)
-        self._stage_views: tuple[np.ndarray, ...] = (np.empty(0),)  # see _stage_raw
+        self._stage_views: tuple[np.ndarray, ...] = (np.empty(0),)  # see _call_resident
+        self._pairs = (np.empty(0), np.empty((0, 2)))  # see _path_locked
+        self._result: tuple[int, ...] = ()  # the last fast call's result words (_call_fast)
         self._seq = 0  # the sequence number of the last fast call (its done word)
         self._params = self._delta = cp.zeros(0, dtype=np.int32)
         self._graph: cp.cuda.graph.Graph | None = None
@@ -187,11 +189,10 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         self._graph = None  # it holds the buffers' addresses
 
     def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
-        """The delta into the stage after the params words; it goes with the call (fast:
-        ``_launch_fast``; paper: ``_run_paper``). Returns its length. For the resident loop it
-        goes raw (``_stage_raw``); else encoded and checked here (``encode_delta``)."""
-        if self.resident:
-            return self._stage_raw(cells, blocked)
+        """The delta into the stage after the params words, encoded and checked here
+        (``encode_delta``), for a launched call (fast: ``_launch_fast``; paper:
+        ``_run_paper``), which copies it up. Returns its length. The resident loop's delta
+        goes raw (``_call_resident``)."""
         h, w = self._shape
         cells = np.asarray(cells)
         if self._stage.reserve(ck.PARAMS + cells.size):
@@ -199,30 +200,6 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
-        return n
-
-    def _stage_raw(self, cells: np.ndarray, blocked: np.ndarray) -> int:
-        """Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy copies,
-        which cast and broadcast as needed; the loop checks the cells' range and order."""
-        cells = cells if isinstance(cells, np.ndarray) else np.asarray(cells)
-        if cells.ndim != 1:
-            cells = cells.ravel()
-        n = cells.size
-        # Whole 16-byte chunks (the loop reads the stage in chunks), so even: it is viewed as
-        # int64 too.
-        words = ck.PARAMS + 4 * ((9 * n + 15) // 16)
-        if words > self._stage.count:
-            self._drop_loop()  # it polls the stage, which moves
-            self._stage.reserve(words)
-        if ck.PARAMS + n > self._params.size:
-            self._set_params_size(2 * (ck.PARAMS + n))
-        if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now
-            stage = self._stage.array
-            self._stage_views = (stage, stage.view(np.int64), stage.view(np.uint8))
-        _, as_int64, as_bytes = self._stage_views
-        as_int64[ck.PARAMS // 2 : ck.PARAMS // 2 + n] = cells
-        at = 4 * ck.PARAMS + 8 * n
-        as_bytes[at : at + n] = blocked
         return n
 
     def _drop_loop(self) -> None:
@@ -301,7 +278,10 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         inside = 0 <= y < h and 0 <= x < w
         fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
-            self._call_fast(not full, cells, blocked, y * w + x if fused else -1)
+            if self.resident:  # every step of a walk: straight to the loop
+                self._call_resident(not full, cells, blocked, y * w + x if fused else -1)
+            else:
+                self._call_fast(not full, cells, blocked, y * w + x if fused else -1)
             if inside:
                 path = self._path_locked((y, x), fused=fused)
             else:

@@ -69,11 +69,10 @@ class FallbackPlanner(Planner):
         self._pending: list[tuple[np.ndarray, np.ndarray]] = []
         self._goal: Cell = (0, 0)
         self.fallback_reason: str | None = None
-        # update_and_path's change, copied for the mirror by _copy_change while the device
+        # update_and_path's change, copied into _pending by _copy_change while the device
         # works when the primary has that hook (CudaPlanner.while_waiting).
         self._overlap = hasattr(primary, "while_waiting")
         self._change: tuple[np.ndarray, np.ndarray] | None = None
-        self._copied: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def name(self) -> str:  # type: ignore[override]
@@ -128,37 +127,47 @@ class FallbackPlanner(Planner):
     def update_and_path(
         self, cells: np.ndarray, blocked: np.ndarray, start: Cell, *, full: bool = False
     ) -> tuple[UpdateStats, np.ndarray]:
-        # A failure part-way (the repair done on the device, the path not) replays the whole
-        # step on the CPU, which is built from the mirror as it was before the step.
-        # The mirror's copies of the change are made while the device works on it, when the
-        # primary offers that (CudaPlanner.while_waiting), and kept only once the step is done.
-        # Every step runs this: the primary is called directly, not through _call, and the
-        # hook is a method bound once (a cold Python call costs 1-2 µs after the caller's
-        # other work, a sizeable part of a 0.25 ms step on the GPU; BENCHMARKS.md).
-        primary, copied = self.primary, None
+        # Every step runs this, so the primary is called directly, not through _call (a cold
+        # Python call costs ~1 µs after the caller's other work, a sizeable part of a 0.25 ms
+        # step on the GPU; BENCHMARKS.md). The mirror's copy of the change is made while the
+        # device works on it, when the primary offers that (CudaPlanner.while_waiting), and
+        # taken out again if the step fails: the CPU planner is then built from the mirror as
+        # it was before the step and replays the whole step (a failure part-way, the repair
+        # done on the device and the path not, included).
+        primary = self.primary
         if self._active is not primary:
             result = self._active.update_and_path(cells, blocked, start, full=full)
-        else:
-            self._change, self._copied = (cells, blocked), None
+            self._mirror(cells, blocked)
+            return result
+        self._change = (cells, blocked)
+        if self._overlap:
+            primary.while_waiting = self._copy_change  # type: ignore[attr-defined]
+        kept = len(self._pending)
+        try:
+            result = primary.update_and_path(cells, blocked, start, full=full)
+        except self._errors as exc:
+            del self._pending[kept:]  # the device did not apply the change: the CPU replays it
+            self._switch(exc)
+            result = self._active.update_and_path(cells, blocked, start, full=full)
+        except BaseException:
+            del self._pending[kept:]  # refused (a cell outside the map, say): not the mirror's
+            raise
+        finally:
             if self._overlap:
-                primary.while_waiting = self._copy_change  # type: ignore[attr-defined]
-            try:
-                result = primary.update_and_path(cells, blocked, start, full=full)
-            except self._errors as exc:
-                self._switch(exc)
-                result = self._active.update_and_path(cells, blocked, start, full=full)
-            finally:
-                if self._overlap:
-                    primary.while_waiting = None  # type: ignore[attr-defined]
-                self._change = None
-            copied, self._copied = self._copied, None
-        self._mirror(cells, blocked, copied)
+                primary.while_waiting = None  # type: ignore[attr-defined]
+            self._change = None
+        if len(self._pending) == kept:  # not copied while the device worked
+            self._mirror(cells, blocked)
+        elif len(self._pending) >= self.FLUSH_AT:
+            self._flush()
         return result
 
     def _copy_change(self) -> None:
-        """The primary's while_waiting hook during update_and_path: the mirror's copies."""
-        if self._change is not None:
-            self._copied = self._copies(*self._change)
+        """The primary's while_waiting hook during update_and_path: the change into the
+        mirror's pending list (taken out again if the step fails)."""
+        if self._change is not None and self._blocked is not None:
+            self._pending.append(self._copies(*self._change))
+            self._change = None
 
     FLUSH_AT = 64
     """Pending changes that trigger a flush into the mirror (bounds memory and flush time)."""

@@ -147,12 +147,15 @@ class HookedPlanner(ReferencePlanner):
         return super().update_and_path(cells, blocked, start, full=full)
 
 
-@pytest.mark.parametrize("nth,bad_at", [(1, 0), (3, 4)], ids=["fault-on-bad", "fault-then-bad"])
+@pytest.mark.parametrize(
+    "nth,bad_at", [(1, 0), (3, 4), (99, 2)], ids=["fault-on-bad", "fault-then-bad", "bad-no-fault"]
+)
 def test_a_step_that_fails_after_its_copies_leaves_the_mirror_exact(nth, bad_at):
     """update_and_path fails on the device (its nth call) after the hook copied its change:
     the CPU replays the step from the mirror. A delta with a cell outside the map (before step
-    ``bad_at``) raises and is recorded nowhere, whether the device fault came with it or
-    before it: the mirror, the field and the path stay those of the good steps only."""
+    ``bad_at``) raises and is recorded nowhere, whether the device fault came with it, before
+    it or not at all (the device planner refuses it after the hook copied it): the mirror, the
+    field and the path stay those of the good steps only."""
     blocked, goal, start, deltas = scenario(1)
     hooked = HookedPlanner(nth, DeviceFault("injected"))
     planner = FallbackPlanner(hooked, cpu_factory=lambda: make_planner("reference"))
@@ -168,7 +171,7 @@ def test_a_step_that_fails_after_its_copies_leaves_the_mirror_exact(nth, bad_at)
         assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
         assert np.array_equal(planner.mirrored_blocked(), truth), f"step {i}"
         assert hooked.while_waiting is None
-    assert planner.active_backend == "cpu"
+    assert planner.active_backend == ("cpu" if nth < len(deltas) else "cuda")
 
 
 def test_other_errors_are_not_swallowed():

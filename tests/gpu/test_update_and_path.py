@@ -244,22 +244,23 @@ def test_fallback_copies_the_change_while_the_device_works(monkeypatch):
     call is posted (the loop's seq moved on) and before the wait for it; the mirror ends equal
     to the device's map."""
     from daemon.planning.cuda_planner import CudaPlanner
+    from daemon.planning.cuda_resident import ResidentLoop
 
     blocked, goal, deltas = steps(4)
     inner = CudaPlanner("fast")
     events: list[str] = []
-    copies, wait = FallbackPlanner._copies, inner._wait_fast
+    copies, wait = FallbackPlanner._copies, ResidentLoop.wait
 
     def copy_change(cells, values):
         events.append("copy")
         return copies(cells, values)
 
-    def wait_fast() -> bool:
+    def loop_wait(loop, io, seq) -> None:
         events.append("wait")
-        return wait()
+        wait(loop, io, seq)
 
     monkeypatch.setattr(FallbackPlanner, "_copies", staticmethod(copy_change))
-    monkeypatch.setattr(inner, "_wait_fast", wait_fast)
+    monkeypatch.setattr(ResidentLoop, "wait", loop_wait)
     planner = FallbackPlanner(inner, cpu_factory=lambda: make_planner("reference"))
     planner.plan(blocked, goal)
     truth = blocked.copy()

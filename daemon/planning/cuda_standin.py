@@ -1,0 +1,67 @@
+"""Stand-ins for cupy and the mapped buffers: the cuda backend's host side without a GPU.
+
+``CudaPlanner``'s host code (the mailbox, the post and the wait, the result words, the path's
+read-back, the fallback wrapper) can then run as it is on a machine without a GPU, against a
+device played by Python: ``tests/planning/test_cuda_host_protocol.py`` checks the host's half
+of the protocol against a model of the kernels, ``scripts/emulate_host_path.py`` times it.
+Nothing here is used by a planner at run time.
+
+``standin_cupy()`` must be in ``sys.modules["cupy"]`` before ``daemon.planning.cuda_*`` is
+imported, and ``cuda_kernels.Pinned`` replaced by ``HostPinned`` before a planner is built.
+"""
+
+from __future__ import annotations
+
+from unittest import mock
+
+import numpy as np
+
+NOT_READY = 600  # cudaErrorNotReady: what streamQuery says of a loop that is still running
+
+
+class DeviceArray(np.ndarray):
+    """A numpy array with cupy's two transfer methods: the planner's "device" arrays."""
+
+    def set(self, host: np.ndarray) -> None:
+        self[...] = host
+
+    def get(self) -> np.ndarray:
+        return np.array(self)
+
+
+def standin_cupy() -> mock.MagicMock:
+    """cupy for the host code: arrays are ``DeviceArray``s, launches and streams do nothing
+    (a ``MagicMock`` answers them), and a started stream never finishes on its own."""
+    cp = mock.MagicMock(name="cupy")
+    cp.ndarray = np.ndarray
+    cp.zeros = lambda n, dtype=np.float64: np.zeros(n, dtype=dtype).view(DeviceArray)
+    cp.full = lambda n, value, dtype=None: np.full(n, value, dtype=dtype).view(DeviceArray)
+    cp.cuda.runtime.streamQuery = lambda ptr: NOT_READY
+    return cp
+
+
+class HostPinned:
+    """``cuda_kernels.Pinned`` in ordinary host memory: it grows as Pinned does (doubling,
+    zeroed, a new array when it moves) and its copies to and from the device do nothing (the
+    stand-in device reads and writes the host buffers themselves)."""
+
+    def __init__(self, count: int, dtype: type = np.int32, *, mapped: bool = False) -> None:
+        self.dtype, self.mapped = np.dtype(dtype), mapped
+        self.count, self.device_ptr, self.memory = 0, 0, None
+        self.array = np.empty(0, dtype=self.dtype)
+        self.view = memoryview(self.array)
+        self.reserve(count)
+
+    def reserve(self, count: int) -> bool:
+        if count <= self.count:
+            return False
+        self.count = max(count, 2 * self.count)
+        self.array = np.zeros(self.count, dtype=self.dtype)
+        self.view = memoryview(self.array)
+        return True
+
+    def to_device(self, dst: object, count: int, offset: int = 0) -> None:
+        pass
+
+    def from_device(self, src: object, count: int, offset: int = 0) -> None:
+        pass
