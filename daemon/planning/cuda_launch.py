@@ -104,8 +104,8 @@ class FastLaunch:
         again: bool = False,
     ) -> None:
         """A call posted to the resident loop: the delta raw into the mailbox, the params, the
-        post, the wait, the result words. Every step of a walk runs this, so
-        it is one function with its rare cases at the end (a cold Python call or numpy access
+        post, the wait, the result words. Every step of a walk runs this, so it does its
+        staging itself and handles its rare cases at the end (a cold Python call or numpy access
         costs ~1 µs after the walk's other work; BENCHMARKS.md). The loop checks the delta:
         a cell outside the map is an IndexError (nothing applied); cells out of order (a cell
         twice, say) are sorted here, each keeping its last value, and posted ``again``."""
@@ -130,9 +130,7 @@ class FastLaunch:
         loop = self._loop  # after staging: a stage that had to grow stopped the loop
         if loop is None:
             loop = self._loop = self._new_loop()
-        self._seq = seq = self._seq % 0x7FFFFFFF + 1
-        goal = self._goal[0] * self._shape[1] + self._goal[1]
-        PARAMS_WORDS.pack_into(self._stage.view, 0, n, int(eds), start, goal, seq)
+        seq = self._pack_params(eds, n, start)
         loop.post(seq, n)
         if self.while_waiting is not None and not again:
             self.while_waiting()
@@ -150,6 +148,14 @@ class FastLaunch:
         cells, blocked = ck.unique_last(cells, blocked)
         self._call_resident(eds, cells, blocked, start, again=True)
 
+    def _pack_params(self, eds: bool, n_delta: int, start: int) -> int:
+        """fast.cu's params words [ndelta, mode, start, goal, seq] into the stage, for the next
+        call's new seq, which it returns."""
+        self._seq = seq = self._seq % 0x7FFFFFFF + 1
+        goal = self._goal[0] * self._shape[1] + self._goal[1]
+        PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, int(eds), start, goal, seq)
+        return seq
+
     def _read_fast_stats(self) -> tuple[int, int]:
         st = self._result
         self.sweeps, self.raised_cells = st[ck.C_SWEEPS], st[ck.C_RAISED]
@@ -162,9 +168,7 @@ class FastLaunch:
         buffer. With ``use_graph`` the copy and the launch replay as one captured CUDA graph:
         one call from Python instead of two, one of them with 12 kernel arguments packed by
         CuPy."""
-        self._seq = self._seq % 0x7FFFFFFF + 1
-        goal = self._goal[0] * self._shape[1] + self._goal[1]
-        PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, int(eds), start, goal, self._seq)
+        self._pack_params(eds, n_delta, start)
         cuda_resident.evict()
         if not self.use_graph:
             self._queue_fast(ck.PARAMS + n_delta)

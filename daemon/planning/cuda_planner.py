@@ -278,10 +278,7 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         inside = 0 <= y < h and 0 <= x < w
         fused = inside and self.path_mode == "tiles"
         with ck.DEVICE_LOCK:
-            if self.resident:  # every step of a walk: straight to the loop
-                self._call_resident(not full, cells, blocked, y * w + x if fused else -1)
-            else:
-                self._call_fast(not full, cells, blocked, y * w + x if fused else -1)
+            self._call_fast(not full, cells, blocked, y * w + x if fused else -1)
             if inside:
                 path = self._path_locked((y, x), fused=fused)
             else:
