@@ -11,7 +11,7 @@ DSS=${DSS:-400,2000}
 OUT=${GPU_CHECK_OUT:-out/gpu_quick}
 mkdir -p "$OUT"
 fail=0
-timeout 300 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
+timeout 420 python3 -m pytest -m gpu tests/gpu tests/planning -q -p no:cacheprovider \
     --timeout 120 -x >"$OUT/pytest.log" 2>&1 || fail=1
 tail -n 25 "$OUT/pytest.log"
 timeout 200 python3 scripts/time_cuda_planner.py --variants "$VARIANTS" --grid 400 --unknown 0.4 \

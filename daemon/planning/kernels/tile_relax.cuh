@@ -11,7 +11,6 @@
 #endif
 
 #define NTHREADS (TILE * TILE)
-#define BIG 0x7F000000
 #define CHANGED_ANY 256u  // with the edge bits N S W E NW NE SW SE: some cell of the tile changed
 
 // ctrl words the tile functions count into (fast.cu's layout)

@@ -5,8 +5,10 @@
 // straight or diagonal run of free cells settles in one pass instead of one cell per sweep.
 // A segment ends at a blocked cell (which is a segment of its own) or where a diagonal wraps
 // round the tile. The map does not change during a visit, so each thread works out its four
-// segments and cells once per visit (line_segments) and a scan is then 10 shuffles, no
-// ballot and no index arithmetic: the settle is bound by instruction issue (32 warps a block).
+// segments and cells once per visit (line_segments); a scan is then 10 shuffles that stop at
+// the segment's ends themselves and 10 mins, 32 instructions in all (SASS, sm_90; 48 when a
+// compare chose each min). The settle is bound by instruction issue (32 warps a block): the
+// cut took 400² DSS plans from 0.173 to 0.158 ms of device time (BENCHMARKS.md, Notes).
 
 #pragma once
 
@@ -25,8 +27,11 @@ __device__ __forceinline__ void line_cell(int dir, int* y, int* x, bool* head, b
     }
 }
 
-// This lane's segment on line family dir, packed: first lane | last lane << 8 | blocked << 16
-// | the cell's index in the halo tile (y + 1) * HT + x + 1 << 20.
+// This lane's segment on line family dir, packed so that a scan unpacks each field with one
+// instruction (SASS): first lane in byte 0 (a LOP), the cell's byte offset in the halo tile,
+// 4 * ((y + 1) * HT + x + 1) < 2^16, in bytes 1-2 (a PRMT), last lane in byte 3 (a shift).
+// A blocked cell is a segment of its own (first == last == l), so its value never reaches
+// another lane and its own candidate is its g: the scan needs no blocked bit.
 __device__ __forceinline__ unsigned line_segments(int dir, unsigned char (*bs)[TILE + 1]) {
     int y, x, l = threadIdx.x & 31;
     bool head, tail;
@@ -37,40 +42,47 @@ __device__ __forceinline__ unsigned line_segments(int dir, unsigned char (*bs)[T
     unsigned tails = __ballot_sync(FULL, tail) | b | (b >> 1);
     unsigned first = 31 - __clz(heads & ((2u << l) - 1u));     // lane 0 is always a head
     unsigned last = __ffs(tails & ~((1u << l) - 1u)) - 1;      // lane 31 is always a tail
-    unsigned cell = (unsigned)((y + 1) * HT + x + 1);
-    return first | (last << 8) | ((blk ? 1u : 0u) << 16) | (cell << 20);
+    unsigned offset = (unsigned)((y + 1) * HT + x + 1) * (unsigned)sizeof(int);
+    static_assert(HT * HT * sizeof(int) <= 0x10000, "the cell's offset fits bytes 1-2");
+    return first | (offset << 8) | (last << 24);
 }
 
-// *f = min(*f, v) where x >= y: a compare and a predicated min. Written as C, the compiler
-// makes it two compares and a select, and a scan's step is then four instructions with the
-// shuffle instead of three; the scans are most of a settle's instructions (SASS, nvdisasm).
-__device__ __forceinline__ void min_where_ge(int* f, int v, int x, int y) {
-    asm("{\n\t.reg .pred q;\n\tsetp.ge.s32 q, %1, %2;\n\t@q min.s32 %0, %0, %3;\n\t}"
-        : "+r"(*f)
-        : "r"(x), "r"(y), "r"(v));
+// The value of lane l - d (up) or l + d (down), or this lane's own value where that lane lies
+// before first (up) or after last (down). PTX shfl's clamp operand c bounds the source lane
+// per thread (c[4:0]; c[12:8], the sub-warp mask, is 0 here), and an out-of-bounds source
+// reads the own lane: min(f, shuffled) then needs no compare. That is two instructions a scan
+// step instead of three (a compare and a predicated min with the plain shuffle; SASS).
+__device__ __forceinline__ int shfl_up_within(int v, int d, unsigned first) {
+    int r;
+    asm volatile("shfl.sync.up.b32 %0, %1, %2, %3, 0xffffffff;" : "=r"(r) : "r"(v), "r"(d), "r"(first));
+    return r;
+}
+
+__device__ __forceinline__ int shfl_down_within(int v, int d, unsigned last) {
+    int r;
+    asm volatile("shfl.sync.down.b32 %0, %1, %2, %3, 0xffffffff;" : "=r"(r) : "r"(v), "r"(d), "r"(last));
+    return r;
 }
 
 // One scan of family dir over the tile (seg: line_segments); returns whether this thread's
-// cell decreased.
+// cell decreased. A blocked cell's candidate is its own g (its segment is itself), so the
+// store below never writes one.
 __device__ __forceinline__ bool scan_line(int dir, unsigned seg, int (*gs)[HT]) {
     int l = threadIdx.x & 31;
     int step = dir < 2 ? 10 : 14;
-    int first = seg & 0xFF, last = (seg >> 8) & 0xFF;
-    bool blk = (seg >> 16) & 1u;
-    int* cell = &gs[0][0] + (seg >> 20);
+    unsigned first = seg & 0xFF, last = seg >> 24;
+    int* cell = (int*)((char*)&gs[0][0] + __byte_perm(seg, 0, 0x4421));  // bytes 1-2, zero-extended
     int gv = *cell;
     // forward: min over l' in [first, l] of g[l'] - step*l', then + step*l; backward alike.
-    int f = blk ? BIG : gv - step * l;
-    int b = blk ? BIG : gv + step * l;
+    int f = gv - step * l;
+    int b = gv + step * l;
 #pragma unroll
     for (int d = 1; d < 32; d <<= 1) {
-        int f2 = __shfl_up_sync(FULL, f, d);
-        int b2 = __shfl_down_sync(FULL, b, d);
-        min_where_ge(&f, f2, l - d, first);
-        min_where_ge(&b, b2, last, l + d);
+        f = min(f, shfl_up_within(f, d, first));
+        b = min(b, shfl_down_within(b, d, last));
     }
     int cand = min(f + step * l, b - step * l);
-    if (!blk && cand < gv) {
+    if (cand < gv) {
         *cell = cand;
         return true;
     }
