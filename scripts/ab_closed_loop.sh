@@ -5,25 +5,20 @@
 # of the runs. Separate runs of one commit differ by ~10 µs at 400² (BENCHMARKS.md), so one
 # run each says little.
 # Usage: bash scripts/ab_closed_loop.sh OLD_COMMIT [RUNS] [GRID] [UNKNOWN]
-# The old tree is `git archive`d into /tmp/ab_old; typer and rich as gpu_check.sh finds them.
+# The old tree is `git archive`d into /tmp/ab_old; typer and rich: scripts/device_env.sh.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OLD=$1 RUNS=${2:-4} GRID=${3:-400} UNKNOWN=${4:-0.4}
 OUT=${AB_OUT:-out/ab}
 mkdir -p "$OUT"
 rm -rf /tmp/ab_old && mkdir -p /tmp/ab_old && git archive "$OLD" | tar -x -C /tmp/ab_old || exit 1
-export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1
-SITE=
-if ! python3 -c "import typer, rich" 2>/dev/null; then
-    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-        --target /tmp/site .whl/*.whl && SITE=/tmp/site
-fi
+source scripts/device_env.sh
 new=$(git describe --always --dirty 2>/dev/null || echo new)
 for i in $(seq 1 "$RUNS"); do
     for side in new old; do
         tree=$PWD
         [ "$side" = old ] && tree=/tmp/ab_old
-        PYTHONPATH="$tree${SITE:+:$SITE}" timeout 120 python3 -m daemon.cli.app bench \
+        PYTHONPATH="$tree${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m daemon.cli.app bench \
             --grid "$GRID" --unknown "$UNKNOWN" --backend cuda \
             --json "$OUT/$side.$i.json" >"$OUT/$side.$i.log" 2>&1 || echo "$side run $i failed"
     done

@@ -85,16 +85,6 @@ class FastLaunch:
         ck.wait_word(self._io_host.view, ck.IO_DONE, self._seq)
         self._result = RESULT_WORDS.unpack_from(self._io_host.view)
 
-    def _grow_stage(self, words: int, n: int) -> None:
-        """Room in the mailbox for ``words`` (a delta of ``n`` cells, 8 + 1 bytes a cell after
-        the params words, in whole 16-byte chunks: the loop reads the stage in chunks), and on
-        the device for the loop's copy of the delta. Either move stops the loop: it polls the
-        stage and holds the params buffer."""
-        self._drop_loop()
-        self._stage.reserve(words)
-        if ck.PARAMS + n > self._params.size:
-            self._set_params_size(2 * (ck.PARAMS + n))
-
     def _call_resident(
         self,
         eds: bool,
@@ -117,7 +107,9 @@ class FastLaunch:
             if cells.ndim != 1:
                 cells = cells.ravel()
             n = cells.size
-            words = ck.PARAMS + 4 * ((9 * n + 15) // 16)  # whole 16-byte chunks
+            # 8 + 1 bytes a cell after the params, in whole 16-byte chunks (the loop reads the
+            # stage in chunks).
+            words = ck.PARAMS + 4 * ((9 * n + 15) // 16)
             if words > self._stage.count or ck.PARAMS + n > self._params.size:
                 self._grow_stage(words, n)
             if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now

@@ -195,12 +195,19 @@ class CudaPlanner(FastLaunch, PaperForm, PathReader, Planner):
         goes raw (``_call_resident``)."""
         h, w = self._shape
         cells = np.asarray(cells)
-        if self._stage.reserve(ck.PARAMS + cells.size):
-            self._graph = None  # it holds the stage's address
-        n = ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
+        self._grow_stage(ck.PARAMS + cells.size, cells.size)  # encoding: a word a cell at most
+        return ck.encode_delta(cells, blocked, h * w, out=self._stage.array[ck.PARAMS :]).size
+
+    def _grow_stage(self, words: int, n: int) -> None:
+        """Room in the stage for ``words`` (the params and a delta) and on the device for a
+        delta of ``n`` cells. A stage that moves stops the resident loop (it polls the stage)
+        and drops the graph (it holds the stage's address); so does a new params buffer."""
+        if words > self._stage.count:
+            self._drop_loop()
+            self._stage.reserve(words)
+            self._graph = None
         if ck.PARAMS + n > self._params.size:
             self._set_params_size(2 * (ck.PARAMS + n))
-        return n
 
     def _drop_loop(self) -> None:
         if self._loop is not None:

@@ -1,0 +1,10 @@
+# Sourced by the device scripts that run the CLI (gpu_check.sh, ab_closed_loop.sh) from the
+# repository root: the environment their Python runs in on the GPU machine.
+export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1
+# typer and rich for the CLI: the image has them; else the wheels carried in .whl/ go into
+# $CLI_SITE, for the caller to put on PYTHONPATH.
+CLI_SITE=
+if ! python3 -c "import typer, rich" 2>/dev/null; then
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+        --target /tmp/site .whl/*.whl && CLI_SITE=/tmp/site
+fi
