@@ -18,7 +18,7 @@ for i in $(seq 1 "$RUNS"); do
     for side in new old; do
         tree=$PWD
         [ "$side" = old ] && tree=/tmp/ab_old
-        PYTHONPATH="$tree${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m daemon.cli.app bench \
+        PYTHONPATH="$tree${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m cli.app bench \
             --grid "$GRID" --unknown "$UNKNOWN" --backend cuda \
             --json "$OUT/$side.$i.json" >"$OUT/$side.$i.log" 2>&1 || echo "$side run $i failed"
     done

@@ -5,7 +5,7 @@ Notes): ``FallbackPlanner(CudaPlanner).update_and_path`` runs as it is, the Pyth
 classes and of the resident loop's post and wait, with cupy and the mapped buffers replaced
 by ``daemon.planning.cuda_standin`` and the device by a loop that, at the post, writes the
 CPU planner's path and the done word, as fast.cu would. The walk is the real one
-(``drivers.sim.walk``: sensing and inflation between steps, which is what leaves the host's
+(``sim.walk``: sensing and inflation between steps, which is what leaves the host's
 caches cold). Prints, per walk, the median µs from the call to the post ("before") and from
 the device's answer to the return ("after": the wait's last look, the result words and the
 path, the statistics, the mirror; and here the fallback's copies, which on a GPU run while
@@ -45,8 +45,8 @@ from daemon.planning import cuda_standin  # noqa: E402
 sys.modules["cupy"] = cuda_standin.standin_cupy()
 
 from daemon.planning.backends import make_planner  # noqa: E402
-from drivers.sim.courtyard import make_courtyard  # noqa: E402
-from drivers.sim.walk import walk  # noqa: E402
+from sim.courtyard import make_courtyard  # noqa: E402
+from sim.walk import walk  # noqa: E402
 
 
 def planning_package(tree: Path | None) -> ModuleType:

@@ -50,13 +50,13 @@ has probe && step probe 60 python3 scripts/probe_sync_latency.py
 has tests && step pytest 420 python3 -m pytest -m gpu tests/gpu tests/planning -q \
     -p no:cacheprovider --timeout 120
 has bench && {
-step bench_cuda 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
+step bench_cuda 100 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cuda --json "$OUT/bench_cuda.json"
-step bench_cpu 100 python3 -m daemon.cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
+step bench_cpu 100 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cpu --json "$OUT/bench_cpu.json"
-step bench_big_cuda 70 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
+step bench_big_cuda 70 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
     --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cuda.json"
-step bench_big_cpu 100 python3 -m daemon.cli.app bench --grid 1000,2000 --unknown 0.4 \
+step bench_big_cpu 100 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
     --backend cpu --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cpu.json"
 }
 has replay && step replay 200 python3 scripts/time_cuda_planner.py --variants fast,fast:graph,fast:2:2,fast:rounds,fast:direct,fast:0:1,fast:walk,paper,cpu \

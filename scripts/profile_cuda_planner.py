@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from daemon.planning import cuda_kernels as ck
 from daemon.planning.cuda_planner import CudaPlanner
 from daemon.planning.grid import OCCUPIED
-from drivers.sim.courtyard import dilate, make_courtyard
+from sim.courtyard import dilate, make_courtyard
 
 
 def device_ms(fn, repeats: int = 20) -> tuple[float, float]:

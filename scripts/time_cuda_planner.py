@@ -1,6 +1,6 @@
 """Time the cuda planner's variants (and the CPU) on recorded courtyard walks and on DSS plans.
 
-A walk of ``drivers.sim.walk`` over ``drivers.sim.courtyard`` is recorded once per courtyard
+A walk of ``sim.walk`` over ``sim.courtyard`` is recorded once per courtyard
 with the CPU planner (every backend computes the same exact field, so every backend walks
 the same cells): the map delta of each step and the user's cell. The recording is then
 replayed on each planner: per step ``update`` (EDS) or ``replan`` (DSS), then ``path`` from the
@@ -36,9 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from daemon.planning import make_planner
 from daemon.planning.grid import OCCUPIED
 from daemon.planning.interface import Planner
-from drivers.sim.courtyard import dilate, make_courtyard
-from drivers.sim.sensor import Sensor
-from drivers.sim.walk import LOOKAHEAD_M, heading_along, walk
+from sim.courtyard import dilate, make_courtyard
+from sim.sensor import Sensor
+from sim.walk import LOOKAHEAD_M, heading_along, walk
 
 
 class Recorder(Planner):

@@ -178,7 +178,7 @@ def start_simulated_belt(
     the driver follows ``user``'s patterns."""
     link = Path(link or f"/tmp/guidebelt-belt-{os.getpid()}")
     with SimulatedBelt(kind, link) as belt:
-        cmd = [sys.executable, "-m", "daemon.cli.app", "belt", "--port", str(link),
+        cmd = [sys.executable, "-m", "cli.app", "belt", "--port", str(link),
                "--user", user, "--no-multicast", "--log-level", "WARNING"]  # fmt: skip
         for endpoint in connect:
             cmd += ["--connect", endpoint]

@@ -147,7 +147,7 @@ def test_keys_stay_under_the_user():
 @pytest.mark.timeout(60)
 def test_schema_command_writes_one_schema_per_message(tmp_path):
     out = subprocess.run(
-        [sys.executable, "-m", "daemon.cli.app", "schema", str(tmp_path)],
+        [sys.executable, "-m", "cli.app", "schema", str(tmp_path)],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from daemon.cli.app import app
-from drivers.sim.benchmark import ROW_FIELDS, BenchConfig, run_bench, table_rows
-from drivers.sim.courtyard import make_courtyard
-from drivers.sim.render import COLOURS, render_walk, walk_image
-from drivers.sim.walk import walk
+from cli.app import app
+from sim.benchmark import ROW_FIELDS, BenchConfig, run_bench, table_rows
+from sim.courtyard import make_courtyard
+from sim.render import COLOURS, render_walk, walk_image
+from sim.walk import walk
 
 pytestmark = pytest.mark.timeout(120)
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -102,7 +102,7 @@ def test_demo_walks_in_process_and_saves_the_picture(tmp_path):
 
 
 def test_plain_entry_point_needs_no_typer(tmp_path, capsys):
-    from drivers.sim.benchmark import main
+    from sim.benchmark import main
 
     out = tmp_path / "rows.json"
     main(["--grid", "50", "--unknown", "0.2", "--modes", "eds", "--json", str(out)])

@@ -8,7 +8,7 @@ import pytest
 from daemon.planning.dijkstra import dijkstra_field
 from daemon.planning.grid import FREE, INF, OCCUPIED, UNKNOWN
 from daemon.planning.inflation import InflatedMap
-from drivers.sim.courtyard import base_courtyard, connected, dilate, make_courtyard
+from sim.courtyard import base_courtyard, connected, dilate, make_courtyard
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from daemon.planning.grid import FREE, OCCUPIED, UNKNOWN
-from drivers.sim.sensor import Sensor
+from sim.sensor import Sensor
 
 pytestmark = pytest.mark.timeout(30)
 

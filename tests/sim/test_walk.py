@@ -7,8 +7,8 @@ import pytest
 
 from daemon.planning import make_planner
 from daemon.planning.grid import OCCUPIED
-from drivers.sim.courtyard import make_courtyard
-from drivers.sim.walk import escape_step, heading_along, walk
+from sim.courtyard import make_courtyard
+from sim.walk import escape_step, heading_along, walk
 
 pytestmark = pytest.mark.timeout(120)
 

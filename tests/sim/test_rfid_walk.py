@@ -2,7 +2,7 @@
 
 The paper's closed loop in the demo courtyard (100 x 100, 40 % unknown) with the same
 planner the daemon uses; the planning cell comes from the localiser fed by simulated
-reads at the user's true position. See ``drivers/rfid/closed_loop.py``.
+reads at the user's true position. See ``sim/rfid_walk.py``.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from daemon.planning.grid import OCCUPIED
-from drivers.rfid.closed_loop import rfid_walk
-from drivers.rfid.evaluate import tags_for
-from drivers.sim.courtyard import make_courtyard
-from drivers.sim.walk import walk
+from sim.courtyard import make_courtyard
+from sim.rfid_eval import tags_for
+from sim.rfid_walk import rfid_walk
+from sim.walk import walk
 
 
 def backend() -> str:

@@ -18,9 +18,9 @@ def render(
     out: Annotated[Path, typer.Option(help="PNG to write.")] = Path("walk.png"),
 ) -> None:
     """Walk one scenario and save a picture of the map, what was seen and the path walked."""
-    from drivers.sim.courtyard import make_courtyard
-    from drivers.sim.render import render_walk
-    from drivers.sim.walk import walk
+    from sim.courtyard import make_courtyard
+    from sim.render import render_walk
+    from sim.walk import walk
 
     if mode not in ("eds", "dss"):
         raise typer.BadParameter("choose eds or dss", param_hint="--mode")

@@ -42,7 +42,7 @@ def test_units_verify_cleanly(tmp_path):
         "guidebelt-rfid@.service",
     }
     # verify insists that ExecStart exists: point it at this checkout's interpreter.
-    here = f"{sys.executable} -m daemon.cli.app"
+    here = f"{sys.executable} -m cli.app"
     names = []
     for unit in UNITS:
         text = unit.read_text()
@@ -91,7 +91,7 @@ def test_unit_command_lines_match_the_cli(unit):
     argv = exec_line.removeprefix("ExecStart=").replace("%i", "alice").split()
     assert argv[0] == INSTALLED
     proc = subprocess.run(
-        [sys.executable, "-m", "daemon.cli.app", *argv[1:], "--help"],
+        [sys.executable, "-m", "cli.app", *argv[1:], "--help"],
         cwd=ROOT,
         capture_output=True,
         text=True,

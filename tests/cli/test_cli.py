@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def guidebelt(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "daemon.cli.app", *args],
+        [sys.executable, "-m", "cli.app", *args],
         cwd=ROOT,
         capture_output=True,
         text=True,

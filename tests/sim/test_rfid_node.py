@@ -13,11 +13,11 @@ import time
 import pytest
 
 from daemon.service.embedded import DaemonThread
-from drivers.rfid.evaluate import tags_for
-from drivers.rfid.sim_pose import RfidSimNode
-from drivers.sim.courtyard import make_courtyard
 from protocol import codec, keys
 from protocol.messages import Goal, GoalCell, NavState
+from sim.courtyard import make_courtyard
+from sim.rfid_eval import tags_for
+from sim.rfid_node import RfidSimNode
 
 
 @pytest.mark.timeout(90)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from daemon.guidance.patterns import PatternMaker
-from drivers.sim.belt_walker import BeltWalker, WalkerParams
-from drivers.sim.courtyard import make_courtyard
-from drivers.sim.walks import belt_walk, run_table
 from protocol.messages import PatternKind
+from sim.belt_walker import BeltWalker, WalkerParams
+from sim.courtyard import make_courtyard
+from sim.walks import belt_walk, run_table
 
 EXACT = WalkerParams(step_sd_m=0.0, perception_sd_deg=0.0, gait_sd_deg=0.0)
 

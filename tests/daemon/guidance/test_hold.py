@@ -12,8 +12,8 @@ from daemon.guidance.hold import HoldPolicy
 from daemon.planning.grid import cell_to_xy
 from daemon.planning.inflation import InflatedMap
 from daemon.planning.reference import ReferencePlanner
-from drivers.sim.crossing import crossing_walk
 from protocol.messages import PatternKind, Pose
+from sim.crossing import crossing_walk
 
 SHAPE = (60, 40)
 NORTH = math.pi / 2

@@ -237,7 +237,7 @@ def format_tables(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m drivers.sim.benchmark``: the same benchmark with only numpy and argparse.
+    """``python -m sim.benchmark``: the same benchmark with only numpy and argparse.
 
     For machines that lack typer and its pydantic dependency (the lent GPU machine); the
     options mirror ``guidebelt bench``.
@@ -245,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
     import argparse
     import json
 
-    p = argparse.ArgumentParser(prog="python -m drivers.sim.benchmark", description=main.__doc__)
+    p = argparse.ArgumentParser(prog="python -m sim.benchmark", description=main.__doc__)
     p.add_argument("--grid", default="100,200,400")
     p.add_argument("--unknown", default="0.2,0.4,0.6")
     p.add_argument("--backend", default="cpu")

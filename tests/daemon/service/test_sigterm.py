@@ -54,7 +54,7 @@ def test_sigterm_stops_the_belt_publishes_a_final_status_and_exits_fast(tmp_path
         "PYTHONPATH": str(ROOT),
     }
     proc = subprocess.Popen(
-        [sys.executable, "-m", "daemon.cli.app", "run"],
+        [sys.executable, "-m", "cli.app", "run"],
         cwd=ROOT,
         env=env,
         stdout=subprocess.PIPE,

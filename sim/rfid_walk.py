@@ -1,6 +1,6 @@
 """The paper's closed-loop walk with the user's cell for planning taken from RFID poses.
 
-As ``drivers.sim.walk`` — sense, inflate, repair the field, step one cell — except that the
+As ``sim.walk`` — sense, inflate, repair the field, step one cell — except that the
 planner never sees the true position: the reader's rounds are drawn at the user's true
 position as they walk, the localiser turns them into a pose, and the path is read from
 the pose's cell. The user then takes the step the belt asks for (the path's first move)
@@ -30,11 +30,10 @@ from daemon.planning.grid import (
 )
 from daemon.planning.inflation import InflatedMap
 from daemon.planning.interface import Planner
-from drivers.sim.sensor import Sensor
-
-from .localiser import DEFAULT_METHOD, Localiser
-from .rssi import ReadModel
-from .tags import TagMap
+from drivers.rfid.localiser import DEFAULT_METHOD, Localiser
+from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tags import TagMap
+from sim.sensor import Sensor
 
 
 @dataclass

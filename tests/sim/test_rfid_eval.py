@@ -10,10 +10,10 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from daemon.cli import rfid as rfid_cli
-from drivers.rfid.evaluate import along, evaluate, tags_for, true_route, walked
+from cli import rfid as rfid_cli
 from drivers.rfid.tags import TagMap
-from drivers.sim.courtyard import make_courtyard
+from sim.courtyard import make_courtyard
+from sim.rfid_eval import along, evaluate, tags_for, true_route, walked
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from daemon.cli.options import comma_list
+from cli.options import comma_list
 
 
 def walks(
@@ -50,8 +50,8 @@ def walks(
     from rich.console import Console
     from rich.table import Table
 
-    from drivers.sim.belt_walker import WalkerParams
-    from drivers.sim.walks import run_table
+    from sim.belt_walker import WalkerParams
+    from sim.walks import run_table
 
     if follow != "belt":
         raise typer.BadParameter(f"{follow!r}: only 'belt' is a walker here", param_hint="--follow")
@@ -88,7 +88,7 @@ def walks(
             json_out.write_text(json.dumps(rows, indent=1) + "\n")
             console.print(f"rows written to {json_out}")
     if smoothing_plot is not None:
-        from drivers.sim.smoothing_study import plot_study, smoothing_study
+        from sim.smoothing_study import plot_study, smoothing_study
 
         study = smoothing_study(grids, unknowns, runs=min(runs, 20), first_seed=seed)
         smoothing_plot.parent.mkdir(parents=True, exist_ok=True)
@@ -110,11 +110,11 @@ def walks(
 
 
 def _crossing(console, runs: int, seed: int, json_out: Path | None) -> None:
-    """Hold against detour in the doorway scenario (``drivers/sim/crossing.py``)."""
+    """Hold against detour in the doorway scenario (``sim/crossing.py``)."""
     import numpy as np
     from rich.table import Table
 
-    from drivers.sim.crossing import crossing_walk
+    from sim.crossing import crossing_walk
 
     rows = []
     for hold in (True, False):

@@ -100,7 +100,7 @@ class BeltWalker:
     collisions: int = 0
 
     def act(self, view: Any) -> str:
-        """The sim node's walker seam (``drivers/sim/node.py``): only ``view.belt`` and the
+        """The sim node's walker seam (``sim/node.py``): only ``view.belt`` and the
         true map are used — never ``view.path``. A pattern past its TTL is felt as nothing."""
         belt = view.belt
         if belt is None or time.time() > belt.stamp + belt.ttl_ms / 1000.0:

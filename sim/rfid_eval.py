@@ -18,10 +18,9 @@ import numpy as np
 from daemon.planning.dijkstra import dijkstra_field
 from daemon.planning.grid import OCCUPIED, cell_to_xy
 from daemon.planning.interface import reference_path
-
-from .localiser import Localiser
-from .rssi import ReadModel
-from .tags import TagMap, generate
+from drivers.rfid.localiser import Localiser
+from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tags import TagMap, generate
 
 
 def tags_for(scenario, lf_layout: str = "floor", seed: int = 0) -> TagMap:
@@ -32,7 +31,7 @@ def tags_for(scenario, lf_layout: str = "floor", seed: int = 0) -> TagMap:
 
 def true_route(scenario) -> np.ndarray:
     """(k, 2) metres: the cell centres of the shortest route in the true, inflated map."""
-    from drivers.sim.courtyard import dilate
+    from sim.courtyard import dilate
 
     blocked = dilate(scenario.true == OCCUPIED, scenario.radius_cells)
     g = dijkstra_field(blocked, scenario.goal)

@@ -32,10 +32,10 @@ def sim(
 
     from zenoh import CongestionControl
 
-    from drivers.sim.courtyard import make_courtyard
-    from drivers.sim.node import WALKERS, SimNode, SimResult
     from protocol import codec, keys
     from protocol.messages import Goal, GoalCell
+    from sim.courtyard import make_courtyard
+    from sim.node import WALKERS, SimNode, SimResult
 
     BLOCK = CongestionControl.BLOCK
     if follow not in WALKERS:
@@ -71,7 +71,7 @@ def sim(
         f"{ms[len(ms) // 2] if ms else float('nan'):.1f} ms per step (median, pose → path)"
     )
     if out is not None:
-        from daemon.cli.demo_world import render_sim
+        from cli.demo_world import render_sim
 
         render_sim(scenario, result, out)
         typer.echo(f"picture: {out}")

@@ -12,14 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.sim.courtyard import USER_RADIUS_M, Scenario, dilate, make_courtyard
-from drivers.sim.node import SimResult
+from sim.courtyard import USER_RADIUS_M, Scenario, dilate, make_courtyard
+from sim.node import SimResult
 
 
 def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
     """The picture of a walk over zenoh, drawn by the same code as the in-process walk."""
-    from drivers.sim.render import render_walk
-    from drivers.sim.walk import WalkResult
+    from sim.render import render_walk
+    from sim.walk import WalkResult
 
     known = result.known if result.known is not None else scenario.known
     empty = np.zeros(0)
@@ -64,10 +64,10 @@ def run_with_daemon(
     from drivers.belt.hil import belt_in_loop
     from drivers.belt.hil import summary as belt_summary
     from drivers.belt.recorder import BeltRecorder
-    from drivers.sim.node import SimNode
     from drivers.voice.recorder import VoiceRecorder
     from protocol import codec, keys
     from protocol.messages import Goal, GoalCell
+    from sim.node import SimNode
 
     setup_logging("WARNING")
     console = Console()

@@ -2,7 +2,7 @@
 
 Command modules import only typer and the standard library at the top; their heavy
 imports (zenoh, pydantic, matplotlib, cupy) happen inside the command, so
-``python -m daemon.cli.app bench`` runs on the GPU machine, which lacks zenoh.
+``python -m cli.app bench`` runs on the GPU machine, which lacks zenoh.
 """
 
 from __future__ import annotations
@@ -20,18 +20,18 @@ app = typer.Typer(
 
 # Each module defines ``register(app: typer.Typer) -> None``.
 COMMAND_MODULES = [
-    "daemon.cli.bench",
-    "daemon.cli.render",
-    "daemon.cli.demo",
-    "daemon.cli.walks",
-    "daemon.cli.voice",
-    "daemon.cli.rfid",
-    "daemon.cli.belt",
-    "daemon.cli.run",
-    "daemon.cli.goal",
-    "daemon.cli.status",
-    "daemon.cli.sim",
-    "daemon.cli.schema",
+    "cli.bench",
+    "cli.render",
+    "cli.demo",
+    "cli.walks",
+    "cli.voice",
+    "cli.rfid",
+    "cli.belt",
+    "cli.run",
+    "cli.goal",
+    "cli.status",
+    "cli.sim",
+    "cli.schema",
 ]
 
 for _name in COMMAND_MODULES:

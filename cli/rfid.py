@@ -24,8 +24,8 @@ def rfid_eval(
     from rich.console import Console
     from rich.table import Table
 
-    from drivers.rfid.evaluate import evaluate, tags_for, true_route
-    from drivers.sim.courtyard import make_courtyard
+    from sim.courtyard import make_courtyard
+    from sim.rfid_eval import evaluate, tags_for, true_route
 
     console = Console()
     pooled: dict[tuple[str, str], list] = {}
@@ -80,8 +80,8 @@ def rfid_tags(
     lf_layout: Annotated[str, typer.Option(help="none, corners or floor.")] = "floor",
 ) -> None:
     """Write the tag map of the simulated courtyard (UHF on corners, LF floor tags)."""
-    from drivers.rfid.evaluate import tags_for
-    from drivers.sim.courtyard import make_courtyard
+    from sim.courtyard import make_courtyard
+    from sim.rfid_eval import tags_for
 
     tag_map = tags_for(make_courtyard(100, 0.4, seed), lf_layout, seed)
     tag_map.dump(out)
@@ -115,8 +115,8 @@ def rfid(
         raise typer.BadParameter("give --port, or --mock for a simulated reader")
     mock_reader = None
     if mock or tags is None:
-        from drivers.rfid.evaluate import along, tags_for, true_route
-        from drivers.sim.courtyard import make_courtyard
+        from sim.courtyard import make_courtyard
+        from sim.rfid_eval import along, tags_for, true_route
 
         scenario = make_courtyard(100, 0.4, 0)
         tag_map = TagMap.load(tags) if tags else tags_for(scenario, "floor")

@@ -1,6 +1,6 @@
 """The simulated world guided through the daemon by RFID poses instead of the true pose.
 
-``RfidSimNode`` is the sim's zenoh node (``drivers.sim.node.SimNode``: true map, sensor
+``RfidSimNode`` is the sim's zenoh node (``sim.node.SimNode``: true map, sensor
 deltas, lock step with the daemon) with its localiser replaced: each pose it publishes is
 what the reader would report along the user's true movement since the last pose — lines
 in the reader's protocol, through the same ``ReadFilter`` as the serial driver, into the
@@ -19,16 +19,15 @@ import time
 import numpy as np
 
 from daemon.planning.grid import cell_to_xy
-from drivers.sim.belt_walker import step_hits
-from drivers.sim.node import PathWalker, SimNode, WalkerView
-from drivers.sim.walk import LOOKAHEAD_M, heading_along
+from drivers.rfid.localiser import DEFAULT_METHOD, Estimate, Localiser
+from drivers.rfid.protocol import ReadFilter, format_read
+from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tags import TagMap
 from protocol import codec
 from protocol.messages import Pose
-
-from .localiser import DEFAULT_METHOD, Estimate, Localiser
-from .protocol import ReadFilter, format_read
-from .rssi import ReadModel
-from .tags import TagMap
+from sim.belt_walker import step_hits
+from sim.node import PathWalker, SimNode, WalkerView
+from sim.walk import LOOKAHEAD_M, heading_along
 
 
 class RelativeWalker(PathWalker):

@@ -20,9 +20,9 @@ def run_in_process(
     import numpy as np
     from rich.console import Console
 
-    from drivers.sim.courtyard import make_courtyard
-    from drivers.sim.render import render_walk
-    from drivers.sim.walk import walk
+    from sim.courtyard import make_courtyard
+    from sim.render import render_walk
+    from sim.walk import walk
 
     console = Console()
     scenario = make_courtyard(grid=grid, unknown=unknown, seed=seed)
@@ -86,7 +86,7 @@ def demo(
     if in_process:
         arrived = run_in_process(grid, unknown, seed, backend, mode, out)
     else:
-        from daemon.cli.demo_world import run_with_daemon
+        from cli.demo_world import run_with_daemon
 
         arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace)
     raise typer.Exit(0 if arrived else 1)

@@ -11,11 +11,11 @@ import pytest
 import zenoh
 
 from drivers.belt.recorder import BeltRecorder
-from drivers.sim.courtyard import connected, dilate, make_courtyard
-from drivers.sim.node import SimNode
 from drivers.voice.recorder import VoiceRecorder
 from protocol import codec, keys
 from protocol.messages import Goal, GoalCell, GoalMetres, Health, NavState, NavStatus
+from sim.courtyard import connected, dilate, make_courtyard
+from sim.node import SimNode
 
 
 def put(session, key: str, msg) -> None:

@@ -17,8 +17,8 @@ from daemon.guidance.patterns import (
     decode,
     pulse_period_ms,
 )
-from drivers.sim.belt_walker import felt_direction
 from protocol.messages import BeltPattern, PatternKind
+from sim.belt_walker import felt_direction
 
 
 def deg(d: float) -> float:

@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from daemon.cli.options import comma_list
+from cli.options import comma_list
 
 
 def bench(
@@ -38,7 +38,7 @@ def bench(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from drivers.sim.benchmark import BenchConfig, run_bench, table_rows
+    from sim.benchmark import BenchConfig, run_bench, table_rows
 
     mode_list = [m.strip() for m in modes.split(",") if m.strip()]
     if not mode_list or any(m not in ("eds", "dss") for m in mode_list):
@@ -91,7 +91,7 @@ def bench(
         json_out.write_text(json.dumps(result.rows, indent=1) + "\n")
         console.print(f"rows written to {json_out}")
     if plot is not None:
-        from drivers.sim.benchmark import plot_steps
+        from sim.benchmark import plot_steps
 
         plot.parent.mkdir(parents=True, exist_ok=True)
         plot_steps(result, plot)
