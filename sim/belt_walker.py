@@ -21,7 +21,6 @@ Imports numpy only (the GPU machine runs the sim without pydantic).
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -100,10 +99,10 @@ class BeltWalker:
     collisions: int = 0
 
     def act(self, view: Any) -> str:
-        """The sim node's walker seam (``sim/node.py``): only ``view.belt`` and the
-        true map are used — never ``view.path``. A pattern past its TTL is felt as nothing."""
+        """The world's walker seam (``world.py``): only ``view.belt`` and the true map are
+        used — never ``view.path``. A pattern past its TTL is felt as nothing."""
         belt = view.belt
-        if belt is None or time.time() > belt.stamp + belt.ttl_ms / 1000.0:
+        if belt is None or view.now > belt.stamp + belt.ttl_ms / 1000.0:
             return "stand"
         return self.react(belt, view.true)
 

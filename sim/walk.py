@@ -1,39 +1,34 @@
 """The paper's closed loop: sense → inflate → replan → step one cell → repeat until the goal.
 
-Each step:
-1. the sensor reveals what it sees from the user's cell and heading (a map delta);
-2. ``InflatedMap.apply`` inflates the delta by the user's radius, giving the cells whose
-   blocked state flipped (timed as ``inflate_ms``);
-3. the planner repairs its field — ``update`` (EDS) or ``replan`` (DSS) — and the path
-   is read from the user's cell, in one ``update_and_path`` call (one host round trip on
-   the GPU); these two together are the paper's "replanning step" (``step_ms``, wall
-   clock, includes any device synchronisation);
-4. the user moves to the next cell of the path and faces half a metre ahead along it.
+The daemon's ``Navigator`` does the work (``closed_loop.run_walk``): each step the sensor's
+delta and the user's pose go in; the navigator inflates the delta by the user's radius
+(``inflate_ms``), repairs its field — EDS (planner ``eds``) or DSS (``dss``) — and reads the
+path from the user's cell in one planner call (``step_ms``: the paper's "replanning step",
+wall clock, with any device synchronisation), then turns the path into a belt pattern
+(``guide_ms``); ``nav_ms`` is the whole step. The user, a ``PathWalker``, moves to the next
+cell of the path and faces half a metre ahead along it; arrival is the goal cell itself, as
+in the paper.
 
-Both modes compute the same exact field and read the path with the same neighbour
-order, so EDS and DSS walk the same cells; only their cost differs.
+Both modes compute the same exact field and read the path with the same neighbour order,
+so EDS and DSS walk the same cells; only their cost differs.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from daemon.planning import make_planner
-from daemon.planning.grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, Cell, in_bounds
-from daemon.planning.inflation import InflatedMap
-from daemon.planning.interface import Planner
+from daemon.navigation import Navigator, NavigatorSettings
+from daemon.planning.grid import Cell
 
+from .closed_loop import Walk, run_walk
 from .courtyard import Scenario
-from .sensor import Sensor
+from .world import World
 
 MODES = ("eds", "dss")
-LOOKAHEAD_M = 0.5
-"""The user faces the path point this far ahead, so the field of view follows the path."""
 
 StepCallback = Callable[[int, Cell, int, float], None]
 """``on_step(step, cell, cells_changed, step_ms)`` after each step."""
@@ -41,7 +36,7 @@ StepCallback = Callable[[int, Cell, int, float], None]
 
 @dataclass
 class WalkResult:
-    """What one walk did, step by step (arrays have one entry per step)."""
+    """What one walk did, step by step (arrays have one entry per replanning step)."""
 
     mode: str
     planner: str
@@ -53,14 +48,17 @@ class WalkResult:
     iterations: np.ndarray
     cells_touched: np.ndarray
     plan_ms: np.ndarray
-    """The planner's own time for update/replan + path (``update_and_path``'s statistics)."""
+    """The planner's own time for the repair + path (its ``UpdateStats.ms``)."""
     step_ms: np.ndarray
-    """Wall clock around update/replan + path extraction: the replanning step."""
+    """Wall clock around the repair, the path read and its cost: the replanning step."""
     inflate_ms: np.ndarray
+    guide_ms: np.ndarray
+    nav_ms: np.ndarray
+    """The navigator's whole step: map, planner, guidance, status."""
     changed: np.ndarray
     """Cells whose blocked state flipped at this step."""
     init_ms: float
-    """The first full plan on the known map, before the walk."""
+    """The first full plan on the known map (the walk's first step), before the walk."""
     known: np.ndarray
     """The known occupancy at the end of the walk."""
     blocked: np.ndarray
@@ -79,29 +77,16 @@ class WalkResult:
         return float(np.where(d == 2, math.sqrt(2.0), 1.0).sum() * self.cell_m)
 
 
-def heading_along(path: np.ndarray, lookahead: int, fallback: float) -> float:
-    """Bearing (0 = east, counter-clockwise) from ``path[0]`` to the point ``lookahead`` on."""
-    if len(path) < 2:
-        return fallback
-    r0, c0 = path[0]
-    r1, c1 = path[min(lookahead, len(path) - 1)]
-    return math.atan2(-(int(r1) - int(r0)), int(c1) - int(c0))
-
-
-def escape_step(planner: Planner, cell: Cell) -> Cell | None:
-    """The best neighbour when the user's own cell has just become blocked.
-
-    A newly seen obstacle beside the user can inflate over the cell they stand on; they
-    then step to the neighbour (fixed order on ties) with the least cost to the goal.
-    """
-    best, best_cost = None, int(INF)
-    for dr, dc, cost in zip(NEIGHBOUR_DR, NEIGHBOUR_DC, NEIGHBOUR_COST, strict=True):
-        n = (cell[0] + int(dr), cell[1] + int(dc))
-        if in_bounds(planner.shape, n):
-            g = planner.cost_at(n)
-            if g < INF and g + int(cost) < best_cost:
-                best, best_cost = n, g + int(cost)
-    return best
+def paper_settings(scenario: Scenario, mode: str, backend: str, variant: str) -> NavigatorSettings:
+    """The navigator as the paper's walk runs it: its radius, arrival on the goal cell."""
+    return NavigatorSettings(
+        planner=mode,
+        backend=backend,
+        variant=variant,
+        cell_m=scenario.cell_m,
+        user_radius_m=scenario.radius_cells * scenario.cell_m,
+        arrive_m=scenario.cell_m / 2,  # on the goal cell, not beside it
+    )
 
 
 def walk(
@@ -111,74 +96,48 @@ def walk(
     mode: str = "eds",
     fov_deg: float = 80.0,
     max_steps: int | None = None,
-    planner: Planner | None = None,
+    navigator: Navigator | None = None,
     on_step: StepCallback | None = None,
 ) -> WalkResult:
-    """Walk ``scenario`` from start to goal, replanning every step; ``planner`` overrides."""
+    """Walk ``scenario`` from start to goal, replanning every step; ``navigator`` overrides."""
     if mode not in MODES:
         raise ValueError(f"unknown mode {mode!r}; choose one of {MODES}")
-    planner = planner if planner is not None else make_planner(backend, variant)
+    nav = navigator or Navigator("walk", paper_settings(scenario, mode, backend, variant))
     h, w = scenario.shape
     max_steps = max_steps if max_steps is not None else 10 * (h + w)
-    sensor = Sensor(scenario.sensor_range_cells, fov_deg)
-    lookahead = max(1, round(LOOKAHEAD_M / scenario.cell_m))
-    full = mode == "dss"
+    world = World(scenario, "path", fov_deg=fov_deg)
 
-    inflated = InflatedMap(scenario.known, scenario.radius_cells)
-    init_ms = planner.plan(inflated.blocked, scenario.goal).ms
-    user, heading = scenario.start, math.pi / 2  # facing north, towards the goal side
-    walked = [user]
-    rec: dict[str, list[float]] = {k: [] for k in ("it", "touched", "plan", "step", "infl", "chg")}
-    reason = "step limit"
-    for step in range(1, max_steps + 1):
-        if user == scenario.goal:
-            reason = "arrived"
-            break
-        cells, values = sensor.sense(scenario.true, inflated.occupancy, user, heading)
-        t0 = time.perf_counter()
-        flipped, now = inflated.apply(cells, values)
-        t1 = time.perf_counter()
-        stats, path = planner.update_and_path(flipped, now, user, full=full)
-        t2 = time.perf_counter()
-        for key, value in (
-            ("it", stats.iterations),
-            ("touched", stats.cells_touched),
-            ("plan", stats.ms),
-            ("step", (t2 - t1) * 1e3),
-            ("infl", (t1 - t0) * 1e3),
-            ("chg", flipped.size),
-        ):
-            rec[key].append(value)
-        if len(path) >= 2:
-            nxt = (int(path[1][0]), int(path[1][1]))
-            heading = heading_along(path, lookahead, heading)
-        else:
-            escape = escape_step(planner, user) if inflated.blocked[user] else None
-            if escape is None:
-                reason = "no path"
-                break
-            nxt = escape
-        user = nxt
-        walked.append(user)
-        if on_step is not None:
-            on_step(step, user, int(flipped.size), rec["step"][-1])
-    else:
-        if user == scenario.goal:
-            reason = "arrived"
+    def report(progress: Walk) -> None:
+        if on_step is not None and progress.reports:
+            last = progress.reports[-1]
+            on_step(progress.steps, progress.walked[-1], last.changed, last.plan.plan_ms)
+
+    # One more navigator step than walked steps: the last one says ARRIVED.
+    done = run_walk(world, nav, max_actions=max_steps + 1, step_s=1.0, on_step=report)
+    reports = done.reports[1:]  # the first step is the initial plan
+    stats = [r.plan.stats for r in reports]
+
+    def column(values: list, dtype: type) -> np.ndarray:
+        return np.array(values, dtype=dtype)
+
+    grid = nav.maps.map
+    assert grid is not None
     return WalkResult(
         mode=mode,
-        planner=getattr(planner, "name", type(planner).__name__),
-        arrived=reason == "arrived",
-        reason=reason,
-        walked=np.array(walked, dtype=np.int32),
-        iterations=np.array(rec["it"], dtype=np.int64),
-        cells_touched=np.array(rec["touched"], dtype=np.int64),
-        plan_ms=np.array(rec["plan"], dtype=np.float64),
-        step_ms=np.array(rec["step"], dtype=np.float64),
-        inflate_ms=np.array(rec["infl"], dtype=np.float64),
-        changed=np.array(rec["chg"], dtype=np.int64),
-        init_ms=init_ms,
-        known=inflated.occupancy.copy(),
-        blocked=inflated.blocked.copy(),
+        planner=nav.route.name,
+        arrived=done.arrived,
+        reason=done.reason if done.reason != "action limit" else "step limit",
+        walked=np.array(done.walked, dtype=np.int32),
+        iterations=column([s.iterations if s else 0 for s in stats], np.int64),
+        cells_touched=column([s.cells_touched if s else 0 for s in stats], np.int64),
+        plan_ms=column([s.ms if s else 0.0 for s in stats], np.float64),
+        step_ms=column([r.plan.plan_ms for r in reports], np.float64),
+        inflate_ms=column([r.inflate_ms for r in reports], np.float64),
+        guide_ms=column([r.guide_ms for r in reports], np.float64),
+        nav_ms=column([r.step_ms for r in reports], np.float64),
+        changed=column([r.changed for r in reports], np.int64),
+        init_ms=done.reports[0].plan.plan_ms if done.reports else math.nan,
+        known=grid.occupancy.copy(),
+        blocked=grid.blocked.copy(),
         cell_m=scenario.cell_m,
     )

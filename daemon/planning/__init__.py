@@ -5,10 +5,12 @@ the GPU machine — which has no zenoh or pydantic — can run the planner's tes
 benchmarks.
 """
 
-from .backends import cuda_available, make_planner
+from .backends import cuda_available
+from .fallback import DeviceFault, device_errors
 from .grid import CELL_M, DIAGONAL, FREE, INF, OCCUPIED, STRAIGHT, UNKNOWN, Cell
 from .inflation import InflatedMap
 from .interface import Planner, UpdateStats
+from .registry import PLANNERS, make_planner
 
 __all__ = [
     "CELL_M",
@@ -16,12 +18,15 @@ __all__ = [
     "FREE",
     "INF",
     "OCCUPIED",
+    "PLANNERS",
     "STRAIGHT",
     "UNKNOWN",
     "Cell",
+    "DeviceFault",
     "InflatedMap",
     "Planner",
     "UpdateStats",
     "cuda_available",
+    "device_errors",
     "make_planner",
 ]

@@ -147,3 +147,4 @@ def checked_plan_input(blocked: np.ndarray, goal: Cell) -> tuple[np.ndarray, tup
     if not in_bounds(shape, goal):
         raise ValueError(f"goal {goal} is outside the {shape[0]}x{shape[1]} map")
     return blocked, shape, goal
+GlobalPlanner = Planner

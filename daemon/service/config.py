@@ -13,13 +13,16 @@ import socket
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
     SettingsConfigDict,
     TomlConfigSettingsSource,
 )
+
+from daemon.navigation import NavigatorSettings
+from daemon.planning.registry import PLANNERS
 
 DEFAULT_CONFIG_FILE = Path("/etc/guidebelt/guidebelt.toml")
 
@@ -54,6 +57,7 @@ class DaemonConfig(BaseSettings):
 
     daemon_id: str = Field(default_factory=socket.gethostname)
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
+    planner: str = Field(default="eds", description="a planner of the registry: eds, dss, …")
     backend: Literal["auto", "cpu", "cuda", "reference"] = "auto"
     variant: Literal["fast", "paper"] = "fast"
     cell_m: float = Field(default=0.10, gt=0)
@@ -69,6 +73,26 @@ class DaemonConfig(BaseSettings):
     )
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
     log_format: Literal["journal", "json"] = "journal"
+
+    @field_validator("planner")
+    @classmethod
+    def _known_planner(cls, name: str) -> str:
+        if name not in PLANNERS:
+            raise ValueError(f"unknown planner {name!r}; choose one of {', '.join(PLANNERS)}")
+        return name
+
+    def navigator_settings(self) -> NavigatorSettings:
+        """What each user's navigator takes from the daemon's config."""
+        return NavigatorSettings(
+            planner=self.planner,
+            backend=self.backend,
+            variant=self.variant,
+            cell_m=self.cell_m,
+            user_radius_m=self.user_radius_m,
+            lang=self.lang,
+            stale_pose_s=self.stale_pose_s,
+            landmarks=dict(self.landmarks),
+        )
 
     @classmethod
     def settings_customise_sources(

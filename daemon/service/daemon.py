@@ -17,6 +17,7 @@ import time
 
 import zenoh
 
+from daemon.navigation import Navigator
 from protocol import codec, keys
 from protocol.messages import Goal, Health, MapDelta, NavState, NavStatus, Pose
 
@@ -24,7 +25,6 @@ from .bridge import Bridge, open_session
 from .config import DaemonConfig
 from .runner import UserRunner
 from .sdnotify import Notifier
-from .session import UserSession
 
 log = logging.getLogger("guidebelt.daemon")
 
@@ -105,7 +105,7 @@ class Daemon:
             self.notifier.watchdog()
             now = asyncio.get_running_loop().time()
             for user, runner in list(self.runners.items()):
-                active = runner.session.goal_cell is not None and runner.session.state in ACTIVE
+                active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
                 if active:
                     runner.tick()  # refreshes the belt; a pose gone stale stops the user
                 elif now - runner.last_input > self.config.user_idle_s:
@@ -131,12 +131,12 @@ class Daemon:
         if len(self.runners) >= self.config.max_users:
             return None
         assert self._bridge is not None
-        session = UserSession(user, self.config)
+        navigator = Navigator(user, self.config.navigator_settings())
         runner = UserRunner(
-            session, self._bridge.publish, self._bridge.request, self.config.snapshot_timeout_s
+            navigator, self._bridge.publish, self._bridge.request, self.config.snapshot_timeout_s
         )
         self.runners[user] = runner
-        log.info("new user", extra={"fields": {"user": user, "backend": session.planner.name}})
+        log.info("new user", extra={"fields": {"user": user, "backend": navigator.route.name}})
         return runner
 
     def _on_sample(self, leaf: str, key: str, payload: bytes) -> None:
@@ -183,7 +183,7 @@ class Daemon:
             users=sorted(self.runners),
             backend=self.config.backend,
             rejected=self.rejected_unrouted
-            + sum(r.session.rejected for r in self.runners.values()),
+            + sum(r.navigator.rejected for r in self.runners.values()),
             stamp=time.time(),
         )
 
@@ -209,7 +209,7 @@ class Daemon:
     def _reply_per_user(self, query: zenoh.Query, leaf: str) -> None:
         for user in self._matching_users(query, leaf):
             runner = self.runners[user]
-            payload = runner.last_status or codec.encode(runner.session.status(time.time()))
+            payload = runner.last_status or codec.encode(runner.navigator.status(time.time()))
             query.reply(keys.status(user), payload)
 
     def _reply_snapshots(self, query: zenoh.Query) -> None:

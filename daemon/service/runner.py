@@ -1,7 +1,7 @@
 """The asyncio side of one user: an inbox filled on the loop, a worker that steps it.
 
 Inputs only touch the inbox (loop thread). One task per user takes the whole inbox and
-runs ``UserSession.step`` on the user's own worker thread, so planning never blocks the
+runs ``Navigator.step`` on the user's own worker thread, so planning never blocks the
 loop and a user's map and planner are only ever touched by one thread; the worker
 publishes what the step produced. While a step runs, new inputs pile up and are
 coalesced into the next one.
@@ -17,11 +17,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import zenoh
 
+from daemon.navigation import Inbox, Navigator, Rejection, StepOutput
 from protocol import codec, keys
 from protocol.messages import Goal, MapDelta, MapSnapshot, Pose
-
-from .rejections import Rejection
-from .session import Inbox, StepOutput, UserSession
 
 log = logging.getLogger("guidebelt.runner")
 
@@ -29,13 +27,13 @@ log = logging.getLogger("guidebelt.runner")
 class UserRunner:
     def __init__(
         self,
-        session: UserSession,
+        navigator: Navigator,
         publish: Callable[[str, bytes], None],
         request: Callable[[str, float, Callable[[bytes | None], None]], None],
         snapshot_timeout_s: float,
     ) -> None:
-        self.session = session
-        self.user = session.user
+        self.navigator = navigator
+        self.user = navigator.user
         self._publish = publish
         self._request = request
         self._snapshot_timeout_s = snapshot_timeout_s
@@ -96,11 +94,11 @@ class UserRunner:
         """On the worker: step, then publish straight away (zenoh publishers are
         thread-safe), so the belt pattern does not wait for the loop to wake up."""
         try:
-            out = self.session.step(inbox, time.time())
+            out = self.navigator.step(inbox, time.time())
         except Exception as exc:  # a bug must not take every user down with it
             log.exception("step failed", extra={"fields": {"user": self.user}})
             fail = Inbox(rejections=[Rejection("internal", f"{type(exc).__name__}: {exc}")])
-            out = self.session.step(fail, time.time())
+            out = self.navigator.step(fail, time.time())
         try:
             self._emit(out)
         except zenoh.ZError as exc:  # the session is closing under us: nothing to tell
@@ -146,7 +144,7 @@ class UserRunner:
         """Answer with this user's map, read on the worker thread between steps."""
         loop = asyncio.get_running_loop()
         try:
-            snap = await loop.run_in_executor(self._executor, self.session.snapshot, time.time())
+            snap = await loop.run_in_executor(self._executor, self.navigator.snapshot, time.time())
             if snap is None:
                 query.reply_err(b"no map yet")
             else:
@@ -166,7 +164,7 @@ class UserRunner:
         try:
             await loop.run_in_executor(
                 self._executor,
-                lambda: self._emit(self.session.shutdown(time.time(), code, reason)),
+                lambda: self._emit(self.navigator.shutdown(time.time(), code, reason)),
             )
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)

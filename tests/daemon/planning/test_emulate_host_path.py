@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "emulate_host_path.py"
+SCRIPT = Path(__file__).resolve().parents[3] / "scripts" / "emulate_host_path.py"
 
 
 @pytest.mark.timeout(120)

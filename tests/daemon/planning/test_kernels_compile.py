@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-KERNELS = Path(__file__).resolve().parents[2] / "daemon" / "planning" / "kernels"
+KERNELS = Path(__file__).resolve().parents[3] / "daemon" / "planning" / "kernels"
 
 # (file, defines): what CudaPlanner compiles (cuda_planner.py: SCANS, SCHED, MIN_BLOCKS and
 # PROFILE for fast.cu; path_tiles.cu and path.cu for the path; paper.cu for the paper's form).

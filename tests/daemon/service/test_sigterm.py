@@ -20,7 +20,7 @@ from drivers.belt.recorder import BeltRecorder, Recorder
 from protocol import codec, keys
 from protocol.messages import Goal, GoalCell, MapDelta, NavStatus, Pose
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def read_notify(sock: socket.socket, want: str, timeout_s: float) -> list[str]:

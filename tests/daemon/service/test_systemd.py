@@ -13,7 +13,7 @@ import pytest
 
 from daemon.service.config import load_config
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 UNITS = sorted((ROOT / "systemd").glob("*.service"))
 INSTALLED = "/opt/guidebelt/bin/guidebelt"
 

@@ -17,7 +17,7 @@ from protocol.messages import (
     VoiceCue,
 )
 
-from .rejections import Rejection
+from .outcomes import Rejection
 
 
 @dataclass

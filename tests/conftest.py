@@ -1,4 +1,8 @@
-"""A real daemon on a thread, on a free 127.0.0.1 port, multicast scouting off."""
+"""A real daemon on a thread, on a free 127.0.0.1 port, multicast scouting off.
+
+Shared by the service, CLI and simulator tests. The daemon's modules (pydantic, zenoh) are
+imported inside the fixtures: the GPU machine, which has neither, collects these tests too.
+"""
 
 from __future__ import annotations
 
@@ -8,17 +12,16 @@ import time
 import numpy as np
 import pytest
 
-from daemon.service.config import DaemonConfig
-from daemon.service.embedded import DaemonThread
-from daemon.service.session import Inbox, UserSession
-from protocol.messages import Goal, GoalCell, MapDelta, Pose
-
 
 def warm_up() -> None:
     """Compile (or load from numba's cache) the planner and guidance once, before any
     test's own time limits run: a cold compile takes 10-20 s on a loaded machine. The
     first test of each module carries this in its (generous) timeout."""
-    s = UserSession("warm", DaemonConfig(backend="cpu"))
+    from daemon.navigation import Inbox, Navigator
+    from daemon.service.config import DaemonConfig
+    from protocol.messages import Goal, GoalCell, MapDelta, Pose
+
+    s = Navigator("warm", DaemonConfig(backend="cpu").navigator_settings())
     now = time.time()
     inbox = Inbox(
         deltas=[MapDelta.from_arrays(0, (20, 20), np.array([0]), np.array([1]), now)],
@@ -36,6 +39,8 @@ def daemon_threads() -> list[threading.Thread]:
 
 @pytest.fixture(scope="module")
 def daemon():
+    from daemon.service.embedded import DaemonThread
+
     warm_up()
     with DaemonThread(backend="cpu") as d:
         yield d

@@ -1,0 +1,316 @@
+"""One user's navigation: map, inflation, planner, goal, pose, path and guidance.
+
+``Navigator.step`` takes everything that arrived for the user since the last step (an
+``Inbox``: map deltas or a snapshot, the latest pose, a goal, refusals, a clock tick) and
+returns what to tell the user (a ``StepOutput``: belt patterns, voice cues, the path, status).
+The daemon wraps one navigator per user with zenoh; every simulated walk and the benchmark
+drive the same class, so what they measure is what the daemon does. Nothing here knows about
+zenoh, threads or asyncio.
+
+A step, top to bottom: refusals → map (``MapKeeper``: sequence, resync, inflation) → goal →
+pose → path (``Route``: planner, repair, escape, CPU fallback) → guidance → status.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from daemon.guidance.guide import Guidance
+from daemon.planning.grid import Cell, in_bounds, xy_to_cell
+from daemon.planning.inflation import radius_in_cells
+from daemon.planning.registry import make_planner
+from protocol.messages import (
+    Goal,
+    GoalCell,
+    GoalLandmark,
+    GoalMetres,
+    MapSnapshot,
+    NavState,
+    NavStatus,
+    PatternKind,
+    Pose,
+)
+
+from .inbox import Inbox, StepOutput
+from .map_keeper import MapKeeper, MapUpdate
+from .outcomes import OUTCOMES, Rejection
+from .route import PlannerFactory, PlanReport, Route
+
+log = logging.getLogger("guidebelt.navigation")
+
+STATUS_REFRESH_S = 1.0
+ESCAPE_MARGIN_CELLS = 2
+"""How far beyond the inflation radius a way out of the margin is looked for."""
+
+
+@dataclass(frozen=True)
+class NavigatorSettings:
+    """What one user's navigation needs to know; the daemon's config supplies it."""
+
+    planner: str = "eds"
+    backend: str = "auto"
+    variant: str = "fast"
+    cell_m: float = 0.10
+    user_radius_m: float = 0.3
+    lang: str = "en"
+    stale_pose_s: float = 1.0
+    arrive_m: float = 0.3
+    landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+
+@dataclass(slots=True)
+class StepReport:
+    """How long the last step took, by part, and what the planner did in it."""
+
+    changed: int = 0
+    """Cells whose blocked state flipped."""
+    inflate_ms: float = 0.0
+    """Applying the step's deltas to the map and inflating them."""
+    plan: PlanReport = field(default_factory=PlanReport)
+    guide_ms: float = 0.0
+    step_ms: float = 0.0
+    """The whole step, inputs to outputs."""
+
+
+class Navigator:
+    def __init__(
+        self,
+        user: str,
+        settings: NavigatorSettings,
+        *,
+        guidance: Guidance | None = None,
+        planner_factory: PlannerFactory | None = None,
+    ) -> None:
+        """``planner_factory(backend)`` overrides the registry (tests inject failing planners)."""
+        self.user = user
+        self.settings = settings
+        self.radius_cells = radius_in_cells(settings.user_radius_m, settings.cell_m)
+        self.maps = MapKeeper(self.radius_cells)
+        self.route = Route(
+            planner_factory
+            or (lambda backend: make_planner(settings.planner, backend, settings.variant)),
+            settings.backend,
+            self.radius_cells + ESCAPE_MARGIN_CELLS,
+        )
+        # Guidance may shave the inflation margin; it must know the real radius.
+        self.guidance = guidance or Guidance(
+            cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
+            arrive_m=settings.arrive_m,
+        )  # fmt: skip
+        self.goal: Goal | None = None
+        self.goal_cell: Cell | None = None
+        self.pose: Pose | None = None
+        self.pose_cell: Cell | None = None
+        self._last_path_flat = np.empty(0, np.int64)
+        self.state = NavState.IDLE
+        self.rejected = 0
+        self.steps = 0
+        self.replans = 0
+        self.last = StepReport()
+        self._last_status: tuple | None = None
+        self._last_status_at = 0.0
+        self._distance_m: float | None = None
+
+    # -- the step -------------------------------------------------------------------------
+
+    def step(self, inbox: Inbox, now: float) -> StepOutput:
+        t0 = time.perf_counter()
+        self.last = StepReport()
+        out = StepOutput()
+        for rej in inbox.rejections:
+            self._reject(rej, now, out)
+        if inbox.snapshot_failed:
+            self.maps.snapshot_failed()
+        if inbox.snapshot is not None:
+            self._take_map(self.maps.take_snapshot(inbox.snapshot, self.user), now, out)
+        if inbox.deltas:
+            t1 = time.perf_counter()
+            update = self.maps.take_deltas(inbox.deltas)
+            self.last.inflate_ms = (time.perf_counter() - t1) * 1e3
+            self._take_map(update, now, out)
+        if inbox.goal is not None:
+            self.goal, self.goal_cell = inbox.goal, None
+            self.route.invalidate()
+            self.guidance.reset()
+            self._set_state(NavState.PLANNING, "", "goal received", now, out, force=True)
+        if self.goal is not None and self.goal_cell is None and self.maps.map is not None:
+            self._resolve_goal(now, out)
+        if inbox.pose is not None:
+            self._take_pose(inbox.pose, now, out)
+        elif self.pose is not None and self.pose_cell is None and self.maps.map is not None:
+            self._take_pose(self.pose, now, out)  # the pose came before the map
+        if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
+            self._guide(now, out)
+        self.route.settle()  # no path read this step: the planner still gets the changes
+        self.steps += 1
+        self.last.step_ms = (time.perf_counter() - t0) * 1e3
+        return out
+
+    def shutdown(
+        self, now: float, code: str = "shutdown", reason: str = "daemon stopping"
+    ) -> StepOutput:
+        """The last words: a STOP (or, for an idle user, OFF) pattern and a final status."""
+        out = StepOutput()
+        self._reject(Rejection(code, reason, counted=False), now, out)
+        return out
+
+    def snapshot(self, now: float) -> MapSnapshot | None:
+        return self.maps.snapshot(now)
+
+    # -- map, goal, pose ------------------------------------------------------------------
+
+    def _take_map(self, update: MapUpdate, now: float, out: StepOutput) -> None:
+        for rej in update.rejections:
+            self._reject(rej, now, out)
+        out.want_snapshot |= update.want_snapshot
+        if update.new_map:
+            self.route.invalidate()
+            if self.goal is not None:
+                self.goal_cell = None  # checked again against the new map
+        if update.flipped is not None and update.flipped.size:
+            assert self.maps.map is not None
+            self.last.changed += int(update.flipped.size)
+            if self.maps.map.blocked.reshape(-1)[self._last_path_flat].any():
+                self.replans += 1  # a newly seen obstacle cut the path the user was following
+            self.route.change(update.flipped, update.blocked_now)
+
+    def _resolve_goal(self, now: float, out: StepOutput) -> None:
+        assert self.maps.map is not None and self.goal is not None
+        target, shape, cell_m = self.goal.target, self.maps.map.shape, self.settings.cell_m
+        if isinstance(target, GoalCell):
+            cell = (target.row, target.col)
+        elif isinstance(target, GoalMetres):
+            cell = xy_to_cell(shape, target.x, target.y, cell_m)
+        elif isinstance(target, GoalLandmark):
+            where = self.settings.landmarks.get(target.name)
+            if where is None:
+                return self._drop_goal("unknown_landmark", f"no landmark {target.name!r}", now, out)
+            cell = xy_to_cell(shape, where[0], where[1], cell_m)
+        if not in_bounds(shape, cell):
+            return self._drop_goal("goal_off_map", f"goal cell {cell} is outside {shape}", now, out)
+        if self.maps.map.blocked[cell]:
+            what = "an obstacle" if self.maps.map.occupancy[cell] == 1 else "too close to one"
+            return self._drop_goal("goal_in_obstacle", f"goal cell {cell} is {what}", now, out)
+        self.goal_cell = (int(cell[0]), int(cell[1]))
+
+    def _drop_goal(self, code: str, reason: str, now: float, out: StepOutput) -> None:
+        self.goal, self.goal_cell = None, None
+        self.route.invalidate()
+        self._reject(Rejection(code, reason), now, out)
+
+    def _take_pose(self, pose: Pose, now: float, out: StepOutput) -> None:
+        self.pose, self.pose_cell = None, None
+        age = now - pose.stamp
+        if age > self.settings.stale_pose_s:
+            return self._reject(Rejection("stale_pose", f"pose is {age:.2f} s old"), now, out)
+        self.pose = pose
+        if self.maps.map is None:
+            return
+        cell = xy_to_cell(self.maps.map.shape, pose.x, pose.y, self.settings.cell_m)
+        if not in_bounds(self.maps.map.shape, cell):
+            self.pose = None
+            where = f"({pose.x:.2f}, {pose.y:.2f}) m"
+            return self._reject(Rejection("pose_off_map", f"pose {where} is off the map"), now, out)
+        self.pose_cell = cell
+
+    # -- path and guidance ----------------------------------------------------------------
+
+    def _guide(self, now: float, out: StepOutput) -> None:
+        grid = self.maps.map
+        assert grid is not None and self.goal_cell is not None and self.pose_cell is not None
+        assert self.pose is not None
+        age = now - self.pose.stamp
+        if age > self.settings.stale_pose_s:
+            # No fresh position: never keep guiding on an old one.
+            self.pose, self.pose_cell = None, None
+            return self._reject(Rejection("stale_pose", f"no pose for {age:.2f} s"), now, out)
+        path, cost = self.route.path_from(
+            grid.blocked, grid.occupancy, self.goal_cell, self.pose_cell
+        )
+        self.last.plan = self.route.report
+        self._last_path_flat = path[:, 0].astype(np.int64) * grid.shape[1] + path[:, 1]
+        if len(path) == 0:
+            self._distance_m = None
+            if self.state != NavState.NO_PATH:
+                self._reject(Rejection("no_path", "no path to the goal", counted=False), now, out)
+            return
+        self._distance_m = cost / 10 * self.settings.cell_m
+        t0 = time.perf_counter()
+        g = self.guidance.guide(path, self.pose, grid.shape, now, blocked=grid.blocked)
+        self.last.guide_ms = (time.perf_counter() - t0) * 1e3
+        out.belt.append(g.pattern)
+        if g.cue is not None:
+            out.voice.append(g.cue)
+        out.path_cells = path
+        out.path_meta = dict(
+            cost=cost,
+            cell_m=self.settings.cell_m,
+            height=grid.shape[0],
+            width=grid.shape[1],
+            pose_stamp=self.pose.stamp,
+            stamp=now,
+            map_seq=self.maps.seq,
+        )
+        if g.pattern.kind == PatternKind.ARRIVED:
+            self._set_state(NavState.ARRIVED, "", "at the goal", now, out)
+            self.goal, self.goal_cell = None, None  # done: stay quiet until the next goal
+            self.route.invalidate()
+        elif g.pattern.kind == PatternKind.REROUTE:
+            self._set_state(NavState.REROUTING, "", "new path around an obstacle", now, out)
+        else:
+            self._set_state(NavState.GUIDING, "", "", now, out)
+
+    # -- reporting ------------------------------------------------------------------------
+
+    def _reject(self, rej: Rejection, now: float, out: StepOutput) -> None:
+        outcome = OUTCOMES[rej.code]
+        if rej.counted:
+            self.rejected += 1
+        log.log(
+            logging.WARNING if rej.counted else logging.INFO,
+            "rejected" if rej.counted else rej.code,
+            extra={"fields": {"user": self.user, "code": rej.code, "reason": rej.reason}},
+        )
+        g = self.guidance.event(outcome.pattern, now, reason=rej.code)
+        out.belt.append(g.pattern)
+        if g.cue is not None:
+            out.voice.append(g.cue)
+        self._set_state(outcome.state, rej.code, rej.reason, now, out, force=True)
+
+    def _set_state(
+        self,
+        state: NavState,
+        code: str,
+        reason: str,
+        now: float,
+        out: StepOutput,
+        force: bool = False,
+    ) -> None:
+        key = (state, code, reason)
+        if not force and key == self._last_status and now - self._last_status_at < STATUS_REFRESH_S:
+            self.state = state
+            return
+        self.state = state
+        self._last_status = key
+        self._last_status_at = now
+        out.statuses.append(self.status(now, code=code, reason=reason))
+
+    def status(self, now: float, code: str = "", reason: str = "") -> NavStatus:
+        if self._last_status is not None and not code and not reason:
+            _, code, reason = self._last_status
+        guiding = self.state in (NavState.GUIDING, NavState.REROUTING)
+        return NavStatus(
+            state=self.state,
+            reason=reason,
+            code=code,
+            stamp=now,
+            distance_m=self._distance_m if guiding else None,
+            rejected=self.rejected,
+            replans=self.replans,
+            backend=self.route.name,
+        )

@@ -1,0 +1,134 @@
+"""The planner of one user's map and goal: plans, repairs, reads paths, survives the device.
+
+``Route`` owns the planner the registry built for the navigator's settings. The changes of a
+step wait (``change``) until the step reads its path, so the repair and the path go to the
+planner in one ``update_and_path`` call (one round trip on the GPU).
+
+A CUDA failure moves this user to the CPU: the navigator owns the map, so the new CPU planner
+is planned from that map, which already holds every change, and the failed call is simply
+asked again. Nothing needs a mirror of the device's state.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from daemon.planning import device_errors
+from daemon.planning.escape import escape_path
+from daemon.planning.grid import INF, Cell
+from daemon.planning.interface import GlobalPlanner, UpdateStats
+
+log = logging.getLogger("guidebelt.navigation")
+
+PlannerFactory = Callable[[str], GlobalPlanner]
+"""``factory(backend) -> planner``; the navigator asks for ``"cpu"`` after a device failure."""
+
+
+@dataclass(slots=True)
+class PlanReport:
+    """What the planner did in one step (for status, the simulator and the benchmark)."""
+
+    stats: UpdateStats | None = None
+    """The repair's statistics; None when the step changed nothing the planner had."""
+    plan_ms: float = 0.0
+    """Wall time of every planner call in the step: plan, repair and path read."""
+    planned: bool = False
+    """The step planned from scratch (a new map or goal, or a move to the CPU)."""
+
+
+class Route:
+    def __init__(self, factory: PlannerFactory, backend: str, escape_reach: int) -> None:
+        self._factory = factory
+        self.planner = factory(backend)
+        self._escape_reach = escape_reach
+        self._errors = device_errors()
+        self._planned = False
+        self._pending: tuple[np.ndarray, np.ndarray] | None = None
+        self.fallback_reason: str | None = None
+        self.report = PlanReport()
+
+    @property
+    def name(self) -> str:
+        return self.planner.name
+
+    def invalidate(self) -> None:
+        """A new map or goal: the next path plans from scratch (which includes any change)."""
+        self._planned = False
+        self._pending = None
+
+    def change(self, flipped: np.ndarray, blocked_now: np.ndarray) -> None:
+        """Cells whose blocked state flipped; given to the planner with the next path read."""
+        if not self._planned:
+            return  # the next plan reads the whole map
+        if self._pending is not None:  # a second batch in one step (rare): hand over the first
+            self.settle()
+        self._pending = (flipped, blocked_now)
+
+    def settle(self) -> None:
+        """Give the planner the step's changes when the step reads no path."""
+        if self._pending is not None:
+            self._guarded(lambda p: self._record(p.update(*self._take())), retry=False)
+
+    def path_from(
+        self, blocked: np.ndarray, occupancy: np.ndarray, goal: Cell, cell: Cell
+    ) -> tuple[np.ndarray, int]:
+        """The path from ``cell`` to ``goal`` and its cost (empty and INF if none).
+
+        From inside the inflation margin (a newly seen obstacle grew over the user, or the user
+        drifted into it) the path first leads straight out to the nearest usable free cell.
+        """
+        t0 = time.perf_counter()
+        self.report = PlanReport()
+        result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), retry=True)
+        self.report.plan_ms = (time.perf_counter() - t0) * 1e3
+        return result
+
+    # -- inside ---------------------------------------------------------------------------
+
+    def _path(
+        self,
+        planner: GlobalPlanner,
+        blocked: np.ndarray,
+        occupancy: np.ndarray,
+        goal: Cell,
+        cell: Cell,
+    ) -> tuple[np.ndarray, int]:
+        if not self._planned:
+            self._record(planner.plan(blocked, goal))
+            self._planned, self._pending, self.report.planned = True, None, True
+        if blocked[cell]:
+            if self._pending is not None:
+                self._record(planner.update(*self._take()))
+            return escape_path(planner, blocked, occupancy, cell, self._escape_reach)
+        if self._pending is None:
+            path = planner.path(cell)
+        else:
+            stats, path = planner.update_and_path(*self._take(), cell)
+            self._record(stats)
+        return path, (int(planner.cost_at(cell)) if len(path) else int(INF))
+
+    def _take(self) -> tuple[np.ndarray, np.ndarray]:
+        pending, self._pending = self._pending, None
+        assert pending is not None
+        return pending
+
+    def _record(self, stats: UpdateStats) -> None:
+        self.report.stats = stats
+
+    def _guarded(self, call: Callable[[GlobalPlanner], object], retry: bool):
+        """``call(planner)``; on a device error, the rest of the session on the CPU, where the
+        call is asked again (``retry``) or left to the next path read, which plans afresh."""
+        try:
+            return call(self.planner)
+        except self._errors as exc:
+            self.fallback_reason = f"{type(exc).__name__}: {exc}"
+            log.warning("planner failed on the device (%s); this user continues on the CPU",
+                        self.fallback_reason)  # fmt: skip
+            self.planner = self._factory("cpu")
+            self.invalidate()
+            return call(self.planner) if retry else None

@@ -1,0 +1,118 @@
+"""A walk in one process: the world and the daemon's own ``Navigator``, on a simulated clock.
+
+Each action: what the sensor saw since the last one (a map delta) and the user's pose go to
+the navigator in one step, as the daemon's runner coalesces them; the walker acts on the path
+and the belt pattern the step produced; the clock moves on by ``step_s``. The walk ends when
+the navigator says ARRIVED, when it has no path and the walker stands still, or at a limit.
+
+The benchmark, the paper's walk, the belt walks and the studies all run through here, so each
+figure they give is the figure of the navigator the daemon runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from daemon.navigation import Inbox, Navigator, StepReport
+from protocol.messages import BeltPattern, Goal, GoalCell, NavState, Pose
+
+from .world import World
+
+STEP_S = 0.6
+"""Simulated seconds per walker action (one step or one turn on the spot)."""
+
+
+@dataclass
+class Walk:
+    """What one walk did, one entry per navigator step."""
+
+    arrived: bool
+    reason: str
+    """``arrived``, ``no path``, ``left the map`` or ``action limit``."""
+    walked: list[tuple[int, int]] = field(default_factory=list)
+    """The user's cell after every step taken, start first."""
+    track: list[tuple[float, float]] = field(default_factory=list)
+    """The walker's position in metres (x, y) after every action, start first."""
+    reports: list[StepReport] = field(default_factory=list)
+    belts: list[BeltPattern] = field(default_factory=list)
+    """The last pattern of every step (what the user felt while acting)."""
+    cues: int = 0
+    actions: dict[str, int] = field(default_factory=dict)
+    final_state: NavState = NavState.IDLE
+
+    @property
+    def steps(self) -> int:
+        return max(0, len(self.walked) - 1)
+
+
+PoseSource = Callable[[World, float], Pose | None]
+"""``(world, now) -> pose`` the navigator is given; the true pose unless a localiser stands in."""
+Mover = Callable[[World, float], None]
+"""Changes the world's true map as time goes on (a person who walks into a doorway)."""
+
+
+def true_pose(world: World, now: float) -> Pose:
+    return world.pose(now)
+
+
+def run_walk(
+    world: World,
+    navigator: Navigator,
+    *,
+    max_actions: int,
+    step_s: float = STEP_S,
+    pose_source: PoseSource = true_pose,
+    mover: Mover | None = None,
+    stop_on_no_path: bool = True,
+    on_step: Callable[[Walk], None] | None = None,
+) -> Walk:
+    """Walk ``world.scenario`` from its start to its goal with ``navigator`` guiding.
+
+    ``stop_on_no_path``: end the walk the first time the navigator finds no path (in a static
+    world nothing will change that); a walker in a changing world may wait instead.
+    """
+    now = 0.0
+    goal = Goal(target=GoalCell(row=world.scenario.goal[0], col=world.scenario.goal[1]), stamp=now)
+    deltas = world.first_deltas(now)
+    walk = Walk(arrived=False, reason="action limit", walked=[world.cell()],
+                track=[(world.walker.x, world.walker.y)])  # fmt: skip
+    inbox = Inbox(deltas=deltas, goal=goal)
+    belt: BeltPattern | None = None
+    for _ in range(max_actions):
+        inbox.pose = pose_source(world, now)
+        out = navigator.step(inbox, now)
+        walk.reports.append(navigator.last)
+        walk.cues += len(out.voice)
+        if out.belt:
+            belt = out.belt[-1]
+            walk.belts.append(belt)
+        if navigator.state == NavState.ARRIVED:
+            walk.arrived, walk.reason = True, "arrived"
+            break
+        action = world.act(out.path_cells, belt, now)
+        walk.actions[action] = walk.actions.get(action, 0) + 1
+        walk.track.append((world.walker.x, world.walker.y))
+        if action == "step":
+            walk.walked.append(world.cell())
+        if not _on_map(world):
+            walk.reason = "left the map"
+            break
+        if stop_on_no_path and navigator.state == NavState.NO_PATH:
+            walk.reason = "no path"
+            break
+        if on_step is not None:
+            on_step(walk)
+        now += step_s
+        if mover is not None:
+            mover(world, now)
+        seen = world.sense(now)
+        inbox = Inbox(deltas=[seen] if seen is not None else [])
+    walk.final_state = navigator.state
+    return walk
+
+
+def _on_map(world: World) -> bool:
+    r, c = world.cell()
+    h, w = world.shape
+    return 0 <= r < h and 0 <= c < w

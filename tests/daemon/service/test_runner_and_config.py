@@ -1,0 +1,102 @@
+"""The service around the navigator: the runner's coalescing, config, systemd notify, journald."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+import time
+
+import numpy as np
+import pytest
+
+from daemon.navigation import Navigator
+from daemon.service.config import DaemonConfig, load_config
+from daemon.service.logs import JournalFormatter
+from daemon.service.runner import UserRunner
+from daemon.service.sdnotify import Notifier
+from protocol import codec
+from protocol.messages import Goal, GoalCell, MapDelta, NavPath, Pose
+
+SHAPE = (30, 30)
+
+
+def delta(seq, cells, values, shape=SHAPE) -> MapDelta:
+    return MapDelta.from_arrays(seq, shape, np.array(cells), np.array(values), time.time())
+
+
+def pose(cell, stamp=None) -> Pose:
+    r, c = cell
+    return Pose(x=(c + 0.5) / 10, y=(SHAPE[0] - r - 0.5) / 10, heading=1.57,
+                stamp=stamp or time.time())
+
+
+def goal(r, c) -> Goal:
+    return Goal(target=GoalCell(row=r, col=c), stamp=time.time())
+
+
+def test_the_latest_pose_wins_and_deltas_coalesce_in_the_runner():
+    published: list[tuple[str, bytes]] = []
+
+    async def scenario():
+        navigator = Navigator("u", DaemonConfig(backend="cpu").navigator_settings())
+        runner = UserRunner(navigator, lambda k, b: published.append((k, b)), lambda *a: None, 1.0)
+        runner.put_delta(delta(0, [], []))
+        runner.put_goal(goal(3, 15))
+        poses = [pose((20, c), stamp=time.time() - 0.01 * (5 - c)) for c in range(5)]
+        for p in poses:  # all before the worker runs: one step, the last pose
+            runner.put_pose(p)
+        for _ in range(200):
+            await asyncio.sleep(0.01)
+            if any(k.endswith("/path") for k, _ in published):
+                break
+        await runner.close()
+        return poses, runner.navigator.steps
+
+    poses, steps = asyncio.run(scenario())
+    paths = [codec.decode(NavPath, b) for k, b in published if k.endswith("/path")]
+    assert len(paths) == 1 and steps == 1
+    assert paths[0].pose_stamp == poses[-1].stamp and paths[0].cells[0] == (20, 4)
+    assert published[-1][0].endswith("/status")  # close(): the final status comes last
+
+
+def test_config_file_environment_and_arguments_in_that_order(tmp_path, monkeypatch):
+    path = tmp_path / "g.toml"
+    path.write_text('backend = "reference"\nlang = "es"\n[zenoh]\nlisten = ["tcp/127.0.0.1:1"]\n')
+    monkeypatch.setenv("GUIDEBELT_LANG", "en")
+    monkeypatch.setenv("GUIDEBELT_ZENOH__MULTICAST_SCOUTING", "false")
+    cfg = load_config(path, max_users=3)
+    assert (cfg.backend, cfg.lang, cfg.max_users) == ("reference", "en", 3)
+    assert cfg.zenoh.listen == ["tcp/127.0.0.1:1"] and cfg.zenoh.multicast_scouting is False
+    path.write_text("bakend = 'cpu'\n")
+    with pytest.raises(ValueError, match="bakend"):
+        load_config(path)
+    with pytest.raises(FileNotFoundError):
+        load_config(tmp_path / "missing.toml")
+
+
+def test_notifier_speaks_systemds_datagram_protocol(tmp_path, monkeypatch):
+    addr = str(tmp_path / "n.sock")
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    sock.bind(addr)
+    sock.settimeout(2)
+    monkeypatch.setenv("WATCHDOG_USEC", "4000000")
+    monkeypatch.delenv("WATCHDOG_PID", raising=False)
+    n = Notifier(addr)
+    try:
+        assert n.ready("up") and sock.recv(100) == b"READY=1\nSTATUS=up"
+        assert n.watchdog() and sock.recv(100) == b"WATCHDOG=1"
+        assert n.stopping() and sock.recv(100) == b"STOPPING=1"
+        assert n.watchdog_interval_s() == 2.0
+    finally:
+        n.close()
+        sock.close()
+    assert not Notifier("").ready()  # outside systemd: a no-op
+
+
+def test_journal_lines_carry_priority_and_fields():
+    rec = logging.LogRecord("guidebelt.x", logging.WARNING, "", 0, "rejected", (), None)
+    rec.fields = {"user": "ann", "reason": "pose is 2 s old"}
+    line = JournalFormatter().format(rec)
+    assert line == '<4>guidebelt.x: rejected user=ann reason="pose is 2 s old"'
+
