@@ -18,24 +18,14 @@ from sim.node import SimResult
 
 def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
     """The picture of a walk over zenoh, drawn by the same code as the in-process walk."""
-    from sim.render import render_walk
-    from sim.walk import WalkResult
+    from sim.render import WalkPicture, render_walk
 
     known = result.known if result.known is not None else scenario.known
-    empty = np.zeros(0)
-    walk = WalkResult(
+    walk = WalkPicture(
         mode="eds",
-        planner="daemon",
         arrived=result.arrived,
         reason=result.reason,
         walked=np.array(result.walked, dtype=np.int32).reshape(-1, 2),
-        iterations=empty.astype(np.int64),
-        cells_touched=empty.astype(np.int64),
-        plan_ms=empty,
-        step_ms=np.array(result.step_ms),
-        inflate_ms=empty,
-        changed=empty.astype(np.int64),
-        init_ms=0.0,
         known=known,
         blocked=dilate(known == 1, scenario.radius_cells),
         cell_m=scenario.cell_m,

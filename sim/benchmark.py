@@ -1,11 +1,13 @@
 """The paper's benchmark: closed-loop walks over grids x unknown fractions, EDS against DSS.
 
-For every grid side and unknown fraction one seeded courtyard is walked with each mode
-(``repeats`` times); a row per (grid, unknown, mode) holds Steps and Iter_avg (the paper's
-Table 1) and the milliseconds per replanning step (its Table 2: update or replan plus the
-path from the user's cell, wall clock). The per-step times feed a Figure 9-like plot.
+For every grid side and unknown fraction one seeded courtyard is walked with each planner
+(``repeats`` times) by the daemon's own ``Navigator`` (``walk.py``); a row per (grid, unknown,
+mode) holds Steps and Iter_avg (the paper's Table 1) and the milliseconds per replanning step
+(its Table 2: repair plus the path from the user's cell, wall clock) with its median, p95, p99,
+max and the whole walk's total — a user feels the slowest step — and the navigator's whole
+step (map, planner, guidance) beside it. The per-step times feed a Figure 9-like plot.
 
-numpy only (plus the chosen planner backend); matplotlib is imported only to plot.
+matplotlib is imported only to plot.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from .walk import walk
 
 ROW_FIELDS = (
     "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
-    "ms_median", "ms_mean", "ms_p95", "inflate_ms_median", "device",
+    "ms_median", "ms_mean", "ms_p95", "ms_p99", "ms_max", "ms_total",
+    "nav_ms_median", "nav_ms_p99", "nav_ms_max", "inflate_ms_median", "device",
 )  # fmt: skip
 """The documented fields of every JSON row (rows carry a few more, see ``run_bench``)."""
 
@@ -131,13 +134,16 @@ def run_bench(
                     "max_steps": config.max_steps,
                     "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
                     "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
-                    "ms_median": float(np.median(step_ms)),
-                    "ms_mean": float(np.mean(step_ms)),
-                    "ms_p95": float(np.percentile(step_ms, 95)),
+                    "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
+                    **spread("ms", step_ms),
+                    "ms_total": float(np.median([r.step_ms.sum() for r in runs])),
+                    **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
+                    "nav_ms_total": float(np.median([r.nav_ms.sum() for r in runs])),
                     "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
                     "inflate_ms_median": float(
                         np.median(np.concatenate([r.inflate_ms for r in runs]))
                     ),
+                    "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
                     "init_ms": float(np.median([r.init_ms for r in runs])),
                     "repeats": config.repeats,
                     "fov_deg": config.fov_deg,
@@ -150,11 +156,23 @@ def run_bench(
     return BenchResult(rows=rows, series=series, device=device)
 
 
+def spread(prefix: str, ms: np.ndarray) -> dict[str, float]:
+    """Median, p95, p99 and max of per-step times, keyed ``<prefix>_median`` etc."""
+    if not ms.size:
+        return {f"{prefix}_{k}": 0.0 for k in ("median", "p95", "p99", "max")}
+    return {
+        f"{prefix}_median": float(np.median(ms)),
+        f"{prefix}_p95": float(np.percentile(ms, 95)),
+        f"{prefix}_p99": float(np.percentile(ms, 99)),
+        f"{prefix}_max": float(ms.max()),
+    }
+
+
 def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
     """The paper's two tables as text cells, one line per (grid, unknown).
 
     Table 1: Steps and Iter_avg for DSS and EDS. Table 2: ms per replanning step (median,
-    mean, p95) for DSS and EDS, and the DSS/EDS ratio of medians.
+    p99, max, and the walk's total) for DSS and EDS, and the DSS/EDS ratio of medians.
     """
     by_key: dict[tuple[int, float], dict[str, dict]] = {}
     for row in rows:
@@ -168,13 +186,14 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
             r = modes.get(mode)
             if r is None:
                 cells1 += ["-", "-"]
-                cells2 += ["-", "-", "-"]
+                cells2 += ["-", "-", "-", "-"]
                 continue
             steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
             if r.get("capped"):
                 steps = f"{r['steps']} (capped)"
             cells1 += [steps, f"{r['iter_avg']:.1f}"]
-            cells2 += [f"{r['ms_median']:.3f}", f"{r['ms_mean']:.3f}", f"{r['ms_p95']:.3f}"]
+            cells2 += [f"{r[k]:.3f}" for k in ("ms_median", "ms_p99", "ms_max")]
+            cells2.append(f"{r['ms_total']:.0f}")
         if "dss" in modes and "eds" in modes and modes["eds"]["ms_median"] > 0:
             cells2.append(f"{modes['dss']['ms_median'] / modes['eds']['ms_median']:.1f}x")
         else:
@@ -224,8 +243,8 @@ def format_tables(rows: list[dict]) -> str:
     """Both tables as plain text, for machines without rich."""
     t1, t2 = table_rows(rows)
     heads1 = ["grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps", "EDS Iter_avg"]
-    heads2 = ["grid", "unknown", "DSS med", "DSS mean", "DSS p95", "EDS med", "EDS mean",
-              "EDS p95", "DSS/EDS"]  # fmt: skip
+    heads2 = ["grid", "unknown", "DSS med", "DSS p99", "DSS max", "DSS walk", "EDS med",
+              "EDS p99", "EDS max", "EDS walk", "DSS/EDS"]  # fmt: skip
     out = []
     for title, heads, body in (("Steps and Iter_avg", heads1, t1),
                                ("ms per replanning step", heads2, t2)):  # fmt: skip

@@ -29,7 +29,7 @@ class Walk:
 
     arrived: bool
     reason: str
-    """``arrived``, ``no path``, ``left the map`` or ``action limit``."""
+    """``arrived``, ``no path``, ``left the map``, ``step limit`` or ``action limit``."""
     walked: list[tuple[int, int]] = field(default_factory=list)
     """The user's cell after every step taken, start first."""
     track: list[tuple[float, float]] = field(default_factory=list)
@@ -61,6 +61,7 @@ def run_walk(
     navigator: Navigator,
     *,
     max_actions: int,
+    max_steps: int | None = None,
     step_s: float = STEP_S,
     pose_source: PoseSource = true_pose,
     mover: Mover | None = None,
@@ -95,6 +96,9 @@ def run_walk(
         walk.track.append((world.walker.x, world.walker.y))
         if action == "step":
             walk.walked.append(world.cell())
+            if max_steps is not None and walk.steps >= max_steps:
+                walk.reason = "step limit"
+                break
         if not _on_map(world):
             walk.reason = "left the map"
             break

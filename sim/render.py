@@ -7,6 +7,7 @@ matplotlib (Agg) is imported only here, so the planner and the benchmark run wit
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,30 @@ import numpy as np
 from daemon.planning.grid import OCCUPIED, UNKNOWN
 
 from .courtyard import Scenario
-from .walk import WalkResult
+from .walk import walked_metres
+
+
+@dataclass(frozen=True)
+class WalkPicture:
+    """What a picture shows of a walk; a ``walk.WalkResult`` has all of it too."""
+
+    mode: str
+    arrived: bool
+    reason: str
+    walked: np.ndarray
+    """``(steps + 1, 2)`` cells, start first."""
+    known: np.ndarray
+    blocked: np.ndarray
+    cell_m: float
+
+    @property
+    def steps(self) -> int:
+        return len(self.walked) - 1
+
+    @property
+    def walked_m(self) -> float:
+        return walked_metres(self.walked, self.cell_m)
+
 
 COLOURS = {
     "free, seen": (1.0, 1.0, 1.0),
@@ -26,7 +50,7 @@ COLOURS = {
 }
 
 
-def walk_image(scenario: Scenario, result: WalkResult) -> np.ndarray:
+def walk_image(scenario: Scenario, result: WalkPicture) -> np.ndarray:
     """``(h, w, 3)`` float RGB: one colour per cell class of ``COLOURS``."""
     known0 = scenario.known == OCCUPIED
     true_occ = scenario.true == OCCUPIED
@@ -45,7 +69,7 @@ def walk_image(scenario: Scenario, result: WalkResult) -> np.ndarray:
     return img
 
 
-def render_walk(scenario: Scenario, result: WalkResult, out: Path | str, dpi: int = 150) -> Path:
+def render_walk(scenario: Scenario, result: WalkPicture, out: Path | str, dpi: int = 150) -> Path:
     """Save the picture of ``result`` on ``scenario`` as a PNG; return its path."""
     import matplotlib
 

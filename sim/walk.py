@@ -23,12 +23,14 @@ import numpy as np
 
 from daemon.navigation import Navigator, NavigatorSettings
 from daemon.planning.grid import Cell
+from daemon.planning.registry import PLANNERS
 
 from .closed_loop import Walk, run_walk
 from .courtyard import Scenario
 from .world import World
 
-MODES = ("eds", "dss")
+MODES = PLANNERS
+"""The planners a walk can run: every one the registry knows."""
 
 StepCallback = Callable[[int, Cell, int, float], None]
 """``on_step(step, cell, cells_changed, step_ms)`` after each step."""
@@ -71,10 +73,15 @@ class WalkResult:
 
     @property
     def walked_m(self) -> float:
-        if len(self.walked) < 2:
-            return 0.0
-        d = np.abs(np.diff(self.walked.astype(np.int64), axis=0)).sum(axis=1)
-        return float(np.where(d == 2, math.sqrt(2.0), 1.0).sum() * self.cell_m)
+        return walked_metres(self.walked, self.cell_m)
+
+
+def walked_metres(walked: np.ndarray, cell_m: float) -> float:
+    """Length of a walk of 8-connected cell steps, in metres."""
+    if len(walked) < 2:
+        return 0.0
+    d = np.abs(np.diff(walked.astype(np.int64), axis=0)).sum(axis=1)
+    return float(np.where(d == 2, math.sqrt(2.0), 1.0).sum() * cell_m)
 
 
 def paper_settings(scenario: Scenario, mode: str, backend: str, variant: str) -> NavigatorSettings:
@@ -112,8 +119,10 @@ def walk(
             last = progress.reports[-1]
             on_step(progress.steps, progress.walked[-1], last.changed, last.plan.plan_ms)
 
-    # One more navigator step than walked steps: the last one says ARRIVED.
-    done = run_walk(world, nav, max_actions=max_steps + 1, step_s=1.0, on_step=report)
+    # One more navigator step than walked steps: the last one says ARRIVED. A path walker
+    # steps at every action unless it bumps, so the action limit is only a backstop.
+    done = run_walk(world, nav, max_actions=4 * max_steps + 1, max_steps=max_steps, step_s=1.0,
+                    on_step=report)  # fmt: skip
     reports = done.reports[1:]  # the first step is the initial plan
     stats = [r.plan.stats for r in reports]
 
@@ -126,7 +135,7 @@ def walk(
         mode=mode,
         planner=nav.route.name,
         arrived=done.arrived,
-        reason=done.reason if done.reason != "action limit" else "step limit",
+        reason=done.reason,
         walked=np.array(done.walked, dtype=np.int32),
         iterations=column([s.iterations if s else 0 for s in stats], np.int64),
         cells_touched=column([s.cells_touched if s else 0 for s in stats], np.int64),

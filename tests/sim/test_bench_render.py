@@ -47,7 +47,7 @@ def test_bench_command_writes_json_and_plot(tmp_path):
         ["bench", "--grid", "50", "--unknown", "0.4", "--json", str(out), "--plot", str(fig)],
     )
     assert res.exit_code == 0, res.output
-    assert "Iter_avg" in res.output and "median" in res.output
+    assert "Iter_avg" in res.output and "p99" in res.output
     rows = json.loads(out.read_text())
     assert [r["mode"] for r in rows] == ["eds", "dss"]
     assert fig.read_bytes().startswith(PNG)
