@@ -70,7 +70,9 @@ def demo(
     unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
-    mode: Annotated[str, typer.Option(help="eds or dss.")] = "eds",
+    planner: Annotated[
+        str, typer.Option("--planner", "--mode", help="A planner of the registry: eds, dss.")
+    ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),
     belt: Annotated[
         str,
@@ -84,11 +86,11 @@ def demo(
     if in_process and belt != "none":
         raise typer.BadParameter("--belt needs the daemon (leave out --in-process)")
     if in_process:
-        arrived = run_in_process(grid, unknown, seed, backend, mode, out)
+        arrived = run_in_process(grid, unknown, seed, backend, planner, out)
     else:
         from cli.demo_world import run_with_daemon
 
-        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace)
+        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace, planner)
     raise typer.Exit(0 if arrived else 1)
 
 

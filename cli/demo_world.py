@@ -36,7 +36,7 @@ def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
 
 def run_with_daemon(
     grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
-    belt_kind: str = "none", pace_s: float = 0.0,
+    belt_kind: str = "none", pace_s: float = 0.0, planner: str = "eds",
 ) -> bool:
     """One user guided across the courtyard by the real daemon; True when they arrived.
 
@@ -68,7 +68,7 @@ def run_with_daemon(
     )
     user = "demo"
     with DaemonThread(
-        backend=backend, cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M
+        planner=planner, backend=backend, cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M
     ) as daemon:
         drivers, world, client = daemon.peer(), daemon.peer(), daemon.peer()
         belt, voice = BeltRecorder(drivers, user), VoiceRecorder(drivers, user)

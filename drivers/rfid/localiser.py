@@ -25,7 +25,7 @@ from .tags import TagMap
 
 METHODS = ("lsq", "centroid")
 DEFAULT_METHOD = "lsq"
-"""The more accurate of the two in ``guidebelt rfid-eval`` (BENCHMARKS.md, RFID section)."""
+"""The more accurate of the two in ``guidebelt rfid-eval``, measured on the simulated courtyard."""
 
 QUALITY_SCALE_M = 0.25
 """Position spread at which the quality figure is 0.5."""
