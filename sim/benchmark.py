@@ -27,7 +27,7 @@ from .walk import walk
 
 ROW_FIELDS = (
     "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
-    "ms_median", "ms_mean", "ms_p95", "ms_p99", "ms_max", "ms_total",
+    "ms_median", "ms_mean", "ms_p95", "ms_p99", "ms_max", "walk_ms",
     "nav_ms_median", "nav_ms_p99", "nav_ms_max", "inflate_ms_median", "device",
 )  # fmt: skip
 """The documented fields of every JSON row (rows carry a few more, see ``run_bench``)."""
@@ -136,9 +136,9 @@ def run_bench(
                     "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
                     "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
                     **spread("ms", step_ms),
-                    "ms_total": float(np.median([r.step_ms.sum() for r in runs])),
+                    "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
                     **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
-                    "nav_ms_total": float(np.median([r.nav_ms.sum() for r in runs])),
+                    "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
                     "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
                     "inflate_ms_median": float(
                         np.median(np.concatenate([r.inflate_ms for r in runs]))
@@ -193,7 +193,7 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
                 steps = f"{r['steps']} (capped)"
             cells1 += [steps, f"{r['iter_avg']:.1f}"]
             cells2 += [f"{r[k]:.3f}" for k in ("ms_median", "ms_p99", "ms_max")]
-            cells2.append(f"{r['ms_total']:.0f}")
+            cells2.append(f"{r['walk_ms']:.0f}")
         if "dss" in modes and "eds" in modes and modes["eds"]["ms_median"] > 0:
             cells2.append(f"{modes['dss']['ms_median'] / modes['eds']['ms_median']:.1f}x")
         else:
