@@ -7,8 +7,9 @@ way to the goal is back out of the corridor's south end and round the outside: a
 replans on what it sees turns the user around, as Hong & DeSouza's wheelchair did. With the
 hold, guidance says "wait" and the user stands until the doorway clears.
 
-The loop is the one of ``walks.py`` with a world that changes over time: sensor → inflation →
-planner → Guidance → belt walker.
+The loop is ``closed_loop.run_walk`` (the daemon's ``Navigator`` guiding a belt walker) with a
+``Mover`` that puts the person into the world's true map as time goes on; the hold policy is
+the navigator's guidance's.
 """
 
 from __future__ import annotations
@@ -18,13 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from daemon.planning import make_planner
-from daemon.planning.grid import FREE, OCCUPIED, UNKNOWN, cell_to_xy, in_bounds, xy_to_cell
-from daemon.planning.inflation import InflatedMap, radius_in_cells
+from daemon.planning.grid import FREE, OCCUPIED, UNKNOWN, cell_to_xy
 
 from .belt_walker import BeltWalker, WalkerParams
-from .sensor import Sensor
-from .walks import STEP_S, path_from
+from .closed_loop import STEP_S, run_walk
+from .courtyard import Scenario
+from .world import World
 
 CELL_M = 0.10
 SHAPE = (100, 60)
@@ -77,57 +77,65 @@ class CrossingResult:
     collisions: int
 
 
+def corridor_scenario() -> Scenario:
+    """The corridor as a walk: walls known, the rest unknown; 0.3 m radius, 3 m sensor."""
+    true = corridor_world()
+    known = np.where(true == OCCUPIED, OCCUPIED, UNKNOWN).astype(np.uint8)
+    return Scenario(
+        known=known, true=true, start=START, goal=GOAL, cell_m=CELL_M, radius_cells=3,
+        sensor_range_cells=3.0 / CELL_M, unknown=0.0, coverage=0.0, seed=0,
+    )  # fmt: skip
+
+
+class DoorwayPerson:
+    """The ``Mover``: the person enters the doorway once the user is ``TRIGGER_M`` from it."""
+
+    def __init__(self, base: np.ndarray, stay_s: float) -> None:
+        self.base = base
+        self.stay_s = stay_s
+        self.entered_at: float | None = None
+        self.door_y = (SHAPE[0] - DOOR_ROW) * CELL_M
+
+    def __call__(self, world: World, now: float) -> None:
+        if self.entered_at is None and self.door_y - world.walker.y <= TRIGGER_M:
+            self.entered_at = now
+        world.true[:] = self.base
+        if self.entered_at is None:
+            return
+        rows = person_rows(now - self.entered_at, self.stay_s)
+        if rows is not None:
+            world.true[max(1, rows[0]) : rows[1], 28:33] = OCCUPIED
+
+
 def crossing_walk(
     hold: bool = True, stay_s: float = 3.0, seed: int = 0, max_actions: int = 600
 ) -> CrossingResult:
     from daemon.guidance.guide import Guidance
     from daemon.guidance.hold import HoldPolicy
-    from protocol.messages import PatternKind, Pose
+    from daemon.navigation import Navigator
 
-    world = corridor_world()
-    known = np.where(world == OCCUPIED, OCCUPIED, UNKNOWN).astype(np.uint8)
-    radius = radius_in_cells(0.30, CELL_M)
-    inflated = InflatedMap(known, radius)
-    planner = make_planner("cpu")
-    planner.plan(inflated.blocked, GOAL)
+    from .walks import belt_settings
+
+    scenario = corridor_scenario()
+    settings = belt_settings(scenario)
+    # hold_s=0: the policy is there but never waits, so the planner's detour is taken at once.
     policy = HoldPolicy() if hold else HoldPolicy(hold_s=0.0)
-    guide = Guidance(cell_m=CELL_M, hold=policy)
-    sensor = Sensor(3.0 / CELL_M)
+    guide = Guidance(cell_m=CELL_M, radius_m=settings.user_radius_m, arrive_m=settings.arrive_m,
+                     hold=policy)  # fmt: skip
     x, y = cell_to_xy(SHAPE, START, CELL_M)
     walker = BeltWalker(x=x, y=y, heading=math.pi / 2, cell_m=CELL_M,
-                        params=WalkerParams(), rng=np.random.default_rng(seed))
-    door_y = (SHAPE[0] - DOOR_ROW) * CELL_M
-    entered_at: float | None = None
-    now, north, backtrack, arrived = 0.0, y, 0.0, False
-    for _ in range(max_actions):
-        if entered_at is None and door_y - walker.y <= TRIGGER_M:
-            entered_at = now
-        true = world.copy()
-        rows = person_rows(now - entered_at, stay_s) if entered_at is not None else None
-        if rows is not None:
-            true[max(1, rows[0]) : rows[1], 28:33] = OCCUPIED
-        cell = xy_to_cell(SHAPE, walker.x, walker.y, CELL_M)
-        if not in_bounds(SHAPE, cell):
-            break
-        seen, values = sensor.sense(true, inflated.occupancy, cell, walker.heading)
-        flipped, now_blocked = inflated.apply(seen, values)
-        if flipped.size:
-            planner.update(flipped, now_blocked)
-        path = path_from(planner, inflated, cell)
-        pose = Pose(x=walker.x, y=walker.y, heading=walker.heading, stamp=now)
-        out = guide.guide(path, pose, SHAPE, now, blocked=inflated.blocked)
-        if out.pattern.kind is PatternKind.ARRIVED:
-            arrived = True
-            break
-        walker.react(out.pattern, true)
-        north = max(north, walker.y)
-        backtrack = max(backtrack, north - walker.y)
-        now += STEP_S
+                        params=WalkerParams(), rng=np.random.default_rng(seed))  # fmt: skip
+    world = World(scenario, walker)
+    done = run_walk(world, Navigator("walker", settings, guidance=guide), max_actions=max_actions,
+                    step_s=STEP_S, mover=DoorwayPerson(scenario.true, stay_s),
+                    stop_on_no_path=False)  # fmt: skip
+    ys = np.array([p[1] for p in done.track])
     return CrossingResult(
-        arrived=arrived,
+        arrived=done.arrived,
         walked_m=walker.walked_m,
-        time_s=now,
+        # The clock of the last navigator step: the arrival's, as the old loop counted it.
+        time_s=(len(done.reports) - 1) * STEP_S,
         holds=policy.holds,
-        backtrack_m=backtrack,
+        backtrack_m=float((np.maximum.accumulate(ys) - ys).max()),
         collisions=walker.collisions,
     )

@@ -1,10 +1,11 @@
-"""Walks that follow the belt: sensor → inflation → planner → Guidance → belt walker.
+"""Walks that follow the belt: the daemon's ``Navigator`` guides a ``BeltWalker``.
 
 The paper's courtyard walk, but the user is the ``BeltWalker``: it feels the pattern and steps
-in continuous space with noise; it never sees the path. Each loop is one walker action
-(``STEP_S`` of simulated time): the sensor reveals what it sees from the walker's cell and
-heading, the planner repairs its field (EDS), the path is read from the walker's cell, Guidance
-makes the pattern and the cue, the walker reacts.
+in continuous space with noise; it never sees the path. The loop is ``closed_loop.run_walk``:
+each walker action (``STEP_S`` of simulated time) the sensor's delta and the walker's pose go
+to the navigator, which inflates, repairs its field, reads the path (leading out of the
+inflation margin itself when a newly seen obstacle grew over the walker) and makes the pattern
+and the cue; the walker reacts. So these figures are the daemon's navigator, not a copy of it.
 
 Measured per walk: arrived or not, walked metres against the optimal path on the fully known
 map (8-connected, the planner's own metric), collisions, cues spoken, holds.
@@ -16,25 +17,24 @@ module still imports with numpy and numba only.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from daemon.planning import make_planner
 from daemon.planning.dijkstra import dijkstra_field
-from daemon.planning.escape import escape_path
-from daemon.planning.grid import INF, Cell, cell_to_xy, in_bounds, xy_to_cell
-from daemon.planning.inflation import InflatedMap
+from daemon.planning.grid import INF, cell_to_xy
+from daemon.planning.inflation import radius_in_cells
 
 from .belt_walker import BeltWalker, WalkerParams
-from .courtyard import Scenario, dilate, make_courtyard
-from .sensor import Sensor
+from .closed_loop import STEP_S, run_walk
+from .courtyard import USER_RADIUS_M, Scenario, dilate, make_courtyard
+from .world import World
 
-ESCAPE_REACH = 12
-"""Cells searched for a way out of the inflation margin."""
-STEP_S = 0.6
-"""Simulated seconds per walker action (one step or one turn on the spot)."""
-
+if TYPE_CHECKING:
+    from daemon.guidance.guide import Guidance
+    from daemon.navigation import NavigatorSettings
 
 @dataclass(frozen=True)
 class BeltWalk:
@@ -61,6 +61,28 @@ def optimal_m(scenario: Scenario) -> float:
     return math.inf if g >= INF else g / 10.0 * scenario.cell_m
 
 
+def user_radius_m(scenario: Scenario) -> float:
+    """The user's radius as the daemon's config gives it (0.3 m) when the scenario was inflated
+    by it. Not ``radius_cells * cell_m``: at 0.2 m cells that is 0.4 m, and at 5 cm cells
+    0.30000000000000004, and either lets guidance shave one cell more of the margin than the
+    daemon configured for 0.3 m does (one walk in three bumps at 50², two in twenty at 200²)."""
+    if radius_in_cells(USER_RADIUS_M, scenario.cell_m) == scenario.radius_cells:
+        return USER_RADIUS_M
+    return scenario.radius_cells * scenario.cell_m
+
+
+def belt_settings(scenario: Scenario, backend: str = "cpu", lang: str = "en") -> NavigatorSettings:
+    """The navigator as the daemon runs it, at the scenario's cell size and user radius."""
+    from daemon.navigation import NavigatorSettings
+
+    return NavigatorSettings(
+        backend=backend,
+        cell_m=scenario.cell_m,
+        user_radius_m=user_radius_m(scenario),
+        lang=lang,
+    )
+
+
 def belt_walk(
     scenario: Scenario,
     *,
@@ -70,67 +92,44 @@ def belt_walk(
     smooth: bool = False,
     lang: str = "en",
     max_actions: int | None = None,
-    guidance=None,
+    guidance: Guidance | None = None,
 ) -> BeltWalk:
-    """One walk of ``scenario`` by a belt walker with noise seeded by ``seed``."""
-    from daemon.guidance.guide import Guidance
-    from protocol.messages import PatternKind, Pose
+    """One walk of ``scenario`` by a belt walker with noise seeded by ``seed``.
 
-    planner = make_planner(backend)
-    guide = guidance if guidance is not None else Guidance(
-        cell_m=scenario.cell_m, lang=lang, smooth=smooth
-    )
-    sensor = Sensor(scenario.sensor_range_cells)
-    inflated = InflatedMap(scenario.known, scenario.radius_cells)
-    planner.plan(inflated.blocked, scenario.goal)
-    shape = scenario.shape
-    x, y = cell_to_xy(shape, scenario.start, scenario.cell_m)
+    ``guidance`` replaces the navigator's own (a hold policy, say); ``smooth`` asks for the
+    rubber band in the navigator's default guidance.
+    """
+    from daemon.guidance.guide import Guidance
+    from daemon.navigation import Navigator
+
+    settings = belt_settings(scenario, backend, lang)
+    if guidance is None and smooth:
+        guidance = Guidance(
+            cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
+            arrive_m=settings.arrive_m, smooth=True,
+        )  # fmt: skip
+    navigator = Navigator("walker", settings, guidance=guidance)
+    x, y = cell_to_xy(scenario.shape, scenario.start, scenario.cell_m)
     walker = BeltWalker(
         x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m,
         params=params or WalkerParams(), rng=np.random.default_rng(seed),
-    )
+    )  # fmt: skip
     best = optimal_m(scenario)
     limit = max_actions or int(6 * best / walker.params.step_m) + 100
-    now, cues, reason = 0.0, 0, "action limit"
-    track = [(x, y)]
-    for _ in range(limit):
-        cell = xy_to_cell(shape, walker.x, walker.y, scenario.cell_m)
-        if not in_bounds(shape, cell):
-            reason = "left the map"
-            break
-        seen, values = sensor.sense(scenario.true, inflated.occupancy, cell, walker.heading)
-        flipped, now_blocked = inflated.apply(seen, values)
-        if flipped.size:
-            planner.update(flipped, now_blocked)
-        path = path_from(planner, inflated, cell)
-        pose = Pose(x=walker.x, y=walker.y, heading=walker.heading, stamp=now)
-        out = guide.guide(path, pose, shape, now, blocked=inflated.blocked)
-        cues += out.cue is not None
-        if out.pattern.kind is PatternKind.ARRIVED:
-            reason = "arrived"
-            break
-        walker.react(out.pattern, scenario.true)
-        track.append((walker.x, walker.y))
-        now += STEP_S
+    # A walker with no path stands and waits (stop_on_no_path=False): it may find one again.
+    done = run_walk(World(scenario, walker), navigator, max_actions=limit, step_s=STEP_S,
+                    stop_on_no_path=False)  # fmt: skip
     return BeltWalk(
-        arrived=reason == "arrived",
-        reason=reason,
+        arrived=done.arrived,
+        reason=done.reason,
         walked_m=walker.walked_m,
         optimal_m=best,
         collisions=walker.collisions,
-        cues=cues,
-        holds=guide.hold.holds,
-        actions=len(track) - 1,
-        track=np.array(track, dtype=np.float64),
+        cues=done.cues,
+        holds=navigator.guidance.hold.holds,
+        actions=len(done.track) - 1,
+        track=np.array(done.track, dtype=np.float64),
     )
-
-
-def path_from(planner, inflated: InflatedMap, cell: Cell) -> np.ndarray:
-    """The path from the walker's cell, led out of the inflation margin the way the daemon
-    does it (``planning.escape``) when a newly seen obstacle inflated over the walker."""
-    if not inflated.blocked[cell]:
-        return planner.path(cell)
-    return escape_path(planner, inflated.blocked, inflated.occupancy, cell, ESCAPE_REACH)[0]
 
 
 def _one(task: tuple) -> tuple[int, float, bool, float, int, int, int]:
@@ -167,7 +166,7 @@ def run_table(
     first_seed: int = 0,
     jobs: int = 1,
     params: WalkerParams | None = None,
-    on_row=None,
+    on_row: Callable[[dict], None] | None = None,
 ) -> list[dict]:
     """``runs`` seeded walks (seed i: the courtyard and the walker's noise) per grid and
     density; one row each. ``jobs`` > 1 spreads the walks over processes."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -12,8 +11,9 @@ import pytest
 from daemon.guidance.patterns import PatternMaker
 from protocol.messages import PatternKind
 from sim.belt_walker import BeltWalker, WalkerParams
-from sim.courtyard import make_courtyard
-from sim.walks import belt_walk, run_table
+from sim.courtyard import USER_RADIUS_M, make_courtyard
+from sim.walks import belt_settings, belt_walk, run_table
+from sim.world import WalkerView
 
 EXACT = WalkerParams(step_sd_m=0.0, perception_sd_deg=0.0, gait_sd_deg=0.0)
 
@@ -65,12 +65,13 @@ def test_walker_reads_the_belt_never_the_path() -> None:
     belt = maker.guide(0.0, None, time.time())
     a = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, rng=np.random.default_rng(3))
     b = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, rng=np.random.default_rng(3))
-    a.act(SimpleNamespace(path=np.array([[0, 0], [0, 1]]), belt=belt, true=open_world()))
-    b.act(SimpleNamespace(path=None, belt=belt, true=open_world()))
+    now = time.time()
+    a.act(WalkerView(np.array([[0, 0], [0, 1]]), belt, open_world(), now))
+    b.act(WalkerView(None, belt, open_world(), now))
     assert (a.x, a.y, a.heading) == (b.x, b.y, b.heading)
     # an expired pattern is felt as nothing
-    old = maker.guide(0.0, None, time.time() - 5.0)
-    assert a.act(SimpleNamespace(path=None, belt=old, true=open_world())) == "stand"
+    old = maker.guide(0.0, None, now - 5.0)
+    assert a.act(WalkerView(None, old, open_world(), now)) == "stand"
 
 
 @pytest.mark.timeout(60)
@@ -85,3 +86,10 @@ def test_small_walks_arrive_without_collisions() -> None:
     assert rows[0]["success_rate"] == 1.0 and rows[0]["collisions"] == 0
     assert set(rows[0]) >= {"grid", "unknown", "runs", "success_rate", "length_ratio",
                             "collisions", "cues_per_walk"}  # fmt: skip
+
+
+def test_the_navigator_gets_the_daemons_radius_not_cells_times_size() -> None:
+    # 6 x 0.05 m is 0.30000000000000004: guidance would shave a cell more than at 0.3 m.
+    for grid in (50, 100, 200):
+        scenario = make_courtyard(grid, 0.2, seed=0)
+        assert belt_settings(scenario).user_radius_m == USER_RADIUS_M
