@@ -68,9 +68,11 @@ def main() -> None:
         print(f"{'variant':14} {'mode':4} {'step':>7} {'repair':>7} {'path':>7} {'fused':>7} "
               f"{'rounds':>6}")  # fmt: skip
         for r in variants:
-            print(f"{r['variant']:14} {r['mode']:4} {r['step_ms_median']:7.3f} "
-                  f"{r['repair_ms_median']:7.3f} {r['path_ms_median']:7.3f} "
-                  f"{r.get('fused_ms_median', float('nan')):7.3f} {r['iter_median']:6.0f}")
+            print(
+                f"{r['variant']:14} {r['mode']:4} {r['step_ms_median']:7.3f} "
+                f"{r['repair_ms_median']:7.3f} {r['path_ms_median']:7.3f} "
+                f"{r.get('fused_ms_median', float('nan')):7.3f} {r['iter_median']:6.0f}"
+            )
     dss = [r for r in rows if r["mode"] == "dss-only"]
     if dss:
         print("\nDSS only (replan from scratch + path; fused: in one update_and_path)")

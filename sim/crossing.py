@@ -88,7 +88,7 @@ def crossing_walk(
     known = np.where(world == OCCUPIED, OCCUPIED, UNKNOWN).astype(np.uint8)
     radius = radius_in_cells(0.30, CELL_M)
     inflated = InflatedMap(known, radius)
-    planner = make_planner("cpu")
+    planner = make_planner("eds", "cpu")
     planner.plan(inflated.blocked, GOAL)
     policy = HoldPolicy() if hold else HoldPolicy(hold_s=0.0)
     guide = Guidance(cell_m=CELL_M, hold=policy)

@@ -29,7 +29,7 @@ from daemon.planning.grid import (
     xy_to_cell,
 )
 from daemon.planning.inflation import InflatedMap
-from daemon.planning.interface import Planner
+from daemon.planning.interface import GlobalPlanner
 from drivers.rfid.localiser import DEFAULT_METHOD, Localiser
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import TagMap
@@ -52,7 +52,7 @@ class RfidWalkResult:
         return float(np.median(self.pose_errors)) if self.pose_errors.size else math.nan
 
 
-def planning_cell(planner: Planner, cell: Cell, reach: int = 3) -> Cell | None:
+def planning_cell(planner: GlobalPlanner, cell: Cell, reach: int = 3) -> Cell | None:
     """``cell``, or the nearest cell within ``reach`` that has a path to the goal.
 
     A pose error can put the estimate inside an inflated obstacle; the user is not there,
@@ -89,7 +89,7 @@ def rfid_walk(
     centres, so that the floor tags' lattice and the walk do not line up by construction."""
     shape, cell_m = scenario.shape, scenario.cell_m
     max_steps = max_steps if max_steps is not None else 6 * (shape[0] + shape[1])
-    planner = make_planner(backend)
+    planner = make_planner("eds", backend)
     sensor = Sensor(scenario.sensor_range_cells)
     inflated = InflatedMap(scenario.known, scenario.radius_cells)
     planner.plan(inflated.blocked, scenario.goal)

@@ -44,7 +44,7 @@ def smoothing_study(
     forms_all = PATH_FORMS + WALK_FORMS
     hist = {f: np.zeros(len(BINS) - 1, dtype=np.int64) for f in forms_all}
     rows = []
-    planner = make_planner("cpu")
+    planner = make_planner("eds", "cpu")
     for grid in grids:
         for unknown in unknowns:
             lengths: dict[str, list[float]] = {f: [] for f in forms_all}

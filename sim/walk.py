@@ -26,7 +26,7 @@ import numpy as np
 from daemon.planning import make_planner
 from daemon.planning.grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, Cell, in_bounds
 from daemon.planning.inflation import InflatedMap
-from daemon.planning.interface import Planner
+from daemon.planning.interface import GlobalPlanner
 
 from .courtyard import Scenario
 from .sensor import Sensor
@@ -88,7 +88,7 @@ def heading_along(path: np.ndarray, lookahead: int, fallback: float) -> float:
     return math.atan2(-(int(r1) - int(r0)), int(c1) - int(c0))
 
 
-def escape_step(planner: Planner, cell: Cell) -> Cell | None:
+def escape_step(planner: GlobalPlanner, cell: Cell) -> Cell | None:
     """The best neighbour when the user's own cell has just become blocked.
 
     A newly seen obstacle beside the user can inflate over the cell they stand on; they
@@ -111,18 +111,17 @@ def walk(
     mode: str = "eds",
     fov_deg: float = 80.0,
     max_steps: int | None = None,
-    planner: Planner | None = None,
+    planner: GlobalPlanner | None = None,
     on_step: StepCallback | None = None,
 ) -> WalkResult:
     """Walk ``scenario`` from start to goal, replanning every step; ``planner`` overrides."""
     if mode not in MODES:
         raise ValueError(f"unknown mode {mode!r}; choose one of {MODES}")
-    planner = planner if planner is not None else make_planner(backend, variant)
+    planner = planner if planner is not None else make_planner(mode, backend, variant)
     h, w = scenario.shape
     max_steps = max_steps if max_steps is not None else 10 * (h + w)
     sensor = Sensor(scenario.sensor_range_cells, fov_deg)
     lookahead = max(1, round(LOOKAHEAD_M / scenario.cell_m))
-    full = mode == "dss"
 
     inflated = InflatedMap(scenario.known, scenario.radius_cells)
     init_ms = planner.plan(inflated.blocked, scenario.goal).ms
@@ -138,7 +137,7 @@ def walk(
         t0 = time.perf_counter()
         flipped, now = inflated.apply(cells, values)
         t1 = time.perf_counter()
-        stats, path = planner.update_and_path(flipped, now, user, full=full)
+        stats, path = planner.update_and_path(flipped, now, user)
         t2 = time.perf_counter()
         for key, value in (
             ("it", stats.iterations),

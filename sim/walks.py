@@ -76,7 +76,7 @@ def belt_walk(
     from daemon.guidance.guide import Guidance
     from protocol.messages import PatternKind, Pose
 
-    planner = make_planner(backend)
+    planner = make_planner("eds", backend)
     guide = guidance if guidance is not None else Guidance(
         cell_m=scenario.cell_m, lang=lang, smooth=smooth
     )

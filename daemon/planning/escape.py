@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .field import FieldPlanner
 from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell
-from .interface import Planner
 
 
 def _line(a: Cell, b: Cell) -> np.ndarray:
@@ -29,7 +29,7 @@ def _line(a: Cell, b: Cell) -> np.ndarray:
 
 
 def escape_path(
-    planner: Planner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
+    planner: FieldPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
 ) -> tuple[np.ndarray, int]:
     """``(path, cost)`` from a blocked ``cell`` within ``reach`` cells; empty and INF if none."""
     h, w = blocked.shape

@@ -15,11 +15,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from daemon.planning.backends import make_planner
+from daemon.planning import GlobalPlanner, make_planner
 from daemon.planning.escape import escape_path
 from daemon.planning.grid import INF, UNKNOWN, in_bounds, xy_to_cell
 from daemon.planning.inflation import InflatedMap, radius_in_cells
-from daemon.planning.interface import Planner
 from protocol.messages import (
     Goal,
     GoalCell,
@@ -49,13 +48,13 @@ class UserSession:
         self,
         user: str,
         config: DaemonConfig,
-        planner_factory: Callable[[], Planner] | None = None,
+        planner_factory: Callable[[], GlobalPlanner] | None = None,
         guidance_factory: Callable[[], object] | None = None,
     ) -> None:
         self.user = user
         self.config = config
         self._make_planner = planner_factory or (
-            lambda: make_planner(config.backend, config.variant)
+            lambda: make_planner("eds", config.backend, config.variant)
         )
         self.planner = self._make_planner()
         if guidance_factory is None:

@@ -72,7 +72,7 @@ def test_an_enclosed_goal_ends_with_no_path():
 
 
 def test_escape_step_leaves_a_cell_swallowed_by_inflation():
-    planner = make_planner("reference")
+    planner = make_planner("eds", "reference")
     blocked = np.zeros((9, 9), dtype=bool)
     blocked[4, 4] = True
     planner.plan(blocked, (0, 4))

@@ -165,37 +165,3 @@ def test_from_inside_the_inflation_margin_the_path_leads_out_then_on():
     first_free = next(i for i, c in enumerate(cells) if not s.map.blocked[c])
     assert all(not s.map.blocked[c] for c in cells[first_free:])
     assert first_free <= s.radius_cells  # straight out of the margin, not through the wall
-
-
-def test_a_device_error_mid_session_moves_it_to_the_cpu_and_guiding_goes_on(caplog):
-    from daemon.planning.cpu_fast import FastCpuPlanner
-    from daemon.planning.fallback import DeviceFault, FallbackPlanner
-
-    class FailsOnSecondRepair(FastCpuPlanner):
-        """Stands in for a GPU planner whose device faults in the middle of the walk."""
-
-        name = "cuda-stand-in"
-        repairs = 0
-
-        def update_and_path(self, cells, blocked, start, *, full=False):
-            FailsOnSecondRepair.repairs += 1
-            if FailsOnSecondRepair.repairs == 2:
-                raise DeviceFault("injected: an illegal memory access was encountered")
-            return super().update_and_path(cells, blocked, start, full=full)
-
-    s = UserSession(
-        "u",
-        DaemonConfig(backend="cpu"),
-        planner_factory=lambda: FallbackPlanner(FailsOnSecondRepair()),
-    )
-    s.step(Inbox(deltas=[delta(0, [], [])], goal=goal(3, 15), pose=pose((26, 15))), time.time())
-    wall = [12 * 30 + c for c in range(0, 25)]
-    with caplog.at_level(logging.WARNING):
-        for seq, cells in enumerate((wall[:10], wall[10:20], wall[20:]), start=1):
-            out = s.step(Inbox(deltas=[delta(seq, cells, [1] * len(cells))], pose=pose((26, 15))),
-                         time.time())
-            assert s.state == NavState.GUIDING
-            assert out.path() is not None and out.path().cells[0] == (26, 15)
-    assert s.planner.active_backend == "cpu"
-    assert any("cpu" in r.getMessage().lower() for r in caplog.records if r.levelno >= 30)
-    assert np.array_equal(s.planner.costs(), dijkstra_field(s.map.blocked, (3, 15)))
