@@ -128,7 +128,7 @@ def main() -> None:
         f"steps {len(eds_ms)}, iterations per step: EDS {np.mean(eds_it):.1f}, "
         f"DSS {np.mean(dss_it):.1f}; {args.clock} clock"
     )
-    for name, ms in (("EDS update+path", eds_ms), ("DSS replan+path", dss_ms)):
+    for name, ms in (("EDS update+path", eds_ms), ("DSS update+path", dss_ms)):
         a = np.array(ms)
         print(
             f"{name}: median {np.median(a):.3f} ms  mean {a.mean():.3f}  "

@@ -16,7 +16,7 @@ Choice and why
   proportional to the cells whose cost changes and their neighbours.
 - **No stored pred map.** ``pred`` is derived from g when it is needed: a path follows the
   first neighbour in ``grid.NEIGHBOUR_*`` order with ``g[n] + cost == g[cur]``, exactly
-  ``interface.reference_path``, compiled. Keeping a stored pred true to that tie-break rule
+  ``dijkstra.reference_path``, compiled. Keeping a stored pred true to that tie-break rule
   would cost a re-check of every neighbour of every changed cell on each update, to save a
   few hundred look-ups on the one path that is read.
 """

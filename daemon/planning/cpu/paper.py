@@ -17,7 +17,7 @@ block of rows and columns that holds inconsistent cells (cells outside it cannot
 ``UpdateStats.iterations`` counts whole-grid iterations (propagation and relaxation, the
 final one that finds nothing to change included), comparable with the paper's Iter_avg.
 ``cells_touched`` sums the inconsistent cells evaluated over all iterations.
-The path follows g by the fixed neighbour order (``interface.reference_path``'s rule), the
+The path follows g by the fixed neighbour order (``dijkstra.reference_path``'s rule), the
 same cells on every backend; ``pred`` is what the propagation step walks.
 """
 

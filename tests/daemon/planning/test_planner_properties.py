@@ -2,9 +2,9 @@
 
 Random grids up to 64 x 64 and random deltas — cells blocked and freed at random, cells of
 the current path blocked, the goal enclosed and released, walls that cut the map in two and
-reopen — and after every delta: the EDS field (``update``) and the DSS field (``replan``)
+reopen — and after every delta: the EDS field and the DSS field (``update`` on each)
 equal ``dijkstra.dijkstra_field`` cell for cell, and the path from the start is
-``interface.reference_path`` with cost g(start).
+``dijkstra.reference_path`` with cost g(start).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-// The grid-wide barrier of the persistent kernels (fast.cu, path_tiles.cu).
+// The grid-wide barrier of the kernels whose blocks are all resident (fast.cu, path_tiles.cu).
 //
 // Valid only when every block of the launch is resident at once (the host sizes the grid
 // from the occupancy). ctrl[C_BAR] counts arrivals and only ever grows: the host passes the
@@ -66,7 +66,7 @@ __device__ __forceinline__ void flag_tile(unsigned* flags, unsigned* cnt, int t,
     atomicAdd(flags + t, 1u);
 }
 
-// The global timer, ns (resident.cuh's idle limit, fast.cu's -DPROFILE stamps).
+// The global timer, ns (resident.cuh's idle limit).
 __device__ __forceinline__ unsigned long long global_ns() {
     unsigned long long t;
     asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));

@@ -1,6 +1,6 @@
-// Path extraction by tile jumps (interface.reference_path's rule: from each cell, the first
+// Path extraction by tile jumps (dijkstra.reference_path's rule: from each cell, the first
 // neighbour in grid.NEIGHBOUR_* order with g[n] + cost == g[cur]), in three phases that the
-// persistent kernels (path_tiles.cu, and fast.cu after a repair) separate by grid barriers:
+// kernels (path_tiles.cu, and fast.cu after a repair) separate by grid barriers:
 // 1. tile_exits, per 32 x 32 tile: for each of its BORDER cells (where a path can enter),
 //    follow the rule inside the tile in shared memory to the first cell outside it (the
 //    exit, an entry of the next tile) or to the goal; keep exit and count. The start's tile

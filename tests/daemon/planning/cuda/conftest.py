@@ -45,7 +45,7 @@ def standin_cupy() -> mock.MagicMock:
 
 
 class HostPinned:
-    """``cuda_kernels.Pinned`` in ordinary host memory: it grows as Pinned does (doubling,
+    """``device.Pinned`` in ordinary host memory: it grows as Pinned does (doubling,
     zeroed, a new array when it moves) and its copies to and from the device do nothing (the
     stand-in device reads and writes the host buffers themselves)."""
 
