@@ -8,6 +8,7 @@ Start at ``interface.py`` (what a planner offers) and ``registry.py`` (planners 
 """
 
 from .cuda.errors import DeviceFault, device_errors
+from .field import FieldPlanner
 from .grid import CELL_M, DIAGONAL, FREE, INF, OCCUPIED, STRAIGHT, UNKNOWN, Cell
 from .inflation import InflatedMap
 from .interface import GlobalPlanner, UpdateStats
@@ -24,6 +25,7 @@ __all__ = [
     "UNKNOWN",
     "Cell",
     "DeviceFault",
+    "FieldPlanner",
     "GlobalPlanner",
     "InflatedMap",
     "UpdateStats",
