@@ -78,7 +78,7 @@ C_CMD = 57
 """The command of the current generation."""
 CTRL_READ = 13
 """ctrl words the host reads back as statistics (C_BAR .. C_CHANGED)."""
-PATH_CTRL = 48
+PATH_CTRL = 64
 """Words of a ctrl buffer the path kernel alone uses (barrier, release, segments)."""
 
 # io words.

@@ -37,7 +37,7 @@
 #define C_GO 56
 #define C_CMD 57
 #define CTRL_READ 13
-#define PATH_CTRL 48
+#define PATH_CTRL 64
 #define IO_REJECT 58
 #define REJECT_RANGE 1
 #define REJECT_ORDER 2
