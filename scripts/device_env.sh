@@ -1,6 +1,6 @@
-# Sourced by the device scripts that run the CLI (gpu_check.sh, ab_closed_loop.sh) from the
-# repository root: the environment their Python runs in on the GPU machine.
-export PYTHONUNBUFFERED=1 GUIDEBELT_CUDA_STRICT=1
+# Sourced by scripts/gpu_check.sh from the repository root: the environment its Python runs in
+# on the GPU machine.
+export PYTHONUNBUFFERED=1
 # typer and rich for the CLI: the image has them; else the wheels carried in .whl/ go into
 # $CLI_SITE, for the caller to put on PYTHONPATH.
 CLI_SITE=

@@ -3,7 +3,7 @@
 Reads ``bench_cuda.json``, ``bench_cpu.json`` and the ``bench_big_*.json`` of 1000 and 2000
 (``guidebelt bench`` rows), ``replay.json``
 (``scripts/time_cuda_planner.py`` rows) and ``device.txt`` from the folder given; missing
-files are skipped. Times are medians per replanning step (update or replan + path to the host).
+files are skipped. Times are medians per replanning step (update + path to the host).
 
     python3 scripts/gpu_table.py out/gpu_check
 """
@@ -63,17 +63,19 @@ def main() -> None:
     rows = load(out / "replay.json")
     variants = [r for r in rows if r["grid"] == 400 and r["mode"] != "dss-only"]
     if variants:
-        print("\nvariants, 400 x 400 at 40 % (replayed walk): ms per step (update/replan + path)")
-        print("(step = update/replan then path, two syncs; fused = update_and_path, one sync)")
+        print("\nvariants, 400 x 400 at 40 % (replayed walk): ms per step (update + path)")
+        print("(step = update then path, two syncs; fused = update_and_path, one sync)")
         print(f"{'variant':14} {'mode':4} {'step':>7} {'repair':>7} {'path':>7} {'fused':>7} "
               f"{'rounds':>6}")  # fmt: skip
         for r in variants:
-            print(f"{r['variant']:14} {r['mode']:4} {r['step_ms_median']:7.3f} "
-                  f"{r['repair_ms_median']:7.3f} {r['path_ms_median']:7.3f} "
-                  f"{r.get('fused_ms_median', float('nan')):7.3f} {r['iter_median']:6.0f}")
+            print(
+                f"{r['variant']:14} {r['mode']:4} {r['step_ms_median']:7.3f} "
+                f"{r['repair_ms_median']:7.3f} {r['path_ms_median']:7.3f} "
+                f"{r.get('fused_ms_median', float('nan')):7.3f} {r['iter_median']:6.0f}"
+            )
     dss = [r for r in rows if r["mode"] == "dss-only"]
     if dss:
-        print("\nDSS only (replan from scratch + path; fused: in one update_and_path)")
+        print("\nDSS only (from scratch + path; fused: in one update_and_path)")
         print(f"{'variant':9} {'grid':>5} {'step':>7} {'fused':>7} {'rounds':>6} exact")
         for r in dss:
             print(f"{r['variant']:9} {r['grid']:5} {r['step_ms_median']:7.3f} "

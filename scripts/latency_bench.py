@@ -135,9 +135,7 @@ def run(args: argparse.Namespace) -> dict:
     }
     # --daemon-fifo N runs the daemon alone at SCHED_FIFO priority N, as the systemd unit does.
     prefix = ["chrt", "-f", str(args.daemon_fifo)] if args.daemon_fifo else []
-    daemon = subprocess.Popen(
-        [*prefix, sys.executable, "-m", "cli.app", "run"], cwd=ROOT, env=env
-    )
+    daemon = subprocess.Popen([*prefix, sys.executable, "-m", "cli.app", "run"], cwd=ROOT, env=env)
     sub = subprocess.Popen(
         [sys.executable, __file__, "--role", "sub", "--port", str(port), "--tmp", str(tmp)],
         cwd=ROOT,

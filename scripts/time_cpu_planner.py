@@ -5,8 +5,8 @@ of it (0.4); start at the bottom, goal at the top, connected in the true map. Th
 starts with an empty map (unknown = free), and at each step a sensor (3 m = 30 cells, 80°
 field of view around the direction of the path, no occlusion) reveals the true obstacles in
 range; the revealed cells are inflated (``InflatedMap``) and the flipped cells go to an EDS
-planner (``update``) and a DSS planner (``replan``); the walker moves one cell along the EDS
-path. Per step the script times ``update`` + ``path(walker)`` and ``replan`` + ``path``.
+planner and a DSS planner (``update`` on each); the walker moves one cell along the EDS
+path. Per step the script times ``update`` + ``path(walker)`` on each.
 numba compilation is done on a small grid first and excluded.
 
     .venv/bin/python scripts/time_cpu_planner.py [--size 400] [--fraction 0.4] [--seed 1]
@@ -86,7 +86,7 @@ def main() -> None:
     )
     args = ap.parse_args()
 
-    warm = make_planner("cpu", "fast")  # compile (or load cached) kernels outside the timing
+    warm = make_planner("eds", "cpu", "fast")  # compile (or load cached) kernels outside the timing
     warm.plan(np.zeros((8, 8), bool), (0, 0))
     warm.update(np.array([9]), np.array([True]))
     warm.path((7, 7))
@@ -94,7 +94,7 @@ def main() -> None:
     clock = time.perf_counter if args.clock == "wall" else time.thread_time
     occ, start, goal = scenario(args.size, args.fraction, args.seed, args.radius)
     known = InflatedMap(np.zeros_like(occ), args.radius)
-    eds, dss = make_planner("cpu", args.variant), make_planner("cpu", args.variant)
+    eds, dss = make_planner("eds", "cpu", args.variant), make_planner("dss", "cpu", args.variant)
     eds.plan(known.blocked, goal)
     dss.plan(known.blocked, goal)
     true_flat = occ.reshape(-1)
@@ -112,7 +112,7 @@ def main() -> None:
         path = eds.path(here)
         eds_ms.append((clock() - t0) * 1e3)
         t0 = clock()
-        dss_it.append(dss.replan(flipped, now).iterations)
+        dss_it.append(dss.update(flipped, now).iterations)
         dss_path = dss.path(here)
         dss_ms.append((clock() - t0) * 1e3)
         touched.append(st.cells_touched)
@@ -128,7 +128,7 @@ def main() -> None:
         f"steps {len(eds_ms)}, iterations per step: EDS {np.mean(eds_it):.1f}, "
         f"DSS {np.mean(dss_it):.1f}; {args.clock} clock"
     )
-    for name, ms in (("EDS update+path", eds_ms), ("DSS replan+path", dss_ms)):
+    for name, ms in (("EDS update+path", eds_ms), ("DSS update+path", dss_ms)):
         a = np.array(ms)
         print(
             f"{name}: median {np.median(a):.3f} ms  mean {a.mean():.3f}  "

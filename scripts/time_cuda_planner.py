@@ -1,13 +1,13 @@
-"""Time the cuda planner's variants (and the CPU) on recorded courtyard walks and on DSS plans.
+"""Time the cuda planner (fast, paper) and the CPU on recorded courtyard walks and on DSS plans.
 
 A walk of ``sim.walk`` over ``sim.courtyard`` is recorded once per courtyard
 with the CPU planner (every backend computes the same exact field, so every backend walks
 the same cells): the map delta of each step and the user's cell. The recording is then
-replayed on each planner: per step ``update`` (EDS) or ``replan`` (DSS), then ``path`` from the
+replayed on an EDS and a DSS planner of each kind: per step ``update``, then ``path`` from the
 user's cell, timed on the wall clock as the paper's replanning step. Replaying keeps the
 scenario's inflation (slow on the CPU at 1000 and 2000 cells a side) out of the run time,
 gives every variant identical input, and at the end the device field is compared with the
-CPU's bit for bit. ``--dss`` sizes time DSS (``replan`` with no change: from scratch on the
+CPU's bit for bit. ``--dss`` sizes time DSS (``update`` with no change: from scratch on the
 map already on the device) + ``path`` on the whole inflated true map, and once ``plan`` with
 the map's upload.
 
@@ -15,7 +15,7 @@ The ``--big`` grids (1000, 2000) use a lighter recording, because ``InflatedMap.
 seconds per step there: the true map is dilated once and each step reveals the dilated truth
 inside the sensor's view (3 m, 80°), for ``--big-steps`` steps along the path.
 
-    python3 scripts/time_cuda_planner.py --variants fast,fast:0:2,paper,cpu \\
+    python3 scripts/time_cuda_planner.py --variants fast,paper,cpu \\
         --grid 100,200,400 --unknown 0.2,0.4,0.6 --big 1000,2000 --big-steps 40 \\
         --dss 400,2000,4000 --json out.json
 """
@@ -35,16 +35,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from daemon.planning import make_planner
 from daemon.planning.grid import OCCUPIED
-from daemon.planning.interface import Planner
+from daemon.planning.interface import GlobalPlanner
 from sim.courtyard import dilate, make_courtyard
 from sim.sensor import Sensor
 from sim.walk import LOOKAHEAD_M, heading_along, walk
 
 
-class Recorder(Planner):
+class Recorder(GlobalPlanner):
     """Passes calls to a planner and keeps each step's delta and path start."""
 
-    def __init__(self, inner: Planner) -> None:
+    def __init__(self, inner: GlobalPlanner) -> None:
         self.inner, self.steps, self.name = inner, [], "recorder"
 
     def plan(self, blocked, goal):
@@ -55,18 +55,10 @@ class Recorder(Planner):
         self.steps.append([np.array(cells, copy=True), np.array(blocked, copy=True), None])
         return self.inner.update(cells, blocked)
 
-    replan = update
-
     def path(self, start):
         if self.steps and self.steps[-1][2] is None:
             self.steps[-1][2] = start
         return self.inner.path(start)
-
-    def costs(self):
-        return self.inner.costs()
-
-    def blocked(self):
-        return self.inner.blocked()
 
     def cost_at(self, cell):
         return self.inner.cost_at(cell)
@@ -75,34 +67,18 @@ class Recorder(Planner):
     shape = property(lambda self: self.inner.shape)
 
 
-def make(spec: str) -> Planner:
-    """``cpu``, ``paper`` or ``fast[:scans[:blocks_per_sm]][:walk][:rounds][:graph|:direct]``
-    (``walk``: the path by path.cu after the repair; ``rounds``: the relaxation in grid-wide
-    rounds, ``sched=0``; ``graph``: a launch per call, replayed as a CUDA graph, instead of the
-    resident loop; ``direct``: a launch per call from Python)."""
+def make(spec: str, mode: str) -> GlobalPlanner:
+    """``cpu`` (the CPU's fast form), ``fast`` or ``paper`` (cuda), as ``mode`` (eds, dss)."""
     if spec == "cpu":
-        return make_planner("cpu", "fast")
-    from daemon.planning.cuda_planner import CudaPlanner
-
-    if spec == "paper":
-        return CudaPlanner("paper")
-    parts = spec.split(":")[1:]
-    mode = "walk" if "walk" in parts else "tiles"
-    sched = 0 if "rounds" in parts else 1
-    scans, blocks = [*(int(p) for p in parts if p.isdigit()), 2, 1][:2]
-    graph = "direct" not in parts
-    resident = "graph" not in parts and "direct" not in parts
-    return CudaPlanner(
-        "fast", scans=scans, sched=sched, min_blocks=blocks, path_mode=mode, use_graph=graph,
-        resident=resident,
-    )  # fmt: skip
+        return make_planner(mode, "cpu", "fast")
+    return make_planner(mode, "cuda", spec)
 
 
 def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:
-    planner = make(spec)
+    planner = make(spec, mode)
     blocked, goal = rec.initial
     planner.plan(blocked, goal)
-    repair = planner.update if mode == "eds" else planner.replan
+    repair = planner.update
     step_ms, repair_ms, iters = [], [], []
     for cells, values, start in rec.steps:
         t0 = time.perf_counter()
@@ -115,14 +91,14 @@ def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:
         repair_ms.append((t1 - t0) * 1e3)
         iters.append(st.iterations)
     # The same steps through update_and_path: repair, path and read-back with one sync.
-    fused, fused_ms = make(spec), []
+    fused, fused_ms = make(spec, mode), []
     fused.plan(blocked, goal)
     for cells, values, start in rec.steps:
         t0 = time.perf_counter()
         if start is None:
-            (fused.update if mode == "eds" else fused.replan)(cells, values)
+            fused.update(cells, values)
         else:
-            fused.update_and_path(cells, values, start, full=mode == "dss")
+            fused.update_and_path(cells, values, start)
         fused_ms.append((time.perf_counter() - t0) * 1e3)
     return {
         "variant": spec, "mode": mode, "steps": len(step_ms),
@@ -139,7 +115,7 @@ def replay(spec: str, rec: Recorder, mode: str, truth: np.ndarray) -> dict:
 
 
 def record(grid: int, unknown: float, max_steps: int | None) -> tuple[Recorder, np.ndarray]:
-    rec = Recorder(make_planner("cpu", "fast"))
+    rec = Recorder(make_planner("eds", "cpu", "fast"))
     walk(make_courtyard(grid, unknown, seed=0), mode="eds", planner=rec, max_steps=max_steps)
     return rec, rec.inner.costs()
 
@@ -148,7 +124,7 @@ def record_light(grid: int, unknown: float, steps: int) -> tuple[Recorder, np.nd
     sc = make_courtyard(grid, unknown, seed=0)
     truth = dilate(sc.true == OCCUPIED, sc.radius_cells).reshape(-1)
     known = dilate(sc.known == OCCUPIED, sc.radius_cells)
-    rec = Recorder(make_planner("cpu", "fast"))
+    rec = Recorder(make_planner("eds", "cpu", "fast"))
     rec.plan(known, sc.goal)
     known = known.reshape(-1)
     sensor = Sensor(sc.sensor_range_cells, 80.0)
@@ -172,14 +148,14 @@ def dss_case(size: int) -> tuple:
     """The courtyard, its inflated true map and the CPU's plan on it (built once per size)."""
     sc = make_courtyard(size, 0.4, seed=0)
     blocked = dilate(sc.true == OCCUPIED, sc.radius_cells)  # == InflatedMap(...).blocked, faster
-    cpu = make_planner("cpu", "fast")
+    cpu = make_planner("dss", "cpu", "fast")
     cpu.plan(blocked, sc.goal)
     return sc, blocked, cpu
 
 
 def time_dss(spec: str, size: int, repeats: int) -> dict:
     sc, blocked, cpu = dss_case(size)
-    planner = make(spec)
+    planner = make(spec, "dss")
     t0 = time.perf_counter()
     planner.plan(blocked, sc.goal)  # includes sending the whole map to the device
     first_ms = (time.perf_counter() - t0) * 1e3
@@ -187,14 +163,14 @@ def time_dss(spec: str, size: int, repeats: int) -> dict:
     none = np.empty(0, np.int64)
     for _ in range(repeats):  # DSS from scratch on the map already there, then the path
         t0 = time.perf_counter()
-        st = planner.replan(none, np.empty(0, bool))
+        st = planner.update(none, np.empty(0, bool))
         path = planner.path(sc.start)
         times.append((time.perf_counter() - t0) * 1e3)
         plan_ms.append(st.ms)
     fused_ms = []
     for _ in range(repeats):  # the same through update_and_path (one synchronisation)
         t0 = time.perf_counter()
-        _, fused_path = planner.update_and_path(none, np.empty(0, bool), sc.start, full=True)
+        _, fused_path = planner.update_and_path(none, np.empty(0, bool), sc.start)
         fused_ms.append((time.perf_counter() - t0) * 1e3)
     return {
         "variant": spec, "grid": size, "unknown": 0.4, "mode": "dss-only", "steps": repeats,
@@ -223,7 +199,7 @@ def main() -> None:
     ints = lambda s: [int(x) for x in s.split(",") if x]  # noqa: E731
     specs = args.variants.split(",")
     for spec in specs:  # compile (or load cached) kernels outside the timings
-        warm = make(spec)
+        warm = make(spec, "eds")
         warm.plan(np.zeros((40, 40), bool), (0, 0))
         warm.update(np.array([41]), np.array([True]))
         warm.path((39, 39))

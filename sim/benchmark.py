@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from daemon.planning.backends import resolve_backend
+from daemon.planning import resolve_backend
 
 from .courtyard import make_courtyard
 from .walk import walk

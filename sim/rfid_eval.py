@@ -15,9 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 from daemon.planning.grid import OCCUPIED, cell_to_xy
-from daemon.planning.interface import reference_path
 from drivers.rfid.localiser import Localiser
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import TagMap, generate

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell
-from .interface import Planner
+from .interface import GlobalPlanner
 
 
 def _line(a: Cell, b: Cell) -> np.ndarray:
@@ -29,14 +29,18 @@ def _line(a: Cell, b: Cell) -> np.ndarray:
 
 
 def escape_path(
-    planner: Planner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
+    planner: GlobalPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
 ) -> tuple[np.ndarray, int]:
     """``(path, cost)`` from a blocked ``cell`` within ``reach`` cells; empty and INF if none."""
     h, w = blocked.shape
     r0, c0 = cell
     rs, re = max(0, r0 - reach), min(h, r0 + reach + 1)
     cs, ce = max(0, c0 - reach), min(w, c0 + reach + 1)
-    g = planner.costs()[rs:re, cs:ce].astype(np.int64)
+    costs = getattr(planner, "costs", None)  # an EDS/DSS planner's whole field: one copy
+    if costs is not None:
+        g = costs()[rs:re, cs:ce].astype(np.int64)
+    else:
+        g = np.array([[planner.cost_at((r, c)) for c in range(cs, ce)] for r in range(rs, re)])
     dr = np.abs(np.arange(rs, re) - r0)[:, None]
     dc = np.abs(np.arange(cs, ce) - c0)[None, :]
     # Octile distance in the planner's 10/14 units.

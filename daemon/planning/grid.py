@@ -72,3 +72,15 @@ def path_cost(path: np.ndarray) -> int:
     if np.any(d > 1) or np.any(d.sum(axis=1) == 0):
         raise ValueError("path has a step between non-adjacent cells")
     return int(np.where(d.sum(axis=1) == 2, DIAGONAL, STRAIGHT).sum())
+
+
+def checked_plan_input(blocked: np.ndarray, goal: Cell) -> tuple[np.ndarray, tuple[int, int], Cell]:
+    """``(blocked as bool, shape, goal as ints)`` for ``plan``; ValueError on a bad map or goal."""
+    blocked = np.asarray(blocked, dtype=bool)
+    if blocked.ndim != 2 or blocked.size == 0:
+        raise ValueError(f"blocked must be a non-empty 2-D map, got shape {blocked.shape}")
+    shape = (int(blocked.shape[0]), int(blocked.shape[1]))
+    goal = (int(goal[0]), int(goal[1]))
+    if not in_bounds(shape, goal):
+        raise ValueError(f"goal {goal} is outside the {shape[0]}x{shape[1]} map")
+    return blocked, shape, goal

@@ -1,8 +1,8 @@
 """A planner that recomputes the reference Dijkstra on every call.
 
 Slow and obviously right: the yardstick for tests and for code that needs a planner
-before a fast one is chosen. ``update`` is not incremental here; it exists so the
-reference satisfies the same interface as every backend.
+before a fast one is chosen. ``update`` recomputes whether built as EDS or DSS: the
+reference answers the same calls as every backend, not in the same way.
 """
 
 from __future__ import annotations
@@ -11,20 +11,22 @@ import time
 
 import numpy as np
 
-from .dijkstra import dijkstra_field
+from .dijkstra import dijkstra_field, reference_path
+from .field import FieldPlanner
 from .grid import INF, Cell, in_bounds
-from .interface import Planner, UpdateStats, reference_path
+from .interface import UpdateStats
 
 
-class ReferencePlanner(Planner):
-    name = "reference"
+class ReferencePlanner(FieldPlanner):
+    backend, variant = "reference", "dijkstra"
 
-    def __init__(self) -> None:
+    def __init__(self, dss: bool = False) -> None:
+        super().__init__(dss)
         self._blocked = np.zeros((1, 1), dtype=bool)
         self._goal: Cell = (0, 0)
         self._g = np.zeros((1, 1), dtype=np.int32)
 
-    def _recompute(self) -> UpdateStats:
+    def _dijkstra(self) -> UpdateStats:
         t0 = time.perf_counter()
         self._g = dijkstra_field(self._blocked, self._goal)
         ms = (time.perf_counter() - t0) * 1e3
@@ -34,13 +36,13 @@ class ReferencePlanner(Planner):
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
         self._blocked = np.array(blocked, dtype=bool, copy=True)
         self._goal = (int(goal[0]), int(goal[1]))
-        return self._recompute()
+        return self._dijkstra()
 
-    def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+    def _repair(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         self._blocked.reshape(-1)[np.asarray(cells, dtype=np.int64)] = blocked
-        return self._recompute()
+        return self._dijkstra()
 
-    replan = update
+    _recompute = _repair
 
     def costs(self) -> np.ndarray:
         return self._g.copy()
@@ -53,10 +55,6 @@ class ReferencePlanner(Planner):
 
     def path(self, start: Cell) -> np.ndarray:
         return reference_path(self._g, self._blocked, start)
-
-    @property
-    def goal(self) -> Cell:
-        return self._goal
 
     @property
     def shape(self) -> tuple[int, int]:

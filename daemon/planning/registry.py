@@ -1,53 +1,90 @@
-"""Planners by name (interim: the planning package's own registry replaces this)."""
+"""Planners by name, and the one place a backend is chosen.
+
+``make_planner("eds")`` is what the navigator builds; ``"dss"`` is the same field recomputed
+from scratch at every change, the paper's baseline. The other papers' planners register
+their own factory under their own name (``register``). ``backend="auto"`` means cuda when
+cupy imports and a device answers, else cpu. Heavy imports (numba, cupy) happen only when
+their backend is asked for.
+"""
 
 from __future__ import annotations
 
-from .backends import make_planner as _backend_planner
-from .interface import GlobalPlanner, UpdateStats
+import functools
+import logging
+from collections.abc import Callable
 
-PLANNERS = ("eds", "dss")
+from .interface import GlobalPlanner
+
+log = logging.getLogger(__name__)
+
+BACKENDS = ("auto", "cpu", "cuda", "reference")
+VARIANTS = ("fast", "paper")
+
+PlannerFactory = Callable[[str, str], GlobalPlanner]
+"""``factory(backend, variant)`` with the backend already resolved (never ``auto``)."""
 
 
-class _FullReplan(GlobalPlanner):
-    def __init__(self, inner: GlobalPlanner) -> None:
-        self.inner = inner
-        self.name = inner.name
+@functools.cache
+def cuda_available() -> bool:
+    """True when cupy imports and at least one CUDA device runs a trivial kernel."""
+    try:
+        import cupy
 
-    def plan(self, blocked, goal) -> UpdateStats:
-        return self.inner.plan(blocked, goal)
+        if cupy.cuda.runtime.getDeviceCount() < 1:
+            return False
+        (cupy.arange(4) + 1).sum().item()
+        return True
+    except Exception as exc:  # no cupy, no driver, no device: all mean "use the CPU"
+        log.debug("cuda unavailable: %s", exc)
+        return False
 
-    def update(self, cells, blocked) -> UpdateStats:
-        return self.inner.replan(cells, blocked)
 
-    def replan(self, cells, blocked) -> UpdateStats:
-        return self.inner.replan(cells, blocked)
+def resolve_backend(backend: str) -> str:
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
+    if backend == "auto":
+        return "cuda" if cuda_available() else "cpu"
+    return backend
 
-    def update_and_path(self, cells, blocked, start, *, full: bool = True):
-        return self.inner.update_and_path(cells, blocked, start, full=True)
 
-    def costs(self):
-        return self.inner.costs()
+def _field_planner(dss: bool) -> PlannerFactory:
+    def factory(backend: str, variant: str) -> GlobalPlanner:
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+        if backend == "reference":
+            from .reference import ReferencePlanner
 
-    def blocked(self):
-        return self.inner.blocked()
+            return ReferencePlanner(dss)
+        if backend == "cpu":
+            if variant == "paper":
+                from .cpu.paper import PaperCpuPlanner
 
-    def cost_at(self, cell) -> int:
-        return self.inner.cost_at(cell)
+                return PaperCpuPlanner(dss)
+            from .cpu.fast import FastCpuPlanner
 
-    def path(self, start):
-        return self.inner.path(start)
+            return FastCpuPlanner(dss)
+        from .cuda.planner import CudaPlanner
 
-    @property
-    def goal(self):
-        return self.inner.goal
+        return CudaPlanner(variant, dss=dss)
 
-    @property
-    def shape(self):
-        return self.inner.shape
+    return factory
+
+
+PLANNERS: dict[str, PlannerFactory] = {"eds": _field_planner(False), "dss": _field_planner(True)}
+"""The registered planners by name (iterate it for the names; ``register`` adds to it)."""
+
+
+def register(name: str, factory: PlannerFactory) -> None:
+    """Make ``make_planner(name, ...)`` call ``factory(backend, variant)``."""
+    if name in PLANNERS:
+        raise ValueError(f"a planner named {name!r} is registered already")
+    PLANNERS[name] = factory
 
 
 def make_planner(name: str = "eds", backend: str = "auto", variant: str = "fast") -> GlobalPlanner:
-    if name not in PLANNERS:
-        raise ValueError(f"unknown planner {name!r}; choose one of {PLANNERS}")
-    planner = _backend_planner(backend, variant, raw=True)
-    return _FullReplan(planner) if name == "dss" else planner
+    """A new planner of the registered ``name`` on ``backend``; ``variant`` picks the fast form
+    (default) or the paper's Figure 4 form."""
+    factory = PLANNERS.get(name)
+    if factory is None:
+        raise ValueError(f"unknown planner {name!r}; choose one of {tuple(PLANNERS)}")
+    return factory(resolve_backend(backend), variant)

@@ -19,7 +19,7 @@ from sim.walk import walk
 
 def backend() -> str:
     try:
-        import daemon.planning.cpu_fast  # noqa: F401
+        import daemon.planning.cpu.fast  # noqa: F401
 
         return "cpu"
     except ImportError:

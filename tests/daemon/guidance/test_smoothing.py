@@ -15,9 +15,8 @@ from daemon.guidance.smoothing import (
     turning_histogram,
 )
 from daemon.guidance.turning_points import segment_free
-from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 from daemon.planning.grid import INF
-from daemon.planning.interface import reference_path
 
 
 def random_case(seed: int, n: int = 32, density: float = 0.25):

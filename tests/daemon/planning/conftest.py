@@ -11,7 +11,7 @@ from collections.abc import Callable
 import pytest
 
 from daemon.planning import cuda_available, make_planner
-from daemon.planning.interface import Planner
+from daemon.planning.field import FieldPlanner
 
 PLANNERS = [
     pytest.param(("cpu", "fast"), id="cpu-fast"),
@@ -22,9 +22,15 @@ PLANNERS = [
 
 
 @pytest.fixture(params=PLANNERS)
-def make(request) -> Callable[[], Planner]:
-    """A factory of fresh planners of one backend and variant."""
+def make(request) -> Callable[..., FieldPlanner]:
+    """A factory of fresh planners of one backend and variant: ``make()`` EDS, ``make("dss")``."""
     backend, variant = request.param
     if backend == "cuda" and not cuda_available():
         pytest.skip("no usable CUDA device")
-    return lambda: make_planner(backend, variant)
+
+    def factory(name: str = "eds") -> FieldPlanner:
+        planner = make_planner(name, backend, variant)
+        assert isinstance(planner, FieldPlanner)
+        return planner
+
+    return factory

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from daemon.planning.cpu_fast import FastCpuPlanner
-from daemon.planning.dijkstra import dijkstra_field
-from daemon.planning.interface import reference_path
+from daemon.planning.cpu.fast import FastCpuPlanner
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 
 
 def test_a_queue_that_runs_out_grows_and_the_field_stays_exact():

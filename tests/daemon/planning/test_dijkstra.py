@@ -7,9 +7,8 @@ import itertools
 import numpy as np
 import pytest
 
-from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.dijkstra import dijkstra_field, reference_path, reference_pred
 from daemon.planning.grid import INF, NEIGHBOUR_COST, NEIGHBOUR_DC, NEIGHBOUR_DR, path_cost
-from daemon.planning.interface import reference_path, reference_pred
 
 
 def bellman_fixed_point(blocked: np.ndarray, goal: tuple[int, int]) -> np.ndarray:

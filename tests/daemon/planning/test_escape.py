@@ -19,7 +19,7 @@ def wall_map(gap: bool) -> tuple[InflatedMap, object]:
     if gap:
         occ[10, 30:] = 0  # a way round on the right, far from the user
     m = InflatedMap(occ, 3)
-    planner = make_planner("cpu")
+    planner = make_planner("eds", "cpu")
     planner.plan(m.blocked, GOAL)
     assert m.blocked[USER]
     return m, planner

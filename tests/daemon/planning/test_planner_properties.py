@@ -2,9 +2,9 @@
 
 Random grids up to 64 x 64 and random deltas — cells blocked and freed at random, cells of
 the current path blocked, the goal enclosed and released, walls that cut the map in two and
-reopen — and after every delta: the EDS field (``update``) and the DSS field (``replan``)
+reopen — and after every delta: the EDS field and the DSS field (``update`` on each)
 equal ``dijkstra.dijkstra_field`` cell for cell, and the path from the start is
-``interface.reference_path`` with cost g(start).
+``dijkstra.reference_path`` with cost g(start).
 """
 
 from __future__ import annotations
@@ -16,9 +16,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 from daemon.planning.grid import INF, path_cost
-from daemon.planning.interface import reference_path
 
 PROPERTY = settings(
     # Bounded for CI; GUIDEBELT_HYPOTHESIS_EXAMPLES=2000 for a long soak.
@@ -110,7 +109,7 @@ def assert_matches_reference(planner, truth, goal, start, ref) -> None:
 @given(world=worlds(), data=st.data())
 def test_eds_and_dss_equal_reference_after_every_delta(make, world, data):
     truth, goal, start = world
-    eds, dss = make(), make()
+    eds, dss = make(), make("dss")
     eds.plan(truth, goal)
     dss.plan(truth, goal)
     ref = dijkstra_field(truth, goal)
@@ -121,7 +120,7 @@ def test_eds_and_dss_equal_reference_after_every_delta(make, world, data):
         cells, values = draw_delta(data, truth, goal, start, walls)
         truth.reshape(-1)[cells] = values
         eds.update(cells, values)
-        dss.replan(cells, values)
+        dss.update(cells, values)
         ref = dijkstra_field(truth, goal)
         assert_matches_reference(eds, truth, goal, start, ref)
         assert_matches_reference(dss, truth, goal, start, ref)
@@ -134,7 +133,7 @@ def test_walk_eds_and_dss_take_the_same_cells(make, seed):
     truth = rng.random((48, 48)) < 0.2
     goal, here = (0, 24), (47, 24)
     truth[goal] = truth[here] = False
-    eds, dss = make(), make()
+    eds, dss = make(), make("dss")
     eds.plan(truth, goal)
     dss.plan(truth, goal)
     steps = placed = 0
@@ -147,7 +146,7 @@ def test_walk_eds_and_dss_take_the_same_cells(make, seed):
             cell = np.array([path[3][0] * 48 + path[3][1]])
             truth.reshape(-1)[cell] = True
             eds.update(cell, np.array([True]))
-            dss.replan(cell, np.array([True]))
+            dss.update(cell, np.array([True]))
             placed += 1
             continue
         here = (int(path[1][0]), int(path[1][1]))

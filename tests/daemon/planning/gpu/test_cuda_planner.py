@@ -10,38 +10,23 @@ import numpy as np
 import pytest
 
 from daemon.planning import cuda_available, make_planner
-from daemon.planning.dijkstra import dijkstra_field
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 from daemon.planning.grid import INF
-from daemon.planning.interface import reference_path
 
 pytestmark = [
     pytest.mark.gpu,
     pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device"),
 ]
 
-# fast with each in-tile relaxation (scan level), 1 and 2 blocks per SM, both schedules of the
-# relaxation, a persistent grid of 3 blocks (each block owns many tiles), each way a call
-# reaches the device (the resident loop, a captured graph, direct launches), both path
-# kernels; and the paper's form.
-CONFIGS = [
-    pytest.param(("fast", {}), id="fast"),
-    pytest.param(("fast", {"sched": 0}), id="fast-rounds"),
-    pytest.param(("fast", {"max_blocks": 3}), id="fast-3blocks"),
-    pytest.param(("fast", {"resident": False}), id="fast-graph"),
-    pytest.param(("fast", {"resident": False, "use_graph": False}), id="fast-direct"),
-    pytest.param(("fast", {"scans": 0, "min_blocks": 2}), id="fast-jacobi-2blk"),
-    pytest.param(("fast", {"scans": 1, "min_blocks": 1}), id="fast-rowcol-1blk"),
-    pytest.param(("fast", {"path_mode": "walk"}), id="fast-walkpath"),
-    pytest.param(("paper", {}), id="paper"),
-]
+# The product's form and the paper's Figure 4 form.
+VARIANTS = ["fast", "paper"]
 SHAPES = [(1, 1), (1, 97), (83, 1), (2, 3), (37, 53), (64, 64), (65, 33), (100, 129)]
 
 
-def cuda_planner(config):
-    from daemon.planning.cuda_planner import CudaPlanner
+def cuda_planner(variant: str, dss: bool = False):
+    from daemon.planning.cuda.planner import CudaPlanner
 
-    variant, kw = config
-    return CudaPlanner(variant, **kw)
+    return CudaPlanner(variant, dss=dss)
 
 
 def random_map(rng, shape, density):
@@ -82,12 +67,12 @@ def random_delta(rng, blocked, goal, path):
 
 
 @pytest.mark.timeout(600)
-@pytest.mark.parametrize("config", CONFIGS)
+@pytest.mark.parametrize("variant", VARIANTS)
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: f"{s[0]}x{s[1]}")
-def test_eds_and_dss_equal_cpu_after_every_update(config, shape):
+def test_eds_and_dss_equal_cpu_after_every_update(variant, shape):
     rng = np.random.default_rng(hash(shape) % 2**32)
-    cpu = make_planner("cpu", "fast")
-    eds, dss = cuda_planner(config), cuda_planner(config)
+    cpu = make_planner("eds", "cpu", "fast")
+    eds, dss = cuda_planner(variant), cuda_planner(variant, dss=True)
     blocked, goal = random_map(rng, shape, rng.choice([0.0, 0.2, 0.4]))
     start = (int(rng.integers(shape[0])), int(rng.integers(shape[1])))
     for p in (cpu, eds, dss):
@@ -98,7 +83,7 @@ def test_eds_and_dss_equal_cpu_after_every_update(config, shape):
         blocked.reshape(-1)[cells] = values
         cpu.update(cells, values)
         s_eds = eds.update(cells, values)
-        s_dss = dss.replan(cells, values)
+        s_dss = dss.update(cells, values)
         truth = cpu.costs()
         assert np.array_equal(eds.costs(), truth)
         assert np.array_equal(dss.costs(), truth)
@@ -111,11 +96,11 @@ def test_eds_and_dss_equal_cpu_after_every_update(config, shape):
     assert np.array_equal(eds.costs(), dijkstra_field(blocked, goal))
 
 
-@pytest.mark.parametrize("config", CONFIGS)
-def test_path_follows_the_reference_rule_from_every_reachable_start(config):
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_path_follows_the_reference_rule_from_every_reachable_start(variant):
     rng = np.random.default_rng(7)
     blocked, goal = random_map(rng, (45, 70), 0.3)
-    planner = cuda_planner(config)
+    planner = cuda_planner(variant)
     planner.plan(blocked, goal)
     g = planner.costs()
     for start in zip(*np.nonzero(g < INF), strict=True):
@@ -128,14 +113,14 @@ def test_path_follows_the_reference_rule_from_every_reachable_start(config):
 
 
 def test_long_path_crosses_many_windows_and_the_chunk_limit():
-    """A serpentine corridor: the path is far longer than the device walk's window and cap."""
+    """A serpentine corridor: the path is far longer than the planner's path buffer."""
     h, w = 150, 150
     blocked = np.zeros((h, w), bool)
     for i, row in enumerate(range(2, h - 1, 3)):
         blocked[row, :] = True
         blocked[row, 0 if i % 2 else w - 1] = False
-    for mode in ("tiles", "walk"):
-        planner = cuda_planner(("fast", {"path_mode": mode}))
+    for variant in VARIANTS:
+        planner = cuda_planner(variant)
         planner.plan(blocked, (0, 0))
         start = (h - 1, w - 1)
         path = planner.path(start)
@@ -146,7 +131,7 @@ def test_long_path_crosses_many_windows_and_the_chunk_limit():
 def test_unreachable_and_blocked_goal():
     blocked = np.zeros((40, 40), bool)
     blocked[20, :] = True
-    planner = cuda_planner(("fast", {}))
+    planner = cuda_planner("fast")
     planner.plan(blocked, (5, 5))
     assert planner.cost_at((30, 30)) == INF
     assert planner.path((30, 30)).shape == (0, 2)
@@ -168,9 +153,9 @@ def test_large_map_matches_cpu_and_fits_in_100_mb(variant):
     blocked[goal] = False
     pool = cp.get_default_memory_pool()
     before = pool.used_bytes()
-    planner = cuda_planner((variant, {}))
+    planner = cuda_planner(variant)
     planner.plan(blocked, goal)
-    cpu = make_planner("cpu", "fast")
+    cpu = make_planner("eds", "cpu", "fast")
     cpu.plan(blocked, goal)
     assert np.array_equal(planner.costs(), cpu.costs())
     for _ in range(3):
@@ -189,13 +174,13 @@ def test_large_map_matches_cpu_and_fits_in_100_mb(variant):
     assert np.array_equal(planner.path((h - 1, w // 2)), cpu.path((h - 1, w // 2)))
 
 
-@pytest.mark.parametrize("config", CONFIGS)
-def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(config):
-    """fast replays a captured graph whose arguments never change: the goal, like every other
-    per-call value, must come from the call's parameters."""
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(variant):
+    """fast's resident loop keeps its arguments: the goal, like every other per-call value,
+    must come from the call's parameters."""
     rng = np.random.default_rng(5)
     blocked, _ = random_map(rng, (70, 90), 0.25)
-    planner = cuda_planner(config)
+    planner = cuda_planner(variant)
     for goal in [(3, 4), (66, 80), (35, 1)]:
         blocked[goal] = False
         planner.plan(blocked, goal)
@@ -212,16 +197,15 @@ def test_a_new_plan_on_the_same_map_size_takes_the_new_goal(config):
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("config", CONFIGS[:5])  # fast: resident, graph and direct
-def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
-    """The captured graph copies up the first 1024 cells of a delta, a longer one gets a copy
-    of its own first, and one longer than the pinned stage moves it (the graph is captured
-    again on the new address, the resident loop is stopped and started on it); statistics and
-    path come back through the mapped results every time."""
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_deltas_beyond_the_stage_grow_it_and_stay_exact(variant):
+    """A delta longer than the pinned stage moves it (fast: the resident loop is stopped and
+    started on the new address; paper: the delta buffer grows); statistics and path come back
+    every time."""
     rng = np.random.default_rng(9)
     h, w = 150, 170
     blocked, goal = random_map(rng, (h, w), 0.2)
-    planner = cuda_planner(config)
+    planner = cuda_planner(variant)
     planner.plan(blocked, goal)
     for size in (10, 2001, 3000, 20, 12000, 5):  # 2001: a stage of an odd length before
         cells = rng.choice(h * w, size=size, replace=False)
@@ -229,7 +213,8 @@ def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
         values[cells == goal[0] * w + goal[1]] = False
         blocked.reshape(-1)[cells] = values
         start = (int(rng.integers(h)), int(rng.integers(w)))
-        stats, path = planner.update_and_path(cells, values, start, full=size == 20)
+        planner.dss = size == 20
+        stats, path = planner.update_and_path(cells, values, start)
         g = dijkstra_field(blocked, goal)
         assert np.array_equal(planner.costs(), g), f"delta of {size}"
         assert np.array_equal(path, reference_path(g, blocked, start))
@@ -237,7 +222,7 @@ def test_deltas_beyond_the_stage_grow_it_and_stay_exact(config):
 
 
 def test_encode_delta_keeps_the_last_value_of_a_cell_and_checks_bounds():
-    from daemon.planning.cuda_kernels import encode_delta
+    from daemon.planning.cuda.device import encode_delta
 
     out = np.full(8, -1, np.int32)
     codes = encode_delta(np.array([5, 3, 5, 9]), np.array([True, False, False, True]), 10, out=out)

@@ -1,4 +1,4 @@
-"""The resident loop (``cuda_resident.py``, ``kernels/resident.cuh``) on the GPU.
+"""The resident loop (``cuda/resident.py``, ``kernels/resident.cuh``) on the GPU.
 
 Calls posted to a running loop are served without a launch and stay bit-exact with the
 reference Dijkstra; a loop that ended idle starts again; calls racing the loop's own idle exit
@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from daemon.planning import cuda_available
-from daemon.planning.dijkstra import dijkstra_field
-from daemon.planning.interface import reference_path
+from daemon.planning.dijkstra import dijkstra_field, reference_path
 
 pytestmark = [
     pytest.mark.gpu,
@@ -28,7 +27,7 @@ pytestmark = [
 def _no_loop_left():
     """Each test starts and ends with no loop holding the device (another test's kernels would
     wait for its idle exit)."""
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     cuda_resident.evict()
     yield
@@ -53,19 +52,21 @@ def case(seed: int, shape=(70, 90), steps=24):
 
 
 def planner():
-    from daemon.planning.cuda_planner import CudaPlanner
+    from daemon.planning.cuda.planner import CudaPlanner
 
     return CudaPlanner("fast")
 
 
 def walk(p, blocked, goal, steps, between=None):
-    """Run the steps through ``update_and_path`` (every third one DSS), checking each."""
+    """Run the steps through ``update_and_path`` (every third one DSS: the same planner,
+    switched, so that both modes share one loop), checking each."""
     truth = blocked.copy()
     for i, (cells, values, start) in enumerate(steps):
         if between is not None:
             between(i)
         truth.reshape(-1)[cells] = values
-        _, path = p.update_and_path(cells, values, start, full=i % 3 == 2)
+        p.dss = i % 3 == 2
+        _, path = p.update_and_path(cells, values, start)
         g = dijkstra_field(truth, goal)
         assert np.array_equal(p.costs(), g), f"step {i}"
         assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
@@ -73,7 +74,7 @@ def walk(p, blocked, goal, steps, between=None):
 
 
 def test_steps_are_served_by_one_launch(monkeypatch):
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     # the reference Dijkstra between steps is slow Python: no idle exit meanwhile
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
@@ -87,7 +88,7 @@ def test_steps_are_served_by_one_launch(monkeypatch):
 
 
 def test_a_loop_that_ended_idle_starts_again(monkeypatch):
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 1.0)
     blocked, goal, steps = case(2, steps=10)
@@ -100,7 +101,7 @@ def test_a_loop_that_ended_idle_starts_again(monkeypatch):
 def test_calls_racing_the_idle_exit_are_not_lost(monkeypatch):
     """The loop ends a few µs after each call, so posts land just before, during and after
     its exit; ``wait`` starts it again when it ended without taking the call."""
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 0.005)
     blocked, goal, steps = case(3, steps=40)
@@ -119,7 +120,7 @@ def test_calls_racing_the_idle_exit_are_not_lost(monkeypatch):
 
 
 def test_planners_take_turns_on_the_device(monkeypatch):
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
 
@@ -144,7 +145,7 @@ def test_planners_take_turns_on_the_device(monkeypatch):
 
 
 def test_queries_keep_the_loop_and_path_launches_stop_it(monkeypatch):
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
 
@@ -175,7 +176,7 @@ def test_deltas_out_of_order_or_out_of_the_map(monkeypatch):
     """The loop checks the raw delta on the device: cells out of order are sorted on the host
     and posted again (a cell's last value wins); a cell outside the map rejects the whole
     delta with IndexError, nothing applied, and the loop goes on serving."""
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
     blocked, goal, _ = case(6)
@@ -210,7 +211,7 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
     applied whole; a repeated cell whose two entries straddle a pass boundary is caught as out
     of order (its last value wins after the host sorts it); a cell outside the map in a later
     pass rejects the whole delta."""
-    from daemon.planning import cuda_resident
+    from daemon.planning.cuda import resident as cuda_resident
 
     monkeypatch.setattr(cuda_resident, "IDLE_MS", 60_000.0)
     rng = np.random.default_rng(11)
@@ -231,8 +232,7 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
     assert np.array_equal(path, reference_path(g, truth, (0, 0)))
     for x in others[2000:2005]:
         # entries 1023 and 1024 both name x: blocked, then free (the last wins)
-        dup = np.concatenate([np.sort(rng.choice(others[others < x], 1023, replace=False)),
-                              [x, x]])
+        dup = np.concatenate([np.sort(rng.choice(others[others < x], 1023, replace=False)), [x, x]])
         vals = np.zeros(dup.size, dtype=bool)
         vals[1023] = True
         p.update(dup, vals)

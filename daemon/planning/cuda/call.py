@@ -1,0 +1,148 @@
+"""How a ``fast`` call reaches the device (``CudaPlanner`` mixes this in).
+
+Every fast call is posted to the resident loop (``resident.py``): the params words and the raw
+delta go into the mapped mailbox, the post last; the loop checks and applies the delta, repairs
+or recomputes the field, extracts the path when asked, writes its result words into the mapped
+io buffer and sets the done word, which the host polls. The host reads the result words
+(``RESULT_WORDS``) in one unpack.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import cupy as cp
+import numpy as np
+
+from . import abi, device, resident
+
+# Compiled once: struct's module functions parse the format string at every call, and these
+# run at every step.
+PARAMS_WORDS = struct.Struct(f"{abi.PARAM_USED}i")
+_ORDER = (abi.PARAM_NDELTA, abi.PARAM_MODE, abi.PARAM_START, abi.PARAM_GOAL, abi.PARAM_SEQ)
+assert tuple(range(abi.PARAM_USED)) == _ORDER, "the order _pack_params packs the words in"
+RESULT_WORDS = struct.Struct(
+    f"<{abi.CTRL_READ}I{4 * (abi.IO_REJECT - abi.CTRL_READ)}x"
+    f"I{4 * (abi.IO_PATH - abi.IO_REJECT - 1)}x2i"
+)
+"""What a finished call left before its path, in one read: the ctrl words it copies back (the
+statistics), the rejection bits of its delta, the path's count and status. One unpack after
+the done word instead of three reads: right after the walk's other work, each read of the
+mapped buffer from Python costs 1-3 µs."""
+R_REJECT, R_COUNT, R_STATUS = abi.CTRL_READ, abi.CTRL_READ + 1, abi.CTRL_READ + 2
+
+
+class FastCall:
+    """The fast call over ``CudaPlanner``'s buffers (see ``CudaPlanner._allocate``)."""
+
+    _shape: tuple[int, int]
+    _goal: tuple[int, int]
+    _seq: int
+    _stage: device.Pinned
+    _stage_views: tuple[np.ndarray, ...]
+    _io_host: device.Pinned
+    _params: cp.ndarray
+    _g: cp.ndarray
+    _blocked_d: cp.ndarray
+    _raised: cp.ndarray
+    _flags: cp.ndarray
+    _ctrl: cp.ndarray
+    _exits: cp.ndarray
+    _segs: cp.ndarray
+    _path_cap: int
+    _result: tuple[int, ...]
+    _blocks: int
+    _loop: resident.ResidentLoop | None
+    sweeps: int
+    raised_cells: int
+    tiles: int
+    exit_tiles: int
+
+    def _k_loop(self) -> cp.RawKernel:
+        return device.kernel("fast", "plan_resident")
+
+    def _call_fast(
+        self,
+        eds: bool,
+        cells: np.ndarray | None,
+        blocked: np.ndarray | None,
+        start: int = -1,
+        again: bool = False,
+    ) -> None:
+        """One fast call (lock held), the delta ``cells`` / ``blocked`` (none: ``cells`` is
+        None), the path from the flat cell ``start`` if >= 0; the result words end in
+        ``_result``. Every step of a walk runs this, so it does its staging itself and handles
+        its rare cases at the end (a cold Python call or numpy access costs ~1 µs right after
+        the walk's other work). The loop checks the delta: a cell outside the map is an
+        IndexError (nothing applied); cells out of order (a cell twice, say) are sorted here,
+        each keeping its last value, and posted ``again``."""
+        n = 0
+        if cells is not None:
+            # Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy
+            # copies, which cast and broadcast as needed.
+            cells = cells if isinstance(cells, np.ndarray) else np.asarray(cells)
+            if cells.ndim != 1:
+                cells = cells.ravel()
+            n = cells.size
+            # 8 + 1 bytes a cell after the params, in whole 16-byte chunks (the loop reads the
+            # stage in chunks).
+            words = abi.PARAMS + 4 * ((9 * n + 15) // 16)
+            if words > self._stage.count or abi.PARAMS + n > self._params.size:
+                self._grow_stage(words, n)
+            if self._stage_views[0] is not self._stage.array:  # views of the stage as it is now
+                stage = self._stage.array
+                self._stage_views = (stage, stage.view(np.int64), stage.view(np.uint8))
+            _, as_int64, as_bytes = self._stage_views
+            as_int64[abi.PARAMS // 2 : abi.PARAMS // 2 + n] = cells
+            at = 4 * abi.PARAMS + 8 * n
+            as_bytes[at : at + n] = blocked
+        loop = self._loop  # after staging: a stage that had to grow stopped the loop
+        if loop is None:
+            loop = self._loop = self._new_loop()
+        seq = self._pack_params(eds, n, start)
+        loop.post(seq, n)
+        io = self._io_host.view
+        loop.wait(io, seq)
+        self._result = result = RESULT_WORDS.unpack_from(io)
+        reject = result[R_REJECT]
+        if not reject:
+            return
+        if reject & abi.REJECT_RANGE:
+            h, w = self._shape
+            raise IndexError(f"a cell index is outside the map of {h * w} cells")
+        if again or cells is None or blocked is None:
+            raise RuntimeError("the resident loop refused a sorted delta")
+        cells, blocked = device.unique_last(cells, blocked)
+        self._call_fast(eds, cells, blocked, start, again=True)
+
+    def _pack_params(self, eds: bool, n_delta: int, start: int) -> int:
+        """The params words into the stage, for the next call's new seq, which it returns."""
+        self._seq = seq = self._seq % 0x7FFFFFFF + 1
+        goal = self._goal[0] * self._shape[1] + self._goal[1]
+        mode = abi.MODE_EDS if eds else abi.MODE_DSS
+        PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, mode, start, goal, seq)
+        return seq
+
+    def _read_fast_stats(self) -> tuple[int, int]:
+        st = self._result
+        self.sweeps, self.raised_cells = st[abi.C_SWEEPS], st[abi.C_RAISED]
+        self.tiles, self.exit_tiles = st[abi.C_TILES], st[abi.C_EXITS]
+        return st[abi.C_ROUNDS], self.raised_cells + st[abi.C_CHANGED]
+
+    def _new_loop(self) -> resident.ResidentLoop:
+        """The resident loop over this planner's buffers as they are now."""
+        h, w = self._shape
+        args = (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
+                np.int32(h), np.int32(w), self._exits, self._segs,
+                np.uint64(self._io_host.device_ptr), np.int32(self._path_cap),
+                np.uint64(self._stage.device_ptr))  # fmt: skip
+        k = self._k_loop()
+        blocks = self._blocks
+
+        def launch(stream: cp.cuda.Stream) -> None:
+            idle_us = np.uint32(resident.IDLE_MS * 1000)
+            k((blocks,), (abi.THREADS,), (*args, idle_us), stream=stream)
+
+        # The loop keeps the mapped buffers' memory too: a Pinned that grows lets go of its own.
+        keep = (args, self._io_host.memory, self._stage.memory)
+        return resident.ResidentLoop(launch, self._stage.array, keep)

@@ -1,0 +1,317 @@
+// The fast CUDA planner: one replanning step, the path included, per request of a resident loop.
+//
+// The grid is cut into 32 x 32 tiles (tile_relax.cuh). A block loads a tile and its one-cell
+// halo into shared memory and relaxes it until it settles; only then does the tile's change
+// reach the neighbouring tiles. A tile is relaxed only when it is flagged: by the delta, by
+// the goal, or by a neighbour whose border changed. So an EDS update touches only the tiles
+// around the change.
+//
+// Correctness does not depend on the order of relaxation: every value ever written is the
+// cost of a real path (an upper bound), values only decrease, and every tile whose halo
+// changed after it last read it is flagged again. The fixpoint of g[v] = min(g[v], g[n] + c)
+// is then the exact field, whatever the schedule.
+//
+// The relaxation has no rounds: block b owns tiles b, b + gridDim.x, ... and relaxes each as
+// soon as it is flagged, so the wave moves at the pace of one tile instead of a grid-wide
+// round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
+//
+// With start >= 0 the call then extracts the path from `start` (path_exits.cuh), reusing
+// the exits of every tile whose g and halo did not change since the last extraction.
+//
+// Host contract (cuda/planner.py): the loop has at most as many blocks as can be resident at
+// once (the barriers spin), one loop at a time per device, flags zero but for the stale region
+// (set at allocation), ctrl zero at allocation. Everything that changes from call to call is
+// read from device memory (params, and the barrier count the last loop ended with in
+// ctrl[C_BASE]), so the resident loop (resident.cuh) runs one call after another in a single
+// launch, and a new launch takes over where the last one ended.
+//
+// The results go straight to the host: io is page-locked host memory mapped into the device.
+// The call writes the path there, and the block that finishes last copies the statistics and
+// then sets io[IO_DONE] to the call's sequence number, which the host polls: no copy after
+// the call and no stream synchronisation. (The params come the other way through device
+// memory: every block reading the same host words at its start would queue a hundred PCIe
+// reads one behind another.)
+
+#include "tile_relax.cuh"
+#include "path_exits.cuh"
+
+// ctrl and io words: abi.cuh (generated from cuda/abi.py).
+
+// phases (ops) of a round
+#define OP_RAISE 1
+#define OP_RESET 2
+
+// Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
+// s_list (take_flag: one atomic each; a read first would cost a second round trip on the
+// wave's critical path). With `watch`, the block's last thread reads *watch into *s_watch in
+// the same pass; with `s_sum`, the flags' counts are summed there. Returns how many tiles,
+// the same in every thread of the block.
+__device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, int* s_n,
+                            const unsigned* watch = nullptr, unsigned* s_watch = nullptr,
+                            unsigned* s_sum = nullptr) {
+    __syncthreads();  // every thread has read the previous count
+    if (threadIdx.x == 0) {
+        *s_n = 0;
+        if (s_sum) *s_sum = 0;
+    }
+    __syncthreads();
+    int t = base + threadIdx.x * gridDim.x;
+    unsigned count = t < ntiles ? take_flag(flags, t) : 0u;
+    if (count) {
+        s_list[atomicAdd(s_n, 1)] = t;
+        if (s_sum) atomicAdd(s_sum, count);
+    }
+    if (watch && threadIdx.x == THREADS - 1) *s_watch = *((volatile const unsigned*)watch);
+    __syncthreads();
+    return *s_n;
+}
+
+// One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
+// tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
+// count, 0 when no tile is flagged for the next round, the same in every block.
+__device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
+                              unsigned* stale, unsigned* ctrl, int r, int* g,
+                              const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
+                              unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
+                              int* s_n, unsigned* bar) {
+    unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
+    if (blockIdx.x == 0 && threadIdx.x == 0) {
+        ctrl[C_CNT + (r + 2) % 3] = 0;
+        ctrl[C_ROUNDS] += 1;
+    }
+    for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+        int count = take_flagged(in, G.ntiles, base, s_list, s_n);
+        for (int i = 0; i < count; ++i) {
+            int tile = s_list[i];
+            if (op == OP_RAISE) {
+                bool any = false;
+                unsigned bits = raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any);
+                flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
+                if (any && threadIdx.x == 8) atomicExch(seeds + tile, 1u);
+            } else {
+                unsigned bits = reset_tile(G, tile, g, raised, ctrl + C_RAISED);
+                if (threadIdx.x == 0) flag_tile(next, cnt_next, tile);
+                mark_exits_stale(G, tile, bits, (int)threadIdx.x - 32, stale);
+            }
+            if (threadIdx.x == 0) atomicAdd(ctrl + C_TILES, 1u);
+            __syncthreads();  // shared tile buffers are reused by the next tile
+        }
+    }
+    grid_barrier(ctrl, bar);
+    return *((volatile unsigned*)cnt_next);
+}
+
+#define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
+
+// The relaxation without rounds. *work is the sum of the flags' counts, set or taken
+// by a visit under way (a block uncounts what it took after its visits have flagged their
+// neighbours); the phase ends when it reaches 0, which is final, since only a visit sets a flag.
+// depth[t]: the longest chain of visits that flagged t (a statistic: the rounds it replaces).
+__device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
+                            unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
+                            int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
+    // The block's statistics are summed here and added to ctrl once, at the end: atomics per
+    // visit would share a cache line with the work count that every block polls.
+    __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
+    // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
+    if (blockIdx.x >= G.ntiles) return;
+    if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
+    unsigned idle = 0, longest = 0, visits = 0;
+    while (true) {
+        int visited = 0;
+        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+            // The first chunk's pass also reads the work count, for the test below.
+            int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
+                                     base == (int)blockIdx.x ? work : nullptr, &s_work, &s_taken);
+            for (int i = 0; i < count; ++i) {
+                int tile = s_list[i];
+                int k = threadIdx.x;
+                // The depth statistic is loaded by the threads that use it, and used only after
+                // the relaxation: a load that a barrier waits for would delay every visit.
+                unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats);
+                if (k < 8 && (bits & (1u << k))) {
+                    int n = tile_across(G, tile, k);
+                    if (n >= 0) {
+                        atomicMax(depth + n, d);
+                        flag_tile(dirty, work, n, true);  // after the tile's g and the depth
+                    }
+                }
+                mark_exits_stale(G, tile, bits, k - 32, stale);
+                if (threadIdx.x == 0) {
+                    ++visits;
+                    longest = max(longest, d);
+                }
+                __syncthreads();  // shared tile buffers are reused by the next tile
+            }
+            // The flags this block set are counted before the ones it took are uncounted.
+            if (count && threadIdx.x == 0) atomicSub(work, s_taken);
+            visited += count;
+        }
+        if (visited) {
+            idle = 0;
+            continue;
+        }
+        // No flag of ours was set; a work count of 0, read in the same pass, means none will
+        // be: nothing is flagged anywhere and no visit is under way to flag one. (The next
+        // write of s_work comes after the first barrier of the next pass.)
+        if (s_work == 0u) break;
+        if (++idle == IDLE_LIMIT) __trap();  // a lost flag would otherwise hang the daemon
+    }
+    if (threadIdx.x == 0) {  // settle_tile's thread 0 counted into s_stats
+        atomicMax(ctrl + C_LONGEST, longest);
+        atomicAdd(ctrl + C_TILES, visits);
+        atomicAdd(ctrl + C_SWEEPS, s_stats[0]);
+        atomicAdd(ctrl + C_CHANGED, s_stats[C_CHANGED - C_SWEEPS]);
+    }
+}
+
+// params of a call: PARAM_* words, then the delta from PARAMS. io (host-mapped): the ctrl
+// words 0 .. IO_DONE - 1 copied at the end, io[IO_DONE] = seq when the call is complete, the
+// path from IO_PATH (count, status, then row and column of each cell).
+
+// The planning call, run by every block once per request of the resident loop (plan_resident,
+// resident.cuh).
+//   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
+//   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
+//   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
+//   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
+// params: device memory, the PARAM_* words; delta[i] = cell * 2 + new_blocked,
+// in device memory, read with ld.cv (the resident loop rewrites it between calls: never an
+// L1 copy from an earlier call).
+// flags: 5 * ntiles (ping, pong, seeds, stale, depth). *bar: thread 0's barrier target.
+// Not inlined: inside the resident loop the inlined body spilled 160 bytes a thread (ptxas -v)
+// and the relaxation ran 20 % slower.
+__device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
+                          const int* params, const int* delta, unsigned* flags, unsigned* ctrl,
+                          int h, int w, int2* exits, int4* segs, int* io, int cap,
+                          unsigned* bar_ptr) {
+    __shared__ __align__(16) int gs[HT][HT];  // aligned: walk_segments stores int2 pairs in it
+    __shared__ unsigned char bs[TILE][TILE + 1];
+    __shared__ unsigned char rs[HT][HT];
+    __shared__ int gs2[HT][HT];  // the second tile of tile_exits' pairs
+    __shared__ int s_list[THREADS];
+    __shared__ int s_n;
+    __shared__ int s_params[PARAM_USED];
+    Grid G;
+    G.h = h; G.w = w;
+    G.tiles_x = (w + TILE - 1) / TILE;
+    G.tiles_y = (h + TILE - 1) / TILE;
+    G.ntiles = G.tiles_x * G.tiles_y;
+    unsigned* ping = flags;
+    unsigned* pong = flags + G.ntiles;
+    unsigned* seeds = flags + 2 * G.ntiles;
+    unsigned* stale = flags + 3 * G.ntiles;
+    unsigned* depth = flags + 4 * G.ntiles;
+    int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
+    __syncthreads();
+    const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
+    const int start = s_params[PARAM_START], goal = s_params[PARAM_GOAL];
+    int* out = io + IO_PATH;
+    G.goal = goal;
+    unsigned bar = *bar_ptr;
+
+    // Round 0: the delta, the seeds of the first phase. (The counters and depth were zeroed
+    // by the last call's last block, or at allocation: no barrier needed first.)
+    unsigned* cnt1 = ctrl + C_CNT + 1;
+    if (mode == MODE_DSS) {
+        for (int i = tid; i < ndelta; i += stride) {
+            int code = __ldcv(delta + i);
+            blocked[code >> 1] = code & 1;
+        }
+        for (int i = tid; i < h * w; i += stride) g[i] = INF;
+        for (int i = tid; i < G.ntiles; i += stride) stale[i] = 1u;
+        if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
+    } else {
+        for (int i = tid; i < ndelta; i += stride) {
+            int code = __ldcv(delta + i);
+            int cell = code >> 1;
+            unsigned char now = code & 1;
+            if (__ldcg(blocked + cell) == now) continue;
+            blocked[cell] = now;
+            int cy = cell / w, cx = cell % w;
+            if (now) {
+                // Its children may lie in the tiles around: each of those looks at it.
+                raised[cell] = 1;
+                for (int dy = -1; dy <= 1; ++dy) {
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        int ny = cy + dy, nx = cx + dx;
+                        if (ny < 0 || nx < 0 || ny >= h || nx >= w) continue;
+                        flag_tile(pong, cnt1, (ny / TILE) * G.tiles_x + nx / TILE);
+                    }
+                }
+            }
+            atomicExch(seeds + (cy / TILE) * G.tiles_x + cx / TILE, 1u);
+        }
+    }
+    grid_barrier(ctrl, &bar);
+    unsigned pending = *((volatile unsigned*)cnt1);
+    int r = 1;
+    if (mode == MODE_EDS) {
+        while (pending) {
+            pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
+            ++r;
+        }
+        pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r, g,
+                            blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
+        ++r;
+    }
+    // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
+    // Every block enters, even with nothing pending: a block that is late to read `pending`
+    // may find the count already changed by the others' visits.
+    (void)pending;
+    relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
+                bs, s_list, &s_n);
+    grid_barrier(ctrl, &bar);
+    if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
+    if (start >= 0) {
+        // The path: exits of the stale tiles and of the start's, the hops, the segments.
+        unsigned char(*code)[TILE] = (unsigned char(*)[TILE]) & rs[0][0];
+        unsigned char(*code2)[TILE] = (unsigned char(*)[TILE]) & bs[0][0];  // 1056 >= 1024 bytes
+        int start_tile = tile_of(start, w, G.tiles_x);
+        if (threadIdx.x == 0 && start_tile % gridDim.x == blockIdx.x) stale[start_tile] = 1u;
+        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+            int count = take_flagged(stale, G.ntiles, base, s_list, &s_n);
+            // Two tiles at a time, one in each half of the block: a block that owns two
+            // stale tiles (37 at 400²) would otherwise make the phase twice as long.
+            for (int i = 0; i + 1 < count; i += 2) {
+                const int half = threadIdx.x >= THREADS / 2 ? 1 : 0;
+                tile_exits(g, h, w, s_list[i + half], start, exits, ctrl, half ? gs2 : gs,
+                           half ? code2 : code, threadIdx.x - half * (THREADS / 2), THREADS / 2);
+            }
+            if (count & 1) tile_exits(g, h, w, s_list[count - 1], start, exits, ctrl, gs, code);
+            if (count && threadIdx.x == 0) atomicAdd(ctrl + C_EXITS, (unsigned)count);
+        }
+        grid_barrier(ctrl, &bar);
+            if (tid == 0) hop_segments(g, w, start, exits, segs, out, cap, ctrl);
+        grid_barrier(ctrl, &bar);
+            walk_segments(g, h, w, segs, out, ctrl, gs, code);
+        }
+    // The result to the host: the last block in copies the ctrl words (statistics, stamps),
+    // zeroes the counters and depth for the next call and, after everything it and every
+    // other block wrote, sets the done word.
+    if (grid_arrive_last(ctrl, &bar)) {
+        if (threadIdx.x < IO_DONE) io[threadIdx.x] = (int)__ldcg(ctrl + threadIdx.x);
+        __syncthreads();  // every word is copied before it is zeroed
+        if (threadIdx.x == 0) {
+            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
+            ctrl[C_EXITS] = 0;
+            for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
+            ctrl[C_BASE] = bar;
+        }
+        for (int i = threadIdx.x; i < G.ntiles; i += THREADS) depth[i] = 0;
+        // One fence, thread 0's after the barrier, orders every thread's writes above before
+        // the done word (fences are cumulative over the block's barrier).
+        __syncthreads();
+        if (threadIdx.x == 0) {
+            __threadfence_system();
+            ((volatile int*)io)[IO_DONE] = s_params[PARAM_SEQ];
+        }
+    }
+    if (threadIdx.x == 0) *bar_ptr = bar;  // thread 0's target is the block's
+}
+
+
+#include "resident.cuh"

@@ -1,0 +1,246 @@
+// One 32 x 32 tile of the fast planner (fast.cu): load it with its halo into shared memory,
+// relax it until it settles, raise the cells whose cost must rise, reset raised cells.
+// Every function is called by a whole block of THREADS == TILE * TILE threads, thread
+// (y, x) = (threadIdx.x / 32, threadIdx.x % 32) owning one cell.
+#pragma once
+#include "grid_sync.cuh"
+#include "tile.cuh"
+
+#define CHANGED_ANY 256u  // with the edge bits N S W E NW NE SW SE: some cell of the tile changed
+
+
+
+// Tile offsets for the edge bits N S W E NW NE SW SE.
+__constant__ int EDGE_DY[8] = {-1, 1, 0, 0, -1, -1, 1, 1};
+__constant__ int EDGE_DX[8] = {0, 0, -1, 1, -1, 1, -1, 1};
+
+struct Grid {
+    int h, w, tiles_x, tiles_y, ntiles, goal;
+};
+
+// The tile across edge/corner k of tile t (k: N S W E NW NE SW SE), or -1 off the map.
+__device__ __forceinline__ int tile_across(const Grid& G, int t, int k) {
+    int ny = t / G.tiles_x + EDGE_DY[k], nx = t % G.tiles_x + EDGE_DX[k];
+    if (ny < 0 || nx < 0 || ny >= G.tiles_y || nx >= G.tiles_x) return -1;
+    return ny * G.tiles_x + nx;
+}
+
+// Thread k < 8 flags the tile across edge/corner k if that bit is set.
+__device__ void flag_neighbour(const Grid& G, int t, unsigned bits, int k, unsigned* next,
+                               unsigned* cnt) {
+    if (k < 0 || k >= 8 || !(bits & (1u << k))) return;
+    int n = tile_across(G, t, k);
+    if (n >= 0) flag_tile(next, cnt, n);
+}
+
+// Thread k <= 8 marks stale the path exits (path_exits.cuh) that read changed cells: of the
+// tile across each changed edge/corner k < 8, and (k == 8) of t itself if any cell changed.
+__device__ void mark_exits_stale(const Grid& G, int t, unsigned bits, int k, unsigned* stale) {
+    if (k == 8 && (bits & CHANGED_ANY)) stale[t] = 1u;
+    if (k < 0 || k >= 8 || !(bits & (1u << k))) return;
+    int n = tile_across(G, t, k);
+    if (n >= 0) stale[n] = 1u;
+}
+
+// Which edge/corner bits a tile cell (y, x) sits on.
+__device__ __forceinline__ unsigned edge_bits(int y, int x) {
+    unsigned b = 0;
+    if (y == 0) b |= 1u;
+    if (y == TILE - 1) b |= 2u;
+    if (x == 0) b |= 4u;
+    if (x == TILE - 1) b |= 8u;
+    if (y == 0 && x == 0) b |= 16u;
+    if (y == 0 && x == TILE - 1) b |= 32u;
+    if (y == TILE - 1 && x == 0) b |= 64u;
+    if (y == TILE - 1 && x == TILE - 1) b |= 128u;
+    return b;
+}
+
+// This thread's cell of tile t: the tile's origin (oy, ox), the cell in the tile (y, x), its
+// index in the map and whether it lies inside the map (edge tiles hang over).
+struct TileCell {
+    int oy, ox, y, x, idx;
+    bool inside;
+};
+
+__device__ __forceinline__ TileCell tile_cell(const Grid& G, int t) {
+    TileCell c;
+    c.oy = (t / G.tiles_x) * TILE;
+    c.ox = (t % G.tiles_x) * TILE;
+    c.y = threadIdx.x >> 5;
+    c.x = threadIdx.x & 31;
+    c.inside = c.oy + c.y < G.h && c.ox + c.x < G.w;
+    c.idx = (c.oy + c.y) * G.w + c.ox + c.x;
+    return c;
+}
+
+// g at halo-tile index i (sy = i / HT, sx = i % HT) of the tile at (oy, ox); INF outside.
+__device__ __forceinline__ int halo_g(const Grid& G, const int* g, int oy, int ox, int i) {
+    int y = oy + i / HT - 1, x = ox + i % HT - 1;
+    return (y >= 0 && x >= 0 && y < G.h && x < G.w) ? __ldcg(g + y * G.w + x) : INF;
+}
+
+// Load g of the tile and its halo into gs (cells outside the map read INF). HT * HT = 1156
+// cells for 1024 threads: both loads of a thread are issued before either is stored, so a
+// visit waits for one L2 round trip here, not two.
+__device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*gs)[HT]) {
+    static_assert(HT * HT <= 2 * THREADS, "two cells per thread");
+    const int i0 = threadIdx.x, i1 = threadIdx.x + THREADS;
+    int v0 = halo_g(G, g, oy, ox, i0);
+    int v1 = i1 < HT * HT ? halo_g(G, g, oy, ox, i1) : INF;
+    gs[i0 / HT][i0 % HT] = v0;
+    if (i1 < HT * HT) gs[i1 / HT][i1 % HT] = v1;
+}
+
+#include "tile_scans.cuh"
+
+// Relax the tile held in gs (its g and halo; bs: 1 for blocked cells and cells outside the
+// map, the caller's barrier after filling both) until it settles, then store the cells that
+// changed into g. Returns the edge bits of cells that changed, and CHANGED_ANY if any did.
+__device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*gs)[HT],
+                                unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+    __shared__ unsigned s_bits;
+    const int y = c.y, x = c.x;
+    const bool blk = bs[y][x] != 0;
+    const bool is_goal = c.inside && c.idx == G.goal;
+    if (threadIdx.x == 0) s_bits = 0;
+    int before = gs[y + 1][x + 1];
+    if (is_goal && !blk) gs[y + 1][x + 1] = 0;
+    __syncthreads();
+    // A Jacobi pass over the 8 neighbours, then the scans, until a Jacobi pass changes
+    // nothing: that alone proves the tile settled (each scan only chains relations that the
+    // Jacobi pass checks), so the last, confirming pass costs no scans. About half the visits
+    // change nothing in their first pass: they never work out their segments.
+    unsigned seg[4] = {0, 0, 0, 0};
+    unsigned n = 0;
+    while (true) {
+        bool ch = false;
+        if (!blk && !is_goal) {
+            int cur = gs[y + 1][x + 1];
+            int best = cur;
+#pragma unroll
+            for (int k = 0; k < 8; ++k) best = min(best, gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k]);
+            if (best < cur) {
+                gs[y + 1][x + 1] = best;
+                ch = true;
+            }
+        }
+        ++n;
+        if (!__syncthreads_or(ch)) break;
+        if (n == 1) {
+#pragma unroll
+            for (int d = 0; d < 4; ++d) seg[d] = line_segments(d, bs);
+        }
+        scan_line(0, seg[0], gs);
+        __syncthreads();
+        scan_line(1, seg[1], gs);
+        __syncthreads();
+        scan_line(2, seg[2], gs);
+        __syncthreads();
+        scan_line(3, seg[3], gs);
+        __syncthreads();
+    }
+    int after = gs[y + 1][x + 1];
+    bool changed = c.inside && after != before;
+    if (changed) {
+        // Made visible to other blocks by the fence of whichever thread flags a neighbour
+        // after the barrier below (fences are cumulative over the block's barrier).
+        __stcg(g + c.idx, after);
+        atomicOr(&s_bits, edge_bits(y, x) | CHANGED_ANY);
+    }
+    unsigned total = __syncthreads_count(changed);
+    if (threadIdx.x == 0) {
+        atomicAdd(sweeps, n);
+        atomicAdd(sweeps + (C_CHANGED - C_SWEEPS), total);
+    }
+    return s_bits;
+}
+
+// Load tile t and its halo into gs and bs, and settle it (settle_tile).
+__device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
+                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+    const TileCell c = tile_cell(G, t);
+    bool blk = !c.inside || __ldcg(blocked + c.idx) != 0;
+    load_tile_g(G, g, c.oy, c.ox, gs);
+    bs[c.y][c.x] = blk ? 1 : 0;
+    __syncthreads();
+    return settle_tile(G, c, g, gs, bs, sweeps);
+}
+
+// EDS step 1, one tile: a cell is raised when every neighbour that supports its g (a tight
+// neighbour, g[n] + c == g[v] in the unchanged old field) is raised or newly blocked. That
+// is exactly the set of cells whose cost must rise (the CPU's rule), smaller than the whole
+// pred subtree. Returns the edge bits of newly raised cells; *any_raised tells whether the
+// tile holds one.
+__device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
+                               int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
+                               bool* any_raised) {
+    __shared__ unsigned s_bits;
+    __shared__ int s_any;
+    const TileCell c = tile_cell(G, t);
+    const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
+    const bool inside = c.inside;
+    if (threadIdx.x == 0) { s_bits = 0; s_any = 0; }
+    load_tile_g(G, g, oy, ox, gs);
+    for (int i = threadIdx.x; i < HT * HT; i += THREADS) {
+        int sy = i / HT, sx = i % HT;
+        int yy = oy + sy - 1, xx = ox + sx - 1;
+        unsigned char v = 0;
+        if (yy >= 0 && xx >= 0 && yy < G.h && xx < G.w) v = __ldcg(raised + yy * G.w + xx);
+        rs[sy][sx] = v;
+    }
+    __syncthreads();
+    int gv = gs[y + 1][x + 1];
+    unsigned tight = 0;  // bit k: neighbour k supports g (the goal has none and never rises)
+    if (inside && gv > 0 && gv < INF) {
+#pragma unroll
+        for (int k = 0; k < 8; ++k)
+            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] == gv) tight |= 1u << k;
+    }
+    bool was = rs[y + 1][x + 1] != 0;
+    unsigned n = 0;
+    while (true) {
+        bool ch = false;
+        if (tight && !rs[y + 1][x + 1]) {
+            bool all = true;
+#pragma unroll
+            for (int k = 0; k < 8; ++k)
+                if ((tight >> k) & 1u) all = all && rs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]];
+            if (all) {
+                rs[y + 1][x + 1] = 1;
+                ch = true;
+            }
+        }
+        ++n;
+        if (!__syncthreads_or(ch)) break;
+    }
+    bool now = rs[y + 1][x + 1] != 0;
+    if (inside && now && !was) {
+        raised[idx] = 1;
+        atomicOr(&s_bits, edge_bits(y, x));
+    }
+    if (inside && now) s_any = 1;
+    __syncthreads();
+    if (threadIdx.x == 0) atomicAdd(sweeps, n);
+    *any_raised = s_any != 0;
+    return s_bits;
+}
+
+// EDS step 2, one tile: raised cells take INF and are cleared. Returns the edge bits of
+// reset cells and CHANGED_ANY if there were any (their exits change).
+__device__ unsigned reset_tile(const Grid& G, int t, int* g, unsigned char* raised, unsigned* count) {
+    __shared__ unsigned s_bits;
+    const TileCell c = tile_cell(G, t);
+    if (threadIdx.x == 0) s_bits = 0;
+    __syncthreads();
+    unsigned r = 0;
+    if (c.inside && __ldcg(raised + c.idx)) {
+        __stcg(g + c.idx, INF);
+        raised[c.idx] = 0;
+        r = 1;
+        atomicOr(&s_bits, edge_bits(c.y, c.x) | CHANGED_ANY);
+    }
+    unsigned total = __syncthreads_count(r);
+    if (threadIdx.x == 0) atomicAdd(count, total);
+    return s_bits;
+}

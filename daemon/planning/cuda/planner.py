@@ -1,0 +1,278 @@
+"""The cuda backend: EDS and DSS in CuPy raw kernels, bit-exact with the CPU backends.
+
+Two variants (``kernels/``):
+
+- ``fast`` (default, ``fast.cu``): every block of the device works on one planning call at a
+  time. 32 x 32 tiles settle in shared memory; a tile is relaxed as soon as a neighbour's
+  border change flags it, so an EDS update works around the change; in ``update_and_path``
+  the same call then extracts the path, recomputing the tile exits only where g changed. A
+  resident loop (``resident.py``, ``call.py``) serves the calls: the host posts a step into a
+  mapped mailbox and pays no launch; the call writes statistics and path straight into
+  page-locked host memory mapped into the device, and the host polls its done word.
+- ``paper`` (``paper.py``, ``paper.cu``): Díaz-Toro et al.'s Figure 4 form, for comparison:
+  read-only and write-only maps for g, pred and incon, one ``kernel_planner`` launch per
+  iteration and ``flag_stop`` read back after each.
+
+EDS semantics are the CPU's: newly blocked cells are raised to INF, and so is every cell
+all of whose supporting neighbours (g[n] + cost == g[v]) are raised — exactly the cells whose
+cost must rise (``fast``; ``paper`` raises the whole subtree of its stored pred map, a
+superset); then raised and newly freed cells are re-seeded from their neighbours and
+everything is relaxed until nothing changes. Every value is an integer path cost, so the
+fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
+
+``path`` runs on the device with the rule of ``dijkstra.reference_path`` (``path_exits.cuh``:
+tile-to-tile jumps, segments walked in parallel); only the path's cells come back.
+
+A device failure raises one of ``errors.device_errors()``; the planner is then unusable (a
+CUDA fault is sticky: every later call on the context fails too) and the caller, which owns
+the map, builds a CPU planner from it. Test hook: ``inject_fault(exc)`` makes every later
+public call raise ``exc`` before touching the device, as a sticky fault would.
+"""
+
+from __future__ import annotations
+
+import time
+
+import cupy as cp
+import numpy as np
+
+from ..field import FieldPlanner
+from ..grid import INF, Cell, checked_plan_input, in_bounds
+from ..interface import UpdateStats
+from . import abi, device, resident
+from .call import FastCall
+from .paper import PaperForm
+from .path import PathReader
+
+VARIANTS = ("fast", "paper")
+PATH_THREADS = 128
+"""Threads of a path_tiles block (its __launch_bounds__)."""
+
+
+class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
+    """EDS (``dss=False``) or DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
+
+    Calls are serialised on the device (``device.DEVICE_LOCK``): the resident loop needs every
+    block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
+    reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
+    """
+
+    backend = "cuda"
+
+    def __init__(self, variant: str = "fast", *, dss: bool = False) -> None:
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+        self.variant = variant
+        super().__init__(dss)
+        self._loop: resident.ResidentLoop | None = None
+        self._shape: tuple[int, int] = (0, 0)
+        self._goal: Cell = (0, 0)
+        self._fault: BaseException | None = None
+        self.last_stats: UpdateStats | None = None
+        # A call's results, written by fast.cu itself (mapped): the ctrl words, the done word,
+        # then the path (see _allocate); the path kernel's results are copied here too.
+        self._io_host = device.Pinned(abi.IO_PATH + 2 + 2 * 1024, np.int32, mapped=True)
+        # A call's input: the params words, then the delta (see FastCall._call_fast). Mapped:
+        # the resident loop's mailbox (its block 0 copies the params and the checked, encoded
+        # delta into ``_params`` on the device). Never read in place by every block: 100+
+        # blocks reading the same host words wait ~100 µs for PCIe.
+        self._stage = device.Pinned(abi.PARAMS + 1024, np.int32, mapped=True)
+        self._stage_views: tuple[np.ndarray, ...] = (np.empty(0),)  # see _call_fast
+        self._pairs = (np.empty(0), np.empty((0, 2)))  # see _path_locked
+        self._result: tuple[int, ...] = ()  # the last fast call's result words (_call_fast)
+        self._seq = 0  # the sequence number of the last fast call (its done word)
+        self._params = self._delta = cp.zeros(0, dtype=np.int32)
+        self._path_guess = 256
+        self._slot = 0  # paper: which flag_stop slot the next launch writes
+        # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run,
+        # tiles whose path exits were recomputed (update_and_path; the rest were reused).
+        self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = 0
+
+    # -- test hook ----------------------------------------------------------------------------
+
+    def inject_fault(self, exc: BaseException) -> None:
+        """Make every later public call raise ``exc`` (tests of the caller's CPU fallback)."""
+        self._fault = exc
+
+    def _check_fault(self) -> None:
+        if self._fault is not None:
+            raise self._fault
+
+    # -- state ----------------------------------------------------------------------------------
+
+    def _allocate(self, shape: tuple[int, int]) -> None:
+        self._drop_loop()  # it holds the old buffers
+        resident.evict()  # the fills below are kernels
+        h, w = shape
+        n = h * w
+        self._shape = shape
+        self._blocked_d = cp.zeros(n, dtype=np.uint8)
+        self._g = cp.full(n, INF, dtype=np.int32)
+        self._path_cap = int(min(n, 4 * (h + w) + 1024))
+        # One device buffer holds fast.cu's ctrl words (barrier count, statistics; the call
+        # copies them into _io_host itself) and then the path kernel's output, copied back.
+        self._io = cp.zeros(abi.IO_PATH + 2 + 2 * self._path_cap, dtype=np.int32)
+        self._ctrl = self._io[: abi.IO_PATH].view(np.uint32)
+        self._path_d = self._io[abi.IO_PATH :]
+        self._io_host.reserve(abi.IO_PATH + 2 + 2 * self._path_cap)
+        self._set_params_size(abi.PARAMS + 1024)
+        tiles = -(-h // abi.TILE) * -(-w // abi.TILE)
+        # Path by tile jumps (path_exits.cuh): the border exits of every tile, kept between
+        # steps (fast.cu recomputes only stale tiles), and the segments of one extraction.
+        self._exits = cp.zeros(2 * abi.BORDER * tiles, dtype=np.int32)
+        self._segs = cp.zeros(4 * self._path_cap, dtype=np.int32)
+        self._path_ctrl = cp.zeros(abi.PATH_CTRL, dtype=np.uint32)
+        self._path_bar = 0  # its barrier count: 2 barriers x blocks per launch
+        k = device.kernel("path_tiles", "path_tiles")
+        sms = int(cp.cuda.Device().attributes["MultiProcessorCount"])
+        self._path_blocks = int(min(tiles, device.resident_blocks(k, PATH_THREADS), 8 * sms))
+        if self.variant == "fast":
+            self._raised = cp.zeros(n, dtype=np.uint8)
+            # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth.
+            self._flags = cp.zeros(5 * tiles, dtype=np.uint32)
+            self._flags[3 * tiles : 4 * tiles] = 1
+            # The loop's grid: all of its blocks must be resident at once.
+            self._blocks = int(min(tiles, device.resident_blocks(self._k_loop())))
+        else:
+            self._allocate_paper(n)
+
+    def _set_params_size(self, size: int) -> None:
+        """A device buffer for the params words and a delta of up to ``size - PARAMS`` cells."""
+        self._drop_loop()
+        self._params = cp.zeros(size, dtype=np.int32)
+        self._delta = self._params[abi.PARAMS :]  # the paper's kernels take the delta alone
+
+    def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
+        """paper: the delta into the stage after the params words, encoded and checked here
+        (``encode_delta``), for ``_run_paper`` to copy up. Returns its length."""
+        h, w = self._shape
+        cells = np.asarray(cells)
+        self._grow_stage(abi.PARAMS + cells.size, cells.size)  # a word a cell at most
+        return device.encode_delta(cells, blocked, h * w, out=self._stage.array[abi.PARAMS :]).size
+
+    def _grow_stage(self, words: int, n: int) -> None:
+        """Room in the stage for ``words`` (the params and a delta) and on the device for a
+        delta of ``n`` cells. A stage that moves stops the resident loop (it polls the stage);
+        so does a new params buffer."""
+        if words > self._stage.count:
+            self._drop_loop()
+            self._stage.reserve(words)
+        if abi.PARAMS + n > self._params.size:
+            self._set_params_size(2 * (abi.PARAMS + n))
+
+    def _drop_loop(self) -> None:
+        if self._loop is not None:
+            self._loop.stop()
+            self._loop = None
+
+    def _require_plan(self) -> None:
+        if self._shape == (0, 0):
+            raise RuntimeError("call plan(blocked, goal) before update")
+
+    # -- planning -------------------------------------------------------------------------------
+
+    def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
+        t0 = time.perf_counter()
+        self._check_fault()
+        blocked, shape, goal = checked_plan_input(blocked, goal)
+        with device.DEVICE_LOCK:
+            if shape != self._shape:
+                self._allocate(shape)
+            self._goal = goal
+            self._blocked_d.set(np.ascontiguousarray(blocked, dtype=np.uint8).ravel())
+            device.synchronize()  # a resident loop runs on its own stream: the map is there first
+            return self._run(False, t0)
+
+    def _repair(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        return self._change(cells, blocked, eds=True)
+
+    def _recompute(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        return self._change(cells, blocked, eds=False)
+
+    def _change(self, cells: np.ndarray, blocked: np.ndarray, eds: bool) -> UpdateStats:
+        t0 = time.perf_counter()
+        self._check_fault()
+        self._require_plan()
+        with device.DEVICE_LOCK:
+            return self._run(eds, t0, cells, blocked)
+
+    def _run(
+        self,
+        eds: bool,
+        t0: float,
+        cells: np.ndarray | None = None,
+        blocked: np.ndarray | None = None,
+    ) -> UpdateStats:
+        if self.variant == "fast":
+            self._call_fast(eds, cells, blocked)
+            iterations, touched = self._read_fast_stats()
+        else:
+            n = 0 if cells is None else self._stage_delta(cells, blocked)
+            iterations, touched = self._run_paper(eds, n)
+        stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
+        self.last_stats = stats
+        return stats
+
+    def update_and_path(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell
+    ) -> tuple[UpdateStats, np.ndarray]:
+        """``fast``: one call that repairs (EDS) or recomputes (DSS) the field and extracts the
+        path, statistics and path read back after a single wait. ``paper`` syncs per iteration
+        anyway and takes the interface's default."""
+        if self.variant != "fast":
+            stats, path = super().update_and_path(cells, blocked, start)
+            self.last_stats = stats  # the whole step's, as for fast
+            return stats, path
+        # Every walking step runs this: checks inline rather than in helpers (a cold Python call
+        # costs 1-2 µs right after the caller's other work).
+        t0 = time.perf_counter()
+        if self._fault is not None:
+            self._check_fault()
+        h, w = self._shape
+        if not h:
+            self._require_plan()
+        y, x = int(start[0]), int(start[1])
+        inside = 0 <= y < h and 0 <= x < w
+        with device.DEVICE_LOCK:
+            self._call_fast(not self.dss, cells, blocked, y * w + x if inside else -1)
+            if inside:
+                path = self._path_locked((y, x), fused=True)
+            else:
+                path = np.empty((0, 2), dtype=np.int32)
+            iterations, touched = self._read_fast_stats()
+        stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
+        self.last_stats = stats
+        return stats, path
+
+    # -- queries --------------------------------------------------------------------------------
+
+    def costs(self) -> np.ndarray:
+        self._check_fault()
+        return self._g.get().reshape(self._shape)
+
+    def blocked(self) -> np.ndarray:
+        self._check_fault()
+        return self._blocked_d.get().astype(bool).reshape(self._shape)
+
+    def cost_at(self, cell: Cell) -> int:
+        self._check_fault()
+        if not in_bounds(self._shape, cell):
+            return int(INF)
+        return int(self._g[int(cell[0]) * self._shape[1] + int(cell[1])].get())
+
+    def path(self, start: Cell) -> np.ndarray:
+        self._check_fault()
+        start = (int(start[0]), int(start[1]))
+        if self._shape == (0, 0) or not in_bounds(self._shape, start):
+            return np.empty((0, 2), dtype=np.int32)
+        with device.DEVICE_LOCK:
+            if self.variant == "fast":
+                # A call with no change: the loop extracts the path, no launch.
+                self._call_fast(True, None, None, start[0] * self._shape[1] + start[1])
+                return self._path_locked(start, fused=True)
+            return self._path_locked(start)
+
+    def device_bytes(self) -> int:
+        """Bytes of device memory this planner's state holds."""
+        arrays = [v for v in vars(self).values() if isinstance(v, cp.ndarray) and v.base is None]
+        return int(sum(a.nbytes for a in arrays))
