@@ -1,14 +1,12 @@
-"""``Navigator`` without zenoh: coalescing, resync, the margin's way out, the CPU fallback."""
+"""``Navigator`` without zenoh: coalescing, resync, the margin's way out."""
 
 from __future__ import annotations
 
-import logging
 import time
 
 import numpy as np
 
 from daemon.navigation import Inbox, Navigator, NavigatorSettings
-from daemon.planning import DeviceFault, make_planner
 from daemon.planning.dijkstra import dijkstra_field
 from protocol.messages import Goal, GoalCell, MapDelta, MapSnapshot, NavState, Pose
 
@@ -90,41 +88,3 @@ def test_from_inside_the_inflation_margin_the_path_leads_out_then_on():
     first_free = next(i for i, c in enumerate(cells) if not s.maps.map.blocked[c])
     assert all(not s.maps.map.blocked[c] for c in cells[first_free:])
     assert first_free <= s.radius_cells  # straight out of the margin, not through the wall
-
-
-def test_a_device_error_mid_session_moves_it_to_the_cpu_and_guiding_goes_on(caplog):
-    class FailsOnSecondRepair:
-        """Stands in for a GPU planner whose device faults in the middle of the walk."""
-
-        name = "cuda-stand-in"
-
-        def __init__(self) -> None:
-            self.inner = make_planner("eds", "cpu")
-            self.repairs = 0
-
-        def __getattr__(self, name: str):
-            return getattr(self.inner, name)
-
-        def update_and_path(self, cells, blocked, start):
-            self.repairs += 1
-            if self.repairs == 2:
-                raise DeviceFault("injected: an illegal memory access was encountered")
-            return self.inner.update_and_path(cells, blocked, start)
-
-    def factory(backend: str):
-        return FailsOnSecondRepair() if backend == "cuda" else make_planner("eds", backend)
-
-    s = Navigator("u", NavigatorSettings(backend="cuda"), planner_factory=factory)
-    s.step(Inbox(deltas=[delta(0, [], [])], goal=goal(3, 15), pose=pose((26, 15))), time.time())
-    assert s.route.name == "cuda-stand-in"
-    wall = [12 * 30 + c for c in range(0, 25)]
-    with caplog.at_level(logging.WARNING):
-        for seq, cells in enumerate((wall[:10], wall[10:20], wall[20:]), start=1):
-            out = s.step(Inbox(deltas=[delta(seq, cells, [1] * len(cells))], pose=pose((26, 15))),
-                         time.time())
-            assert s.state == NavState.GUIDING
-            assert out.path() is not None and out.path().cells[0] == (26, 15)
-    assert s.route.name.startswith("cpu") and "illegal memory access" in s.route.fallback_reason
-    assert s.status(time.time()).backend == s.route.name
-    assert any("cpu" in r.getMessage().lower() for r in caplog.records if r.levelno >= 30)
-    assert np.array_equal(s.route.planner.costs(), dijkstra_field(s.maps.map.blocked, (3, 15)))
