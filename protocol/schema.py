@@ -5,31 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .messages import (
-    MAX_DELTA_CELLS,
-    BeltPattern,
-    Goal,
-    Health,
-    MapDelta,
-    MapSnapshot,
-    Message,
-    NavPath,
-    NavStatus,
-    Pose,
-    VoiceCue,
-)
+from .messages import MAX_DELTA_CELLS, Message
+from .topics import TOPICS, wire_models
 
-MESSAGES: tuple[type[Message], ...] = (
-    Pose,
-    Goal,
-    MapDelta,
-    MapSnapshot,
-    NavPath,
-    NavStatus,
-    BeltPattern,
-    VoiceCue,
-    Health,
-)
+MESSAGES: tuple[type[Message], ...] = wire_models()
+"""Derived from the topic table: a message on any key is here, none can be forgotten."""
 
 BINARY_LAYOUT = {
     "MapDelta": {
@@ -53,6 +33,12 @@ def schemas() -> dict[str, dict]:
     for model in MESSAGES:
         sch = model.model_json_schema()
         sch["x-wire"] = BINARY_LAYOUT.get(model.__name__, {"encoding": "JSON, UTF-8"})
+        # Where it travels, so a client in another language needs no other document.
+        sch["x-topics"] = [
+            {"key": t.selector(None), "kind": str(t.kind), "from": t.producer, "to": t.consumers}
+            for t in TOPICS
+            if t.model is model
+        ]
         out[model.__name__] = sch
     return out
 

@@ -26,7 +26,9 @@ import zenoh
 from zenoh.handlers import Callback
 
 from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import (
     MAX_DELTA_CELLS,
     BeltPattern,
@@ -136,7 +138,7 @@ class SimNode:
         step_period_s: float = 0.0,
     ) -> None:
         self.session = session
-        self.user = keys.check_user(user)
+        self.user = T.check_user(user)
         self.scenario = scenario
         self.shape = scenario.shape
         self.cell_m = scenario.cell_m
@@ -158,17 +160,15 @@ class SimNode:
 
     def _declare(self) -> None:
         s, u = self.session, self.user
-        self._pub_delta = s.declare_publisher(
-            keys.map_delta(u), express=True, congestion_control=zenoh.CongestionControl.BLOCK
-        )
-        self._pub_pose = s.declare_publisher(keys.pose(u), express=True)
+        self._pub_delta = wire.declare_publisher(s, T.MAP_DELTA, u)
+        self._pub_pose = wire.declare_publisher(s, T.POSE, u)
         self._entities = [
             self._pub_delta,
             self._pub_pose,
-            s.declare_subscriber(keys.path(u), Callback(self._on_path, indirect=False)),
-            s.declare_subscriber(keys.belt(u), Callback(self._on_belt, indirect=False)),
-            s.declare_subscriber(keys.status(u), Callback(self._on_status, indirect=False)),
-            s.declare_queryable(keys.map_source(u), Callback(self._on_source, indirect=False)),
+            wire.declare_subscriber(s, T.PATH, Callback(self._on_path, indirect=False), u),
+            wire.declare_subscriber(s, T.BELT, Callback(self._on_belt, indirect=False), u),
+            wire.declare_subscriber(s, T.STATUS, Callback(self._on_status, indirect=False), u),
+            wire.declare_queryable(s, T.MAP_SOURCE, Callback(self._on_source, indirect=False), u),
         ]
 
     def _on_path(self, sample: zenoh.Sample) -> None:
@@ -189,7 +189,7 @@ class SimNode:
     def _on_source(self, query: zenoh.Query) -> None:
         with self._map_lock:
             snap = MapSnapshot.from_array(max(self.seq, 0), self.known, time.time())
-        query.reply(keys.map_source(self.user), codec.encode(snap))
+        wire.reply(query, T.MAP_SOURCE, self.user, codec.encode(snap))
         query.drop()
 
     def close(self) -> None:
