@@ -1,8 +1,8 @@
 """The one way to open a zenoh session, and to declare anything on it from the topic table.
 
-``open_session(settings)`` is the only ``zenoh.open`` in the product: the daemon, the
-drivers, the simulator and the command line all build a ``ZenohSettings`` and call it, so
-they agree on what scouting means. The ``declare_*``, ``put``, ``get`` and ``reply``
+``open_session(settings)`` is where every guidebelt process opens its zenoh session: the
+daemon, the drivers, the simulator and the command line build a ``ZenohSettings`` and call
+it, so they agree on what scouting means. The ``declare_*``, ``put``, ``get`` and ``reply``
 helpers take a ``Topic`` (``protocol.topics``) and a user, and apply the topic's QoS, so no
 caller spells a key or chooses a congestion policy of its own.
 """

@@ -144,6 +144,12 @@ class Topic:
             return self.key()
         return self.any_user() if user in (None, "*") else self.key(user)
 
+    def user_of(self, key: object) -> str:
+        """The user of a concrete key of this topic; ValueError for any other key."""
+        if not (self.per_user and self.matches(key)):
+            raise ValueError(f"{key!r} is not a per-user key of {self.name}")
+        return user_of(key)
+
     def matches(self, key: object) -> bool:
         """Whether a concrete key is this topic's (for any user)."""
         parts = str(key).split("/", 2)

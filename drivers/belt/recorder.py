@@ -50,6 +50,7 @@ class Recorder(Generic[M]):
     ) -> None:
         if topic.model is None:
             raise ValueError(f"{topic.name} carries no message to record")
+        self.topic = topic
         self.kind: type[M] = topic.model  # type: ignore[assignment]
         self.received: list[Received[M]] = []
         self.rejected = 0
@@ -63,7 +64,7 @@ class Recorder(Generic[M]):
         at = time.perf_counter()
         try:
             msg = codec.decode(self.kind, sample.payload.to_bytes())
-            user = T.user_of(sample.key_expr)
+            user = self.topic.user_of(sample.key_expr)
         except ValueError:
             with self._cond:
                 self.rejected += 1

@@ -27,6 +27,9 @@ def test_keys_stay_under_the_user_or_the_daemon():
     assert T.POSE.any_user() == "guidebelt/*/pose"
     assert T.STATUS.selector(None) == T.STATUS.selector("*") == "guidebelt/*/status"
     assert T.user_of(T.STATUS.key("bo-1")) == "bo-1"
+    assert T.STATUS.user_of("guidebelt/bo-1/status") == "bo-1"
+    with pytest.raises(ValueError):
+        T.STATUS.user_of("guidebelt/bo-1/pose")
     for bad in ("", "Ann", "-x", "a/b", "a" * 33, "@daemon"):
         with pytest.raises(ValueError):
             T.check_user(bad)
