@@ -35,7 +35,8 @@ def sim(
     from protocol import topics as T
     from protocol.messages import Goal, GoalCell
     from sim.courtyard import make_courtyard
-    from sim.node import WALKERS, SimNode, SimResult
+    from sim.node import SimNode, SimResult
+    from sim.world import WALKERS
 
     if follow not in WALKERS:
         raise typer.BadParameter(f"choose one of {sorted(WALKERS)}", param_hint="--follow")
