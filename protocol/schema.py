@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from .messages import MAX_DELTA_CELLS, Message
-from .topics import TOPICS, wire_models
+from .topics import TOPICS, Kind, wire_models
 
 MESSAGES: tuple[type[Message], ...] = wire_models()
 """Derived from the topic table: a message on any key is here, none can be forgotten."""
@@ -43,11 +43,31 @@ def schemas() -> dict[str, dict]:
     return out
 
 
+def topics_table() -> str:
+    """The topic table as Markdown: one row per key, for people rather than programs."""
+    rows = [
+        "| key | message | kind | from | to | reliability | congestion | priority | express |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for t in TOPICS:
+        q = t.qos
+        model = t.model.__name__ if t.model is not None else "-"
+        qos = [q.reliability, q.congestion, q.priority, "yes" if q.express else "no"]
+        if t.kind is Kind.LIVELINESS:
+            qos = ["-"] * 4  # a token carries no samples: nothing to queue or drop
+        cells = [f"`{t.selector(None)}`", model, t.kind, t.producer, t.consumers, *qos]
+        rows.append("| " + " | ".join(map(str, cells)) + " |")
+    return "\n".join(rows) + "\n"
+
+
 def write_schemas(folder: Path) -> list[Path]:
+    """One ``<Message>.schema.json`` per wire message, and ``topics.md``."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, sch in schemas().items():
         path = folder / f"{name}.schema.json"
         path.write_text(json.dumps(sch, indent=2, sort_keys=True) + "\n")
         paths.append(path)
-    return paths
+    table = folder / "topics.md"
+    table.write_text(topics_table())
+    return [*paths, table]

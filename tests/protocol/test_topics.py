@@ -113,6 +113,10 @@ def test_schema_command_writes_one_schema_per_topic_message(tmp_path):
     assert set(pose["required"]) == {"x", "y", "heading", "stamp"}
     status = json.loads((tmp_path / "NavStatus.schema.json").read_text())
     assert "stale_pose" in json.dumps(status)  # the enum of codes is in the schema
+    table = (tmp_path / "topics.md").read_text().splitlines()
+    assert len(table) == 2 + len(T.TOPICS)
+    belt = table[2 + T.TOPICS.index(T.BELT)]
+    assert belt.startswith("| `guidebelt/*/belt` | BeltPattern | publish/subscribe |")
 
 
 def _sources(*folders: str) -> list[Path]:
