@@ -33,6 +33,7 @@ demo: $(STAMP) system-deps
 
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 
 # The belt firmware (ELF + HEX for the Nano) and its simavr harness, in build/belt/.

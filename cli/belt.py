@@ -29,22 +29,25 @@ def belt(
     import logging
     import signal
 
-    from drivers.belt.driver import serve, zenoh_config_json5
-    from protocol.keys import check_user
+    from drivers.belt.driver import serve
+    from protocol.session import ZenohSettings
+    from protocol.topics import check_user
 
     logging.basicConfig(level=log_level.upper(), format="%(levelname)s %(name)s: %(message)s")
     try:
         check_user(user)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    config = zenoh_config_json5(connect or [], listen or [], multicast)
+    settings = ZenohSettings(
+        connect=connect or [], listen=listen or [], multicast_scouting=multicast
+    )
 
     async def main() -> None:
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, stop.set)
-        await serve(port, user, config, stop)
+        await serve(port, user, settings, stop)
 
     try:
         import uvloop

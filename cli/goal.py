@@ -20,15 +20,14 @@ def goal(
     scout: Scout = False,
 ) -> None:
     """Send USER a goal at (X, Y)."""
-    from zenoh import CongestionControl
     from zenoh.handlers import Callback
 
-    from protocol import codec, keys
+    from protocol import codec
+    from protocol import session as wire
+    from protocol import topics as T
     from protocol.messages import Goal, GoalCell, GoalMetres, NavStatus
 
-    BLOCK = CongestionControl.BLOCK  # a goal must not be dropped on a busy link
-
-    keys.check_user(user)
+    T.check_user(user)
     target = GoalCell(row=int(x), col=int(y)) if cell else GoalMetres(x=x, y=y)
     session = open_peer(connect, scout)
     final: list[NavStatus] = []
@@ -38,11 +37,11 @@ def goal(
         final.append(status)
         typer.echo(f"{status.state.value:>9} {status.code or '-':<16} {status.reason}")
 
-    sub = session.declare_subscriber(keys.status(user), Callback(on_status))
+    sub = wire.declare_subscriber(session, T.STATUS, Callback(on_status), user)
     try:
         time.sleep(0.1)
         goal_msg = Goal(target=target, stamp=time.time())
-        session.put(keys.goal(user), codec.encode(goal_msg), congestion_control=BLOCK)
+        wire.put(session, T.GOAL, user, codec.encode(goal_msg))
         typer.echo(f"goal sent to {user}: {target.model_dump_json()}")
         time.sleep(wait)
     finally:

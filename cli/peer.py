@@ -17,8 +17,7 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def open_peer(connect: list[str] | None, scout: bool):  # -> zenoh.Session, imported lazily
-    from daemon.service.bridge import open_session
-    from daemon.service.config import ZenohSettings
+    from protocol.session import ZenohSettings, open_session
 
     endpoints = connect if connect else ([] if scout else [DEFAULT_ENDPOINT])
     return open_session(ZenohSettings(connect=endpoints, multicast_scouting=scout))

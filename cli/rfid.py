@@ -107,8 +107,9 @@ def rfid(
     import signal
     import time
 
-    from drivers.rfid.node import RfidNode, open_session
+    from drivers.rfid.node import RfidNode
     from drivers.rfid.tags import TagMap
+    from protocol.session import ZenohSettings, open_session
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if port is None and not mock:
@@ -133,7 +134,9 @@ def rfid(
         ).start()
         port = mock_reader.path
         typer.echo(f"mock reader on {port}, walking the courtyard route")
-    session = open_session(listen, connect, scouting)
+    session = open_session(
+        ZenohSettings(listen=listen or [], connect=connect or [], multicast_scouting=scouting)
+    )
     node = RfidNode(session, user, tag_map, port, method=method, rate_hz=rate)
 
     async def main() -> None:
@@ -149,7 +152,7 @@ def rfid(
     try:
         asyncio.run(main())
     finally:
-        typer.echo(json.dumps(node.stats()))
+        typer.echo(node.stats().model_dump_json())
         node.close()
         session.close()
         if mock_reader is not None:

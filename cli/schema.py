@@ -13,7 +13,7 @@ def schema(
         "out/schema"
     ),
 ) -> None:
-    """Write one JSON Schema file per wire message."""
+    """Write one JSON Schema file per wire message, and the topic table (topics.md)."""
     from protocol.schema import write_schemas
 
     for path in write_schemas(out):

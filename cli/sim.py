@@ -30,14 +30,14 @@ def sim(
     import threading
     import time
 
-    from zenoh import CongestionControl
-
-    from protocol import codec, keys
+    from protocol import codec
+    from protocol import session as wire
+    from protocol import topics as T
     from protocol.messages import Goal, GoalCell
     from sim.courtyard import make_courtyard
-    from sim.node import WALKERS, SimNode, SimResult
+    from sim.node import SimNode, SimResult
+    from sim.world import WALKERS
 
-    BLOCK = CongestionControl.BLOCK
     if follow not in WALKERS:
         raise typer.BadParameter(f"choose one of {sorted(WALKERS)}", param_hint="--follow")
     scenario = make_courtyard(grid, unknown, seed)
@@ -50,7 +50,7 @@ def sim(
             if not stop.wait(0.5):
                 row, col = scenario.goal
                 g = Goal(target=GoalCell(row=row, col=col), stamp=time.time())
-                session.put(keys.goal(user), codec.encode(g), congestion_control=BLOCK)
+                wire.put(session, T.GOAL, user, codec.encode(g))
 
         threading.Thread(target=goal_later, daemon=True).start()
 

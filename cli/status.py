@@ -16,20 +16,22 @@ def status(
     scout: Scout = False,
 ) -> None:
     """Ask the daemon for USER's status; exit 1 when nobody answers."""
-    from protocol import codec, keys
+    from protocol import codec
+    from protocol import session as wire
+    from protocol import topics as T
     from protocol.messages import Health, NavStatus
 
     if user != "*":
-        keys.check_user(user)
+        T.check_user(user)
     session = open_peer(connect, scout)
     try:
         answered = False
-        for reply in session.get(f"{keys.ROOT}/{user}/status", timeout=timeout):
+        for reply in wire.get(session, T.STATUS_QUERY, user, timeout=timeout):
             if reply.ok is not None:
                 answered = True
                 st = codec.decode(NavStatus, reply.ok.payload.to_bytes())
-                typer.echo(f"{keys.user_of(str(reply.ok.key_expr))}: {st.model_dump_json()}")
-        for reply in session.get(keys.HEALTH, timeout=timeout):
+                typer.echo(f"{T.user_of(reply.ok.key_expr)}: {st.model_dump_json()}")
+        for reply in wire.get(session, T.HEALTH, timeout=timeout):
             if reply.ok is not None:
                 health = codec.decode(Health, reply.ok.payload.to_bytes())
                 typer.echo(f"daemon: {health.model_dump_json()}")

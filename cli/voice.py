@@ -31,11 +31,9 @@ def voice(
     stale_s: Annotated[float, typer.Option(help="Drop routine cues older than this.")] = 5.0,
 ) -> None:
     """Subscribe to the user's voice cues and speak them, safety cues first."""
-    import zenoh
-
-    from daemon.service.config import ZenohSettings
     from drivers.voice.driver import VoiceDriver
     from drivers.voice.espeak import EspeakSpeaker, SpeechError
+    from protocol.session import ZenohSettings, open_session
 
     try:
         speaker = EspeakSpeaker(wav_dir=wav_dir, words_per_minute=wpm)
@@ -51,7 +49,7 @@ def voice(
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, stop.set)
-        with zenoh.open(zenoh.Config.from_json5(settings.to_json5())) as session:
+        with open_session(settings) as session:
             driver = VoiceDriver(session, speaker, user=user, stale_s=stale_s)
             typer.echo(f"speaking cues from {driver.key}")
             await driver.run(stop)

@@ -9,8 +9,8 @@ Map deltas and snapshots are a fixed little-endian header and raw arrays, so a
                  f64 stamp, u32 nbytes | nbytes of zlib-compressed uint8 occupancy
 
 ``decode`` never lets an exception other than ``DecodeError`` out; its ``code`` says
-which kind of bad input it was (``malformed``, ``unknown_field``, ``wrong_type``,
-``invalid``, ``oversized``), so the daemon can count and report each kind.
+which kind of bad input it was (a ``StatusCode``: ``malformed``, ``unknown_field``,
+``wrong_type``, ``invalid``, ``oversized``), so the daemon can count and report each kind.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import TypeVar
 
 from pydantic import ValidationError
 
-from .messages import MAX_DELTA_CELLS, MapDelta, MapSnapshot, Message
+from .messages import MAX_DELTA_CELLS, MapDelta, MapSnapshot, Message, StatusCode
 
 M = TypeVar("M", bound=Message)
 
@@ -36,8 +36,8 @@ MAX_SNAPSHOT_BYTES = 64 * 1024 * 1024
 class DecodeError(ValueError):
     """A message rejected whole; ``code`` names the kind of bad input."""
 
-    def __init__(self, code: str, reason: str) -> None:
-        super().__init__(f"{code}: {reason}")
+    def __init__(self, code: StatusCode, reason: str) -> None:
+        super().__init__(f"{code.value}: {reason}")
         self.code = code
         self.reason = reason
 
@@ -69,13 +69,14 @@ def _classify(exc: ValidationError) -> DecodeError:
     where = ".".join(str(p) for p in first.get("loc", ())) or "message"
     reason = f"{where}: {first['msg']}"
     if kinds & {"json_invalid", "json_type"}:
-        return DecodeError("malformed", reason)
+        return DecodeError(StatusCode.MALFORMED, reason)
     if "extra_forbidden" in kinds:
         extra = next(e for e in errors if e["type"] == "extra_forbidden")
-        return DecodeError("unknown_field", f"unknown field {'.'.join(map(str, extra['loc']))}")
+        where = ".".join(map(str, extra["loc"]))
+        return DecodeError(StatusCode.UNKNOWN_FIELD, f"unknown field {where}")
     if any(k.endswith(("_type", "_parsing")) or k == "union_tag_invalid" for k in kinds):
-        return DecodeError("wrong_type", reason)
-    return DecodeError("invalid", reason)
+        return DecodeError(StatusCode.WRONG_TYPE, reason)
+    return DecodeError(StatusCode.INVALID, reason)
 
 
 def _encode_delta(msg: MapDelta) -> bytes:
@@ -88,12 +89,12 @@ def _encode_delta(msg: MapDelta) -> bytes:
 
 def _header(data: bytes, magic: bytes) -> tuple[int, int, int, float, int]:
     if len(data) < HEADER.size:
-        raise DecodeError("malformed", f"{len(data)} bytes is shorter than the header")
+        raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes is shorter than the header")
     got_magic, version, _flags, seq, height, width, stamp, count = HEADER.unpack_from(data)
     if got_magic != magic:
-        raise DecodeError("malformed", f"bad magic {got_magic!r}, expected {magic!r}")
+        raise DecodeError(StatusCode.MALFORMED, f"bad magic {got_magic!r}, expected {magic!r}")
     if version != VERSION:
-        raise DecodeError("malformed", f"unsupported version {version}")
+        raise DecodeError(StatusCode.MALFORMED, f"unsupported version {version}")
     return seq, height, width, stamp, count
 
 
@@ -108,9 +109,9 @@ def _decode_delta(data: bytes) -> MapDelta:
     seq, height, width, stamp, n = _header(data, DELTA_MAGIC)
     # Before touching the body: an oversized delta is refused whatever it holds.
     if n > MAX_DELTA_CELLS:
-        raise DecodeError("oversized", f"delta of {n} cells exceeds {MAX_DELTA_CELLS}")
+        raise DecodeError(StatusCode.OVERSIZED, f"delta of {n} cells exceeds {MAX_DELTA_CELLS}")
     if len(data) != HEADER.size + 5 * n:
-        raise DecodeError("malformed", f"{len(data)} bytes for {n} cells")
+        raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes for {n} cells")
     body = memoryview(data)[HEADER.size :]
     fields = dict(
         seq=seq,
@@ -133,9 +134,11 @@ def _encode_snapshot(msg: MapSnapshot) -> bytes:
 def _decode_snapshot(data: bytes) -> MapSnapshot:
     seq, height, width, stamp, nbytes = _header(data, SNAPSHOT_MAGIC)
     if nbytes > MAX_SNAPSHOT_BYTES:
-        raise DecodeError("oversized", f"snapshot of {nbytes} bytes exceeds {MAX_SNAPSHOT_BYTES}")
+        raise DecodeError(
+            StatusCode.OVERSIZED, f"snapshot of {nbytes} bytes exceeds {MAX_SNAPSHOT_BYTES}"
+        )
     if len(data) != HEADER.size + nbytes:
-        raise DecodeError("malformed", f"{len(data)} bytes for a {nbytes}-byte body")
+        raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes for a {nbytes}-byte body")
     fields = dict(
         seq=seq, height=height, width=width, stamp=stamp, occupancy=data[HEADER.size :]
     )
@@ -143,5 +146,5 @@ def _decode_snapshot(data: bytes) -> MapSnapshot:
     try:
         snap.array()
     except ValueError as exc:
-        raise DecodeError("invalid", str(exc)) from None
+        raise DecodeError(StatusCode.INVALID, str(exc)) from None
     return snap

@@ -126,6 +126,38 @@ class NavState(StrEnum):
     ERROR = "error"
 
 
+class StatusCode(StrEnum):
+    """Why a status is what it is: ``NavStatus.code`` on the wire; OK ("") when all is well.
+
+    A ``StrEnum`` compares equal to its string, so code that still passes plain strings
+    keeps working, and the JSON on the wire is unchanged.
+    """
+
+    OK = ""
+    # Undecodable or invalid messages, whatever key they came on (``codec.DecodeError``).
+    MALFORMED = "malformed"
+    WRONG_TYPE = "wrong_type"
+    UNKNOWN_FIELD = "unknown_field"
+    INVALID = "invalid"
+    # Goals the planner cannot take.
+    GOAL_OFF_MAP = "goal_off_map"
+    GOAL_IN_OBSTACLE = "goal_in_obstacle"
+    UNKNOWN_LANDMARK = "unknown_landmark"
+    NO_PATH = "no_path"
+    # Positions the daemon cannot trust.
+    POSE_OFF_MAP = "pose_off_map"
+    STALE_POSE = "stale_pose"
+    # Map updates refused whole.
+    OVERSIZED = "oversized"
+    SHAPE_MISMATCH = "shape_mismatch"
+    SEQUENCE_GAP = "sequence_gap"
+    # The daemon itself.
+    TOO_MANY_USERS = "too_many_users"
+    INTERNAL = "internal"
+    SHUTDOWN = "shutdown"
+    IDLE = "idle"
+
+
 class NavStatus(Message):
     state: NavState
     reason: str = ""
@@ -134,10 +166,9 @@ class NavStatus(Message):
     rejected: int = Field(default=0, ge=0, description="messages rejected for this user so far")
     backend: str = ""
     replans: int = Field(default=0, ge=0, description="times a new obstacle cut the path")
-    code: str = Field(
-        default="",
-        max_length=32,
-        description="machine-readable cause, e.g. goal_off_map, stale_pose (see daemon docs)",
+    code: StatusCode = Field(
+        default=StatusCode.OK,
+        description="machine-readable cause, e.g. goal_off_map, stale_pose; empty when all is well",
     )
 
 
@@ -148,6 +179,26 @@ class Health(Message):
     backend: str
     rejected: int = Field(ge=0)
     stamp: float = Field(ge=0)
+
+
+class RfidStats(Message):
+    """The RFID node's reader and localiser counters, once a second."""
+
+    accepted: int = Field(ge=0, description="reads of known tags")
+    garbage: int = Field(ge=0, description="lines refused: not a read")
+    checksum: int = Field(ge=0, description="lines refused: bad checksum")
+    impossible_rssi: int = Field(ge=0, description="lines refused: RSSI out of range")
+    unknown_tag: int = Field(ge=0, description="reads of tags not in the tag map")
+    info: int = Field(ge=0, description="reader info lines (# …)")
+    connected: bool
+    connects: int = Field(ge=0)
+    disconnects: int = Field(ge=0)
+    poses: int = Field(ge=0, description="poses published so far")
+    source: Literal["lf", "lf-hold", "uhf"] | None = Field(
+        default=None, description="what the last pose came from"
+    )
+    quality: float | None = Field(default=None, ge=0, le=1)
+    stamp: float = Field(ge=0, allow_inf_nan=False)
 
 
 MAX_SIDE = 4096

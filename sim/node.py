@@ -1,15 +1,14 @@
-"""The simulated world as its own zenoh node: true map, sensor, and a user who walks.
+"""The simulated world as its own zenoh node: the same ``World`` as the in-process walks.
 
-For one user it plays everything outside the daemon: the mapper (sensor deltas on
-``map/delta``, snapshots of what it has seen on ``map/source``), the localiser (``pose``)
-and the person (a ``Walker`` moving on the true map). It runs in lock step with the
-daemon: publish a pose, wait for the path planned from that very pose, let the walker act
-on it (and on the belt pattern published with it), sense, publish the delta, repeat. A
-pose is re-sent every ``pose_period_s`` while nothing comes back, so the daemon never
-sees it go stale while it is merely waiting for a goal.
+For one user it plays everything outside the daemon through ``sim.world.World``: the mapper
+(sensor deltas on ``MAP_DELTA``, snapshots of what it has published on ``MAP_SOURCE``), the
+localiser (``POSE``) and the person (a walker moving on the true map). It runs in lock step
+with the daemon: publish a pose, wait for the path planned from that very pose, let the
+walker act on it (and on the belt pattern published with it), sense, publish the delta,
+repeat. A pose is re-sent every ``pose_period_s`` while nothing comes back, so the daemon
+never sees it go stale while it is merely waiting for a goal.
 
-Walkers are pluggable: ``WALKERS`` maps a name (``--follow``) to a factory. ``path`` steps
-to the next cell of the planned path; a belt-reading walker reacts to the pattern only.
+Walkers are those of ``sim.world.WALKERS`` (``--follow``).
 """
 
 from __future__ import annotations
@@ -19,87 +18,21 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
 import zenoh
 from zenoh.handlers import Callback
 
-from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
-from protocol import codec, keys
-from protocol.messages import (
-    MAX_DELTA_CELLS,
-    BeltPattern,
-    MapDelta,
-    MapSnapshot,
-    NavPath,
-    NavState,
-    NavStatus,
-    Pose,
-)
+from daemon.planning.grid import Cell
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import BeltPattern, MapSnapshot, NavPath, NavState, NavStatus
 
-from .belt_walker import belt_walker_for, step_hits
 from .courtyard import Scenario
-from .sensor import Sensor
-from .walk import LOOKAHEAD_M, heading_along
+from .world import WALKERS, Walker, World
 
-
-@dataclass
-class WalkerView:
-    """What a walker may use to act once."""
-
-    path: np.ndarray | None
-    """``(k, 2)`` cells planned from the user's current cell, or None."""
-    belt: BeltPattern | None
-    """The pattern the belt is showing now."""
-    true: np.ndarray
-    """The world's occupancy, to find out the hard way what a step runs into."""
-
-
-class Walker(Protocol):
-    x: float
-    y: float
-    heading: float
-
-    def act(self, view: WalkerView) -> str:
-        """Act once: ``"step"``, ``"turn"``, ``"stand"`` or ``"bump"`` (a collision)."""
-        ...
-
-
-@dataclass
-class PathWalker:
-    """Steps to the centre of the next cell of the path, facing half a metre ahead on it."""
-
-    x: float
-    y: float
-    heading: float
-    cell_m: float
-    collisions: int = 0
-
-    def act(self, view: WalkerView) -> str:
-        path = view.path
-        if path is None or len(path) < 2:
-            return "stand"
-        shape = view.true.shape
-        x1, y1 = cell_to_xy(shape, (int(path[1][0]), int(path[1][1])), self.cell_m)
-        lookahead = max(1, round(LOOKAHEAD_M / self.cell_m))
-        if step_hits(view.true, self.cell_m, self.x, self.y, x1, y1):
-            self.collisions += 1
-            return "bump"
-        self.x, self.y = x1, y1
-        self.heading = heading_along(path[1:], lookahead, self.heading)
-        return "step"
-
-
-def _path_walker(scenario: Scenario, x: float, y: float, heading: float) -> Walker:
-    return PathWalker(x, y, heading, scenario.cell_m)
-
-
-WALKERS: dict[str, Callable[[Scenario, float, float, float], Walker]] = {
-    "path": _path_walker,
-    "belt": belt_walker_for,
-}
-"""``--follow`` name → factory ``(scenario, x, y, heading) -> Walker``."""
+__all__ = ["WALKERS", "SimNode", "SimResult"]
 
 
 @dataclass
@@ -129,46 +62,53 @@ class SimNode:
         user: str,
         scenario: Scenario,
         walker: str = "path",
-        start: tuple[int, int] | None = None,
+        start: Cell | None = None,
         heading: float = math.pi / 2,
         fov_deg: float = 80.0,
         pose_period_s: float = 0.2,
         step_period_s: float = 0.0,
+        seed: int = 0,
     ) -> None:
         self.session = session
-        self.user = keys.check_user(user)
+        self.user = T.check_user(user)
         self.scenario = scenario
         self.shape = scenario.shape
         self.cell_m = scenario.cell_m
-        self.sensor = Sensor(scenario.sensor_range_cells, fov_deg)
-        self.known = scenario.known.copy()
-        self.seq = -1
+        self.world = World(
+            scenario, walker, seed=seed, start=start, heading=heading, fov_deg=fov_deg
+        )
         self.pose_period_s = pose_period_s
         self.step_period_s = step_period_s
-        x, y = cell_to_xy(self.shape, start or scenario.start, self.cell_m)
-        self.walker = WALKERS[walker](scenario, x, y, heading)
         self._cond = threading.Condition()
         self._path: NavPath | None = None
         self._belt: BeltPattern | None = None
         self._status: NavStatus | None = None
         self._map_lock = threading.Lock()
+        """The world's known map and sequence change on the walk's thread; the map source
+        queryable reads them on zenoh's."""
         self._entities: list = []
+
+    @property
+    def walker(self) -> Walker:
+        return self.world.walker
+
+    @walker.setter
+    def walker(self, walker: Walker) -> None:
+        self.world.walker = walker
 
     # -- zenoh ----------------------------------------------------------------------------
 
     def _declare(self) -> None:
         s, u = self.session, self.user
-        self._pub_delta = s.declare_publisher(
-            keys.map_delta(u), express=True, congestion_control=zenoh.CongestionControl.BLOCK
-        )
-        self._pub_pose = s.declare_publisher(keys.pose(u), express=True)
+        self._pub_delta = wire.declare_publisher(s, T.MAP_DELTA, u)
+        self._pub_pose = wire.declare_publisher(s, T.POSE, u)
         self._entities = [
             self._pub_delta,
             self._pub_pose,
-            s.declare_subscriber(keys.path(u), Callback(self._on_path, indirect=False)),
-            s.declare_subscriber(keys.belt(u), Callback(self._on_belt, indirect=False)),
-            s.declare_subscriber(keys.status(u), Callback(self._on_status, indirect=False)),
-            s.declare_queryable(keys.map_source(u), Callback(self._on_source, indirect=False)),
+            wire.declare_subscriber(s, T.PATH, Callback(self._on_path, indirect=False), u),
+            wire.declare_subscriber(s, T.BELT, Callback(self._on_belt, indirect=False), u),
+            wire.declare_subscriber(s, T.STATUS, Callback(self._on_status, indirect=False), u),
+            wire.declare_queryable(s, T.MAP_SOURCE, Callback(self._on_source, indirect=False), u),
         ]
 
     def _on_path(self, sample: zenoh.Sample) -> None:
@@ -188,8 +128,8 @@ class SimNode:
 
     def _on_source(self, query: zenoh.Query) -> None:
         with self._map_lock:
-            snap = MapSnapshot.from_array(max(self.seq, 0), self.known, time.time())
-        query.reply(keys.map_source(self.user), codec.encode(snap))
+            snap = MapSnapshot.from_array(max(self.world.seq, 0), self.world.known, time.time())
+        wire.reply(query, T.MAP_SOURCE, self.user, codec.encode(snap))
         query.drop()
 
     def close(self) -> None:
@@ -199,38 +139,27 @@ class SimNode:
 
     # -- the world ------------------------------------------------------------------------
 
-    def cell(self) -> tuple[int, int]:
-        return xy_to_cell(self.shape, self.walker.x, self.walker.y, self.cell_m)
-
-    def _send_delta(self, cells: np.ndarray, values: np.ndarray) -> None:
-        with self._map_lock:
-            self.known.reshape(-1)[cells] = values
-            self.seq += 1
-            seq = self.seq
-        delta = MapDelta.from_arrays(seq, self.shape, cells, values, time.time())
-        self._pub_delta.put(codec.encode(delta))
+    def cell(self) -> Cell:
+        return self.world.cell()
 
     def _sense(self) -> None:
-        cells, values = self.sensor.sense(
-            self.scenario.true, self.known, self.cell(), self.walker.heading
-        )
-        if cells.size:
-            self._send_delta(cells, values)
+        with self._map_lock:
+            delta = self.world.sense(time.time())
+        if delta is not None:
+            self._pub_delta.put(codec.encode(delta))
 
     def _send_pose(self) -> float:
         stamp = time.time()
-        pose = Pose(x=self.walker.x, y=self.walker.y, heading=self.walker.heading, stamp=stamp)
-        self._pub_pose.put(codec.encode(pose))
+        self._pub_pose.put(codec.encode(self.world.pose(stamp)))
         return stamp
 
     def _start_map(self) -> None:
         """Delta 0 carries the known obstacles when they fit in one; else the daemon, seeing
-        delta 1 first, asks ``map/source`` for a snapshot."""
-        occupied = np.flatnonzero(self.known == OCCUPIED)
-        if occupied.size <= MAX_DELTA_CELLS:
-            self._send_delta(occupied, np.full(occupied.size, OCCUPIED, np.uint8))
-        else:
-            self.seq = 0
+        delta 1 first, asks ``MAP_SOURCE`` for a snapshot."""
+        with self._map_lock:
+            deltas = self.world.first_deltas(time.time())
+        for delta in deltas:
+            self._pub_delta.put(codec.encode(delta))
 
     # -- the walk -------------------------------------------------------------------------
 
@@ -248,8 +177,7 @@ class SimNode:
         self._declare()
         try:
             time.sleep(0.05)  # let the daemon's subscribers match ours before delta 0
-            self._start_map()
-            self._sense()
+            self._start_map()  # the first sensing included
             deadline = time.monotonic() + timeout_s
             while not stop.is_set():
                 if time.monotonic() > deadline:
@@ -266,7 +194,7 @@ class SimNode:
                     continue
                 result.step_ms.append((time.perf_counter() - t0) * 1e3)
                 cells = np.array(path.cells, dtype=np.int32).reshape(-1, 2)
-                action = self.walker.act(WalkerView(cells, self._belt, self.scenario.true))
+                action = self.world.act(cells, self._belt, time.time())
                 result.actions[action] = result.actions.get(action, 0) + 1
                 if action == "step":
                     result.walked.append(self.cell())
@@ -282,7 +210,7 @@ class SimNode:
         finally:
             result.last_status = self._status
             with self._map_lock:
-                result.known = self.known.copy()
+                result.known = self.world.known.copy()
             self.close()
         return result
 

@@ -26,8 +26,8 @@ from drivers.rfid.tags import TagMap
 from protocol import codec
 from protocol.messages import Pose
 from sim.belt_walker import step_hits
-from sim.node import PathWalker, SimNode, WalkerView
-from sim.walk import LOOKAHEAD_M, heading_along
+from sim.node import SimNode
+from sim.world import LOOKAHEAD_M, PathWalker, WalkerView, heading_along
 
 
 class RelativeWalker(PathWalker):

@@ -16,23 +16,21 @@ from collections.abc import Callable
 import zenoh
 from zenoh.handlers import Callback
 
-from protocol import keys
-
-from .config import ZenohSettings
+from protocol import session as wire
+from protocol import topics as T
+from protocol.topics import Topic
 
 log = logging.getLogger("guidebelt.bridge")
 
-INPUT_LEAVES = ("map/delta", "pose", "goal")
-QUERY_KEYS = (keys.HEALTH, keys.any_user("map/snapshot"), keys.any_user("status"))
+INPUTS = (T.MAP_DELTA, T.POSE, T.GOAL)
+"""What the daemon subscribes to, for every user."""
+QUERIES = (T.HEALTH, T.MAP_SNAPSHOT, T.STATUS_QUERY)
+"""What the daemon answers (every user's, for the per-user ones)."""
 
-SampleSink = Callable[[str, str, bytes], None]
-"""``(leaf, key, payload)`` on the loop thread."""
-QuerySink = Callable[[str, zenoh.Query], None]
-"""``(queryable key, query)`` on the loop thread; the sink must reply and ``drop()`` it."""
-
-
-def open_session(settings: ZenohSettings) -> zenoh.Session:
-    return zenoh.open(zenoh.Config.from_json5(settings.to_json5()))
+SampleSink = Callable[[Topic, str, bytes], None]
+"""``(topic, key, payload)`` on the loop thread."""
+QuerySink = Callable[[Topic, zenoh.Query], None]
+"""``(topic, query)`` on the loop thread; the sink must reply and ``drop()`` it."""
 
 
 class Bridge:
@@ -54,16 +52,18 @@ class Bridge:
         self._lock = threading.Lock()
 
     def start(self) -> None:
-        for leaf in INPUT_LEAVES:
+        for topic in INPUTS:
             self._subscribers.append(
-                self.session.declare_subscriber(keys.any_user(leaf), self._sample_cb(leaf))
+                wire.declare_subscriber(self.session, topic, self._sample_cb(topic))
             )
-        for key in QUERY_KEYS:
-            self._queryables.append(self.session.declare_queryable(key, self._query_cb(key)))
+        for topic in QUERIES:
+            self._queryables.append(
+                wire.declare_queryable(self.session, topic, self._query_cb(topic))
+            )
         # Declared last: drivers see the daemon alive only once it can hear them.
-        self._token = self.session.liveliness().declare_token(keys.ALIVE)
+        self._token = wire.declare_token(self.session, T.ALIVE)
 
-    def _sample_cb(self, leaf: str) -> Callback:
+    def _sample_cb(self, topic: Topic) -> Callback:
         loop, sink = self._loop, self._on_sample
 
         def on_sample(sample: zenoh.Sample) -> None:
@@ -72,39 +72,33 @@ class Bridge:
             # RuntimeError: the loop is closed, the daemon is stopping.
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(
-                    sink, leaf, str(sample.key_expr), sample.payload.to_bytes()
+                    sink, topic, str(sample.key_expr), sample.payload.to_bytes()
                 )
 
         # Run on zenoh's own thread: the callback only queues, so no extra hop is needed.
         return Callback(on_sample, indirect=False)
 
-    def _query_cb(self, key: str) -> Callback:
+    def _query_cb(self, topic: Topic) -> Callback:
         loop, sink = self._loop, self._on_query
 
         def on_query(query: zenoh.Query) -> None:
             try:
-                loop.call_soon_threadsafe(sink, key, query)
+                loop.call_soon_threadsafe(sink, topic, query)
             except RuntimeError:
                 query.drop()
 
         return Callback(on_query, indirect=False)
 
     def publish(self, key: str, payload: bytes) -> None:
-        """Any thread: the users' workers publish their own results."""
+        """Any thread: the users' workers publish their own results, each on a publisher
+        declared once per key with its topic's QoS (a key not in the table is refused)."""
         pub = self._publishers.get(key)
         if pub is None:
             with self._lock:
                 pub = self._publishers.get(key)
                 if pub is None:
-                    # A path is superseded by the next one; a STOP pattern or a status is
-                    # not, and must never be dropped on a busy link.
-                    drop = key.endswith("/path")
-                    pub = self._publishers[key] = self.session.declare_publisher(
-                        key,
-                        congestion_control=zenoh.CongestionControl.DROP
-                        if drop
-                        else zenoh.CongestionControl.BLOCK,
-                        express=True,
+                    pub = self._publishers[key] = wire.declare_publisher(
+                        self.session, T.topic_of(key), T.user_of(key)
                     )
         pub.put(payload)
 
@@ -130,12 +124,12 @@ class Bridge:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(deliver, None)
 
-        self.session.get(key, Callback(on_answer, on_end), timeout=timeout_s)
+        topic = T.topic_of(key, T.Kind.QUERYABLE)
+        wire.get(self.session, topic, T.user_of(key), Callback(on_answer, on_end), timeout_s)
 
     def forget_user(self, user: str) -> None:
-        prefix = f"{keys.ROOT}/{user}/"
         with self._lock:
-            for key in [k for k in self._publishers if k.startswith(prefix)]:
+            for key in [k for k in self._publishers if T.user_of(k) == user]:
                 self._publishers.pop(key).undeclare()
 
     def close(self) -> None:

@@ -7,13 +7,12 @@ An example with every key is ``systemd/guidebelt.toml``.
 
 from __future__ import annotations
 
-import json
 import os
 import socket
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
@@ -23,31 +22,11 @@ from pydantic_settings import (
 
 from daemon.navigation import NavigatorSettings
 from daemon.planning.registry import PLANNERS
+from protocol.settings import ZenohSettings
+
+__all__ = ["DaemonConfig", "ZenohSettings", "load_config"]
 
 DEFAULT_CONFIG_FILE = Path("/etc/guidebelt/guidebelt.toml")
-
-
-class ZenohSettings(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-    mode: Literal["peer", "client"] = "peer"
-    listen: list[str] = Field(default_factory=list, description="e.g. tcp/127.0.0.1:7447")
-    connect: list[str] = Field(default_factory=list, description="routers or peers to join")
-    multicast_scouting: bool = True
-
-    def to_json5(self) -> str:
-        return json.dumps(
-            {
-                "mode": self.mode,
-                "listen": {"endpoints": self.listen},
-                "connect": {"endpoints": self.connect},
-                "scouting": {
-                    "multicast": {"enabled": self.multicast_scouting},
-                    # Gossip would reach peers the config did not name; tests must not.
-                    "gossip": {"enabled": self.multicast_scouting},
-                },
-            }
-        )
 
 
 class DaemonConfig(BaseSettings):

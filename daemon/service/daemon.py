@@ -18,17 +18,20 @@ import time
 import zenoh
 
 from daemon.navigation import Navigator
-from protocol import codec, keys
-from protocol.messages import Goal, Health, MapDelta, NavState, NavStatus, Pose
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import Health, NavState, NavStatus, StatusCode
+from protocol.session import open_session
+from protocol.topics import Topic
 
-from .bridge import Bridge, open_session
+from .bridge import Bridge
 from .config import DaemonConfig
 from .runner import UserRunner
 from .sdnotify import Notifier
 
 log = logging.getLogger("guidebelt.daemon")
 
-MESSAGE_OF_LEAF = {"map/delta": MapDelta, "pose": Pose, "goal": Goal}
 ACTIVE = (NavState.PLANNING, NavState.GUIDING, NavState.REROUTING)
 STOP_BUDGET_S = 0.6
 
@@ -139,9 +142,9 @@ class Daemon:
         log.info("new user", extra={"fields": {"user": user, "backend": navigator.route.name}})
         return runner
 
-    def _on_sample(self, leaf: str, key: str, payload: bytes) -> None:
+    def _on_sample(self, topic: Topic, key: str, payload: bytes) -> None:
         try:
-            user = keys.user_of(key)
+            user = T.user_of(key)
         except ValueError as exc:
             self.rejected_unrouted += 1
             log.warning("rejected", extra={"fields": {"key": key, "reason": str(exc)}})
@@ -150,14 +153,15 @@ class Daemon:
         if runner is None:
             self._refuse_user(user)
             return
+        assert topic.model is not None
         try:
-            msg = codec.decode(MESSAGE_OF_LEAF[leaf], payload)
+            msg = codec.decode(topic.model, payload)
         except codec.DecodeError as exc:
-            runner.reject(exc.code, f"{leaf}: {exc.reason}")
+            runner.reject(exc.code, f"{topic.leaf}: {exc.reason}")
             return
-        if leaf == "map/delta":
+        if topic is T.MAP_DELTA:
             runner.put_delta(msg)
-        elif leaf == "pose":
+        elif topic is T.POSE:
             runner.put_pose(msg)
         else:
             runner.put_goal(msg)
@@ -167,11 +171,11 @@ class Daemon:
         assert self._bridge is not None
         status = NavStatus(
             state=NavState.ERROR,
-            code="too_many_users",
+            code=StatusCode.TOO_MANY_USERS,
             reason=f"this daemon serves at most {self.config.max_users} users",
             stamp=time.time(),
         )
-        self._bridge.publish(keys.status(user), codec.encode(status))
+        self._bridge.publish(T.STATUS.key(user), codec.encode(status))
         self._bridge.forget_user(user)
 
     # -- queries (loop thread) ------------------------------------------------------------
@@ -187,40 +191,40 @@ class Daemon:
             stamp=time.time(),
         )
 
-    def _on_query(self, key: str, query: zenoh.Query) -> None:
+    def _on_query(self, topic: Topic, query: zenoh.Query) -> None:
         try:
-            if key == keys.HEALTH:
-                query.reply(keys.HEALTH, codec.encode(self.health()))
-            elif key.endswith("/status"):
-                self._reply_per_user(query, "status")
+            if topic is T.HEALTH:
+                wire.reply(query, T.HEALTH, None, codec.encode(self.health()))
+            elif topic is T.STATUS_QUERY:
+                self._reply_statuses(query)
             else:
                 self._reply_snapshots(query)
                 return  # those replies come later, from the workers
         except zenoh.ZError as exc:
-            log.warning("query reply failed", extra={"fields": {"key": key, "err": str(exc)}})
+            log.warning(
+                "query reply failed", extra={"fields": {"topic": topic.name, "err": str(exc)}}
+            )
         query.drop()
 
-    def _matching_users(self, query: zenoh.Query, leaf: str) -> list[str]:
+    def _matching_users(self, query: zenoh.Query, topic: Topic) -> list[str]:
         asked = query.key_expr
-        return [
-            u for u in self.runners if asked.intersects(zenoh.KeyExpr(f"{keys.ROOT}/{u}/{leaf}"))
-        ]
+        return [u for u in self.runners if asked.intersects(zenoh.KeyExpr(topic.key(u)))]
 
-    def _reply_per_user(self, query: zenoh.Query, leaf: str) -> None:
-        for user in self._matching_users(query, leaf):
+    def _reply_statuses(self, query: zenoh.Query) -> None:
+        for user in self._matching_users(query, T.STATUS_QUERY):
             runner = self.runners[user]
             payload = runner.last_status or codec.encode(runner.navigator.status(time.time()))
-            query.reply(keys.status(user), payload)
+            wire.reply(query, T.STATUS_QUERY, user, payload)
 
     def _reply_snapshots(self, query: zenoh.Query) -> None:
-        users = self._matching_users(query, "map/snapshot")
+        users = self._matching_users(query, T.MAP_SNAPSHOT)
         if not users:
             query.drop()
             return
         # One query, one user: wildcard snapshot queries are answered for the first match.
         runner = self.runners[users[0]]
         task = asyncio.get_running_loop().create_task(
-            runner.reply_snapshot(query, keys.map_snapshot(users[0]))
+            runner.reply_snapshot(query, T.MAP_SNAPSHOT.key(users[0]))
         )
         task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
 

@@ -15,7 +15,9 @@ from typing import TypeVar
 import uvloop
 import zenoh
 
-from .config import DaemonConfig, ZenohSettings
+from protocol.session import loopback, open_session
+
+from .config import DaemonConfig
 from .daemon import Daemon
 
 T = TypeVar("T")
@@ -27,17 +29,9 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def loopback(listen_port: int | None = None, connect_port: int | None = None) -> ZenohSettings:
-    return ZenohSettings(
-        listen=[f"tcp/127.0.0.1:{listen_port}"] if listen_port else [],
-        connect=[f"tcp/127.0.0.1:{connect_port}"] if connect_port else [],
-        multicast_scouting=False,
-    )
-
-
 def open_peer(port: int) -> zenoh.Session:
-    """A zenoh session connected to the daemon listening on ``port``."""
-    return zenoh.open(zenoh.Config.from_json5(loopback(connect_port=port).to_json5()))
+    """A zenoh session connected to the daemon listening on ``port`` of 127.0.0.1."""
+    return open_session(loopback(connect_port=port))
 
 
 class DaemonThread:

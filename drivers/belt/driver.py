@@ -22,10 +22,14 @@ import os
 import statistics
 import time
 from collections import deque
+from typing import TYPE_CHECKING
 
 import serial
 
 from drivers.belt import frames as F
+
+if TYPE_CHECKING:  # zenoh and pydantic load only where the driver meets zenoh
+    from protocol.settings import ZenohSettings
 
 log = logging.getLogger("guidebelt.belt")
 
@@ -245,7 +249,8 @@ class BeltService:
     async def run(self) -> None:
         import zenoh
 
-        from protocol import keys
+        from protocol import session as wire
+        from protocol import topics as T
 
         loop = asyncio.get_running_loop()
 
@@ -255,9 +260,9 @@ class BeltService:
         def on_alive(sample: zenoh.Sample) -> None:
             loop.call_soon_threadsafe(self._on_alive, sample.kind == zenoh.SampleKind.PUT)
 
-        sub = self.session.declare_subscriber(keys.belt(self.user), on_pattern)
-        alive = self.session.liveliness().declare_subscriber(keys.ALIVE, on_alive, history=True)
-        pub = self.session.declare_publisher(keys.belt_health(self.user))
+        sub = wire.declare_subscriber(self.session, T.BELT, on_pattern, self.user)
+        alive = wire.watch_liveliness(self.session, T.ALIVE, on_alive)
+        pub = wire.declare_publisher(self.session, T.BELT_HEALTH, self.user)
         link_task = asyncio.create_task(self.link.run())
         try:
             while not link_task.done():
@@ -299,17 +304,11 @@ class BeltService:
             self.link.stop()
 
 
-def zenoh_config_json5(connect: list[str], listen: list[str], multicast: bool) -> str:
-    from daemon.service.config import ZenohSettings
-
-    return ZenohSettings(connect=connect, listen=listen, multicast_scouting=multicast).to_json5()
-
-
-async def serve(port: str, user: str, config_json5: str, stop: asyncio.Event) -> None:
+async def serve(port: str, user: str, settings: ZenohSettings, stop: asyncio.Event) -> None:
     """Run the driver until ``stop`` is set (the ``guidebelt belt`` command)."""
-    import zenoh
+    from protocol.session import open_session
 
-    session = zenoh.open(zenoh.Config.from_json5(config_json5))
+    session = open_session(settings)
     try:
         service = BeltService(session, user, BeltLink(port))
         task = asyncio.create_task(service.run())

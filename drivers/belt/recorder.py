@@ -1,7 +1,7 @@
 """A mock belt driver: a zenoh node that records every pattern it is sent
 (``python -m drivers.belt.recorder --connect tcp/127.0.0.1:7447 --out belt.jsonl``).
 
-It subscribes where the real belt driver does (``guidebelt/<user>/belt``, or every user),
+It subscribes where the real belt driver does (the ``BELT`` topic, one user or every user),
 decodes with the same codec, and keeps what arrived with its arrival time; undecodable
 payloads are counted, as the real driver would refuse them. Optionally one JSON line per
 pattern goes to a file, for the demo and for anyone checking a run afterwards.
@@ -20,8 +20,12 @@ from typing import Generic, TypeVar
 import zenoh
 from zenoh.handlers import Callback
 
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import BeltPattern, Message
+from protocol.session import ZenohSettings
+from protocol.topics import Topic
 
 M = TypeVar("M", bound=Message)
 
@@ -35,29 +39,32 @@ class Received(Generic[M]):
 
 
 class Recorder(Generic[M]):
-    """Records messages of one type from ``guidebelt/<user>/<leaf>``."""
+    """Records the messages of one topic, for one user or every user."""
 
     def __init__(
         self,
         session: zenoh.Session,
-        kind: type[M],
-        leaf: str,
+        topic: Topic,
         user: str | None = None,
         out: Path | None = None,
     ) -> None:
-        self.kind = kind
+        if topic.model is None:
+            raise ValueError(f"{topic.name} carries no message to record")
+        self.topic = topic
+        self.kind: type[M] = topic.model  # type: ignore[assignment]
         self.received: list[Received[M]] = []
         self.rejected = 0
         self._cond = threading.Condition()
         self._file = out.open("a") if out is not None else None
-        key = f"{keys.ROOT}/{keys.check_user(user)}/{leaf}" if user else keys.any_user(leaf)
-        self._sub = session.declare_subscriber(key, Callback(self._on_sample, indirect=False))
+        self._sub = wire.declare_subscriber(
+            session, topic, Callback(self._on_sample, indirect=False), user
+        )
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         at = time.perf_counter()
         try:
             msg = codec.decode(self.kind, sample.payload.to_bytes())
-            user = keys.user_of(str(sample.key_expr))
+            user = self.topic.user_of(sample.key_expr)
         except ValueError:
             with self._cond:
                 self.rejected += 1
@@ -99,7 +106,7 @@ class BeltRecorder(Recorder[BeltPattern]):
     def __init__(
         self, session: zenoh.Session, user: str | None = None, out: Path | None = None
     ) -> None:
-        super().__init__(session, BeltPattern, "belt", user, out)
+        super().__init__(session, T.BELT, user, out)
 
     def kinds(self, user: str | None = None) -> list[str]:
         with self._cond:
@@ -116,12 +123,10 @@ def main(recorder: type[Recorder] = BeltRecorder, what: str = "belt patterns") -
     ap.add_argument("--user", default=None, help="one user (default: every user)")
     ap.add_argument("--out", type=Path, default=Path("/dev/stdout"))
     args = ap.parse_args()
-    config = {
-        "mode": "peer",
-        "connect": {"endpoints": args.connect or ["tcp/127.0.0.1:7447"]},
-        "scouting": {"multicast": {"enabled": False}},
-    }
-    session = zenoh.open(zenoh.Config.from_json5(json.dumps(config)))
+    settings = ZenohSettings(
+        connect=args.connect or ["tcp/127.0.0.1:7447"], multicast_scouting=False
+    )
+    session = wire.open_session(settings)
     rec = recorder(session, args.user, args.out)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

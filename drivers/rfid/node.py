@@ -1,43 +1,31 @@
 """The RFID node: serial reader → localiser → ``Pose`` on zenoh at a fixed rate.
 
-One process per user (one reader on the belt). Poses go to ``keys.pose(user)`` as the
+One process per user (one reader on the belt). Poses go to the ``POSE`` topic as the
 ``protocol.messages.Pose`` JSON the daemon validates; the reader's counters go to
-``keys.rfid(user, "stats")`` once a second. With too few tags in reach there is no pose:
-the node publishes nothing and the daemon's staleness check (> 1 s) stops the guidance,
-rather than guiding from a stale position.
+``RFID_STATS`` (``protocol.messages.RfidStats``) once a second. With too few tags in
+reach there is no pose: the node publishes nothing and the daemon's staleness check
+(> 1 s) stops the guidance, rather than guiding from a stale position.
 """
 
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import time
 from collections.abc import Callable
 
 import zenoh
 
-from protocol import codec, keys
-from protocol.messages import Pose
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import Pose, RfidStats
 
 from .localiser import DEFAULT_METHOD, Estimate, Localiser
 from .reader import RfidReader
 from .tags import TagMap
 
 log = logging.getLogger("guidebelt.rfid")
-
-
-def open_session(
-    listen: list[str] | None = None, connect: list[str] | None = None, scouting: bool = True
-) -> zenoh.Session:
-    """A zenoh peer session; tests pass loopback endpoints and ``scouting=False``."""
-    conf = {
-        "mode": "peer",
-        "listen": {"endpoints": listen or []},
-        "connect": {"endpoints": connect or []},
-        "scouting": {"multicast": {"enabled": scouting}, "gossip": {"enabled": scouting}},
-    }
-    return zenoh.open(zenoh.Config.from_json5(json.dumps(conf)))
 
 
 class RfidNode:
@@ -54,13 +42,13 @@ class RfidNode:
     ) -> None:
         if rate_hz < 10.0:
             raise ValueError("the daemon expects poses at 10 Hz or more")
-        self.user = keys.check_user(user)
+        self.user = T.check_user(user)
         self.clock = clock
         self.period = 1.0 / rate_hz
         self.localiser = Localiser(tag_map, method=method)
         self.reader = RfidReader(port, tag_map.ids, self.localiser.add, clock=clock)
-        self._pose_pub = session.declare_publisher(keys.pose(user))
-        self._stats_pub = session.declare_publisher(keys.rfid(user, "stats"))
+        self._pose_pub = wire.declare_publisher(session, T.POSE, user)
+        self._stats_pub = wire.declare_publisher(session, T.RFID_STATS, user)
         self.published = 0
         self.last: Estimate | None = None
 
@@ -76,11 +64,15 @@ class RfidNode:
         self.last = est
         return est
 
-    def stats(self) -> dict:
-        out: dict = {**self.reader.stats(), "poses": self.published}
-        if self.last is not None:
-            out.update(source=self.last.source, quality=round(self.last.quality, 3))
-        return out
+    def stats(self) -> RfidStats:
+        last = self.last
+        return RfidStats(
+            **self.reader.stats(),
+            poses=self.published,
+            source=last.source if last else None,
+            quality=round(last.quality, 3) if last else None,
+            stamp=self.clock(),
+        )
 
     async def run(self) -> None:
         """Until cancelled: the reader in one task, poses at the fixed rate in this one."""
@@ -92,7 +84,7 @@ class RfidNode:
             while True:
                 self.publish_once()
                 if loop.time() >= next_stats:
-                    self._stats_pub.put(json.dumps(self.stats()))
+                    self._stats_pub.put(codec.encode(self.stats()))
                     next_stats += 1.0
                 next_t += self.period
                 delay = next_t - loop.time()

@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 import zenoh
 from zenoh.handlers import Callback
 
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import CuePriority, VoiceCue
 
 from .espeak import EspeakSpeaker, SpeechCancelled, SpeechError
@@ -76,7 +78,8 @@ class VoiceDriver:
     ) -> None:
         self.session = session
         self.speaker = speaker
-        self.key = keys.voice(user) if user else keys.any_user("voice")
+        self.user = user
+        self.key = T.VOICE.selector(user)
         self.queue = CueQueue(stale_s=stale_s)
         self.rejected = 0
         self.said: list[tuple[VoiceCue, object]] = []
@@ -116,8 +119,8 @@ class VoiceDriver:
         """Speak cues until ``stop`` is set."""
         self._loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
-        self._sub = self.session.declare_subscriber(
-            self.key, Callback(self._on_sample, indirect=False)
+        self._sub = wire.declare_subscriber(
+            self.session, T.VOICE, Callback(self._on_sample, indirect=False), self.user
         )
         stopper = asyncio.ensure_future(stop.wait())
         try:

@@ -7,6 +7,7 @@ from pathlib import Path
 import zenoh
 
 from drivers.belt.recorder import Recorder
+from protocol import topics as T
 from protocol.messages import VoiceCue
 
 
@@ -14,7 +15,7 @@ class VoiceRecorder(Recorder[VoiceCue]):
     def __init__(
         self, session: zenoh.Session, user: str | None = None, out: Path | None = None
     ) -> None:
-        super().__init__(session, VoiceCue, "voice", user, out)
+        super().__init__(session, T.VOICE, user, out)
 
     def texts(self, user: str | None = None) -> list[str]:
         with self._cond:

@@ -4,17 +4,14 @@ from __future__ import annotations
 
 import json
 import struct
-import subprocess
-import sys
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol import codec, keys
+from protocol import codec
 from protocol.messages import (
     MAX_DELTA_CELLS,
     BeltPattern,
@@ -32,9 +29,7 @@ from protocol.messages import (
     Pose,
     VoiceCue,
 )
-from protocol.schema import MESSAGES
 
-ROOT = Path(__file__).resolve().parents[2]
 NOW = 1_790_000_000.25
 
 EXAMPLES = [
@@ -134,31 +129,3 @@ def test_bad_json_is_refused_with_a_code(kind, payload, code):
     with pytest.raises(codec.DecodeError) as err:
         codec.decode(kind, payload)
     assert err.value.code == code
-
-
-def test_keys_stay_under_the_user():
-    assert keys.map_source("ann") == "guidebelt/ann/map/source"
-    assert keys.user_of(keys.status("bo-1")) == "bo-1"
-    for bad in ("", "Ann", "-x", "a/b", "a" * 33):
-        with pytest.raises(ValueError):
-            keys.check_user(bad)
-
-
-@pytest.mark.timeout(60)
-def test_schema_command_writes_one_schema_per_message(tmp_path):
-    out = subprocess.run(
-        [sys.executable, "-m", "cli.app", "schema", str(tmp_path)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=50,
-    )
-    assert out.returncode == 0, out.stderr
-    files = sorted(p.name for p in tmp_path.glob("*.schema.json"))
-    assert files == sorted(f"{m.__name__}.schema.json" for m in MESSAGES)
-    delta = json.loads((tmp_path / "MapDelta.schema.json").read_text())
-    assert delta["additionalProperties"] is False
-    assert delta["x-wire"]["max_count"] == MAX_DELTA_CELLS
-    pose = json.loads((tmp_path / "Pose.schema.json").read_text())
-    assert set(pose["required"]) == {"x", "y", "heading", "stamp"}
-

@@ -13,7 +13,9 @@ import time
 import pytest
 
 from daemon.service.embedded import DaemonThread
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import Goal, GoalCell, NavState
 from sim.courtyard import make_courtyard
 from sim.rfid_eval import tags_for
@@ -36,8 +38,8 @@ def test_daemon_guides_the_user_to_the_goal_from_rfid_poses() -> None:
             try:
                 time.sleep(0.3)  # map and first poses reach the daemon before the goal
                 goal = GoalCell(row=scenario.goal[0], col=scenario.goal[1])
-                client.put(keys.goal("rfid-user"),
-                           codec.encode(Goal(target=goal, stamp=time.time())))
+                wire.put(client, T.GOAL, "rfid-user",
+                         codec.encode(Goal(target=goal, stamp=time.time())))
                 thread.join(75)
             finally:
                 stop.set()

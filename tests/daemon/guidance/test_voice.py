@@ -131,26 +131,24 @@ class SlowSpeaker(EspeakSpeaker):
 @needs_espeak
 @pytest.mark.timeout(30)
 def test_driver_over_zenoh_speaks_and_safety_preempts(tmp_path: Path) -> None:
-    import zenoh
-
-    from daemon.service.config import ZenohSettings
     from daemon.service.embedded import free_port
-    from protocol import codec, keys
+    from protocol import codec
+    from protocol import session as wire
+    from protocol import topics as T
+    from protocol.session import loopback, open_session
 
     port = free_port()
-    listen = ZenohSettings(listen=[f"tcp/127.0.0.1:{port}"], multicast_scouting=False)
-    connect = ZenohSettings(connect=[f"tcp/127.0.0.1:{port}"], multicast_scouting=False)
     speaker = SlowSpeaker(tmp_path, hold_s=1.0)
 
     async def main() -> VoiceDriver:
         stop = asyncio.Event()
-        with zenoh.open(zenoh.Config.from_json5(listen.to_json5())) as s1, zenoh.open(
-            zenoh.Config.from_json5(connect.to_json5())
+        with open_session(loopback(listen_port=port)) as s1, open_session(
+            loopback(connect_port=port)
         ) as s2:
             driver = VoiceDriver(s1, speaker, user="ana")
             runner = asyncio.ensure_future(driver.run(stop))
             await asyncio.sleep(0.5)  # let the subscription reach the publisher's session
-            pub = s2.declare_publisher(keys.voice("ana"))
+            pub = wire.declare_publisher(s2, T.VOICE, "ana")
             for _ in range(50):  # until the route is up: a put before it would be lost
                 pub.put(codec.encode(cue("turn to 2 o'clock, then 3 metres")))
                 await asyncio.sleep(0.1)
@@ -158,7 +156,7 @@ def test_driver_over_zenoh_speaks_and_safety_preempts(tmp_path: Path) -> None:
                     break
             pub.put(b"{not json")
             pub.put(codec.encode(cue("stop", safety=True)))
-            s2.declare_publisher(keys.voice("bob")).put(codec.encode(cue("not for ana")))
+            wire.put(s2, T.VOICE, "bob", codec.encode(cue("not for ana")))
             for _ in range(100):
                 if driver.said:
                     break

@@ -8,18 +8,15 @@ import threading
 import time
 
 import pytest
-import zenoh
 
 from drivers.belt.recorder import BeltRecorder
 from drivers.voice.recorder import VoiceRecorder
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import Goal, GoalCell, GoalMetres, Health, NavState, NavStatus
 from sim.courtyard import connected, dilate, make_courtyard
 from sim.node import SimNode
-
-
-def put(session, key: str, msg) -> None:
-    session.put(key, codec.encode(msg), congestion_control=zenoh.CongestionControl.BLOCK)
 
 
 def settle() -> None:
@@ -41,7 +38,7 @@ def walk_users(daemon, scenario, goals: dict[str, Goal], client):
             t.start()
         time.sleep(0.3)  # the map and the first poses reach the daemon before the goals
         for user, goal in goals.items():
-            put(client, keys.goal(user), goal)
+            wire.put(client, T.GOAL, user, codec.encode(goal))
         for t in threads:
             t.join(45)
     finally:
@@ -73,9 +70,9 @@ def test_goal_from_another_session_guides_the_user_to_arrival(daemon, peer):
     assert "guide" in belt.kinds()
     assert voice.texts(), "guidance spoke no cue at all"
     # The daemon's health and the liveliness token are there for drivers.
-    health = [r.ok for r in peer.get(keys.HEALTH, timeout=2.0) if r.ok is not None]
+    health = [r.ok for r in wire.get(peer, T.HEALTH) if r.ok is not None]
     assert "alice" in codec.decode(Health, health[0].payload.to_bytes()).users
-    alive = list(peer.liveliness().get(keys.ALIVE, timeout=2.0))
+    alive = wire.alive(peer, T.ALIVE)
     assert any(r.ok is not None for r in alive)
     belt.close()
     voice.close()
@@ -104,9 +101,9 @@ def test_two_users_with_different_goals_both_arrive(daemon, peer):
         assert distance_m(scenario, results[user].walked[-1], target) <= 0.5
     # Different goals, different walks.
     assert results["bob"].walked[-1] != results["carol"].walked[-1]
-    replies = [r.ok for r in peer.get(keys.any_user("status"), timeout=2.0) if r.ok is not None]
+    replies = [r.ok for r in wire.get(peer, T.STATUS_QUERY) if r.ok is not None]
     states = {
-        keys.user_of(str(r.key_expr)): codec.decode(NavStatus, r.payload.to_bytes())
+        T.user_of(r.key_expr): codec.decode(NavStatus, r.payload.to_bytes())
         for r in replies
     }
     assert states["bob"].state == states["carol"].state == NavState.ARRIVED

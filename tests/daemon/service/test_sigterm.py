@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import zenoh
 
 from daemon.service.embedded import free_port, open_peer
 from drivers.belt.recorder import BeltRecorder, Recorder
-from protocol import codec, keys
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import Goal, GoalCell, MapDelta, NavStatus, Pose
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -65,16 +66,15 @@ def test_sigterm_stops_the_belt_publishes_a_final_status_and_exits_fast(tmp_path
         read_notify(notify, "READY=1", 30.0)
         peer = open_peer(port)
         belt = BeltRecorder(peer, "term")
-        status = Recorder(peer, NavStatus, "status", "term")
+        status: Recorder[NavStatus] = Recorder(peer, T.STATUS, "term")
         time.sleep(0.2)
         walls = np.flatnonzero(np.pad(np.zeros((18, 18), bool), 1, constant_values=True))
         delta = MapDelta.from_arrays(0, (20, 20), walls, np.ones(walls.size), time.time())
-        block = zenoh.CongestionControl.BLOCK
         goal = Goal(target=GoalCell(row=6, col=10), stamp=1)
         pose = Pose(x=1.0, y=0.6, heading=0, stamp=time.time())
-        peer.put(keys.map_delta("term"), codec.encode(delta), congestion_control=block)
-        peer.put(keys.goal("term"), codec.encode(goal), congestion_control=block)
-        peer.put(keys.pose("term"), codec.encode(pose), congestion_control=block)
+        wire.put(peer, T.MAP_DELTA, "term", codec.encode(delta))
+        wire.put(peer, T.GOAL, "term", codec.encode(goal))
+        wire.put(peer, T.POSE, "term", codec.encode(pose))
         # A cold numba cache makes the first step compile: allow for it on a slow machine.
         assert status.wait_for(lambda r: r.msg.state == "guiding", 60.0) is not None
 

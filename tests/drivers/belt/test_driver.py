@@ -8,12 +8,14 @@ import socket
 import time
 
 import pytest
-import zenoh
 
 from drivers.belt import frames as F
-from drivers.belt.driver import BeltLink, BeltService, zenoh_config_json5
-from protocol import codec, keys
+from drivers.belt.driver import BeltLink, BeltService
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
 from protocol.messages import BeltHealth, BeltPattern, PatternKind
+from protocol.session import loopback, open_session
 
 
 async def _until(predicate, timeout: float, step: float = 0.01) -> bool:
@@ -70,15 +72,16 @@ def _free_port() -> int:
 @pytest.mark.timeout(40)
 def test_zenoh_patterns_reach_the_belt_health_is_published_and_daemon_loss_stops_it(belt):
     port = _free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    driver_session = zenoh.open(zenoh.Config.from_json5(zenoh_config_json5([], [endpoint], False)))
-    daemon_session = zenoh.open(zenoh.Config.from_json5(zenoh_config_json5([endpoint], [], False)))
+    driver_session = open_session(loopback(listen_port=port))
+    daemon_session = open_session(loopback(connect_port=port))
     healths: list[BeltHealth] = []
-    health_sub = daemon_session.declare_subscriber(
-        keys.belt_health("alice"),
+    health_sub = wire.declare_subscriber(
+        daemon_session,
+        T.BELT_HEALTH,
         lambda s: healths.append(BeltHealth.model_validate_json(s.payload.to_bytes())),
+        "alice",
     )
-    token = daemon_session.liveliness().declare_token(keys.ALIVE)
+    token = wire.declare_token(daemon_session, T.ALIVE)
     motors = (30, 0, 0, 220)
 
     async def scenario() -> None:
@@ -87,10 +90,10 @@ def test_zenoh_patterns_reach_the_belt_health_is_published_and_daemon_loss_stops
         try:
             assert await _until(lambda: service.daemons_alive == 1, 5)
             await asyncio.wait_for(service.link.connected.wait(), 3)
-            daemon_session.put(keys.belt("alice"), b'{"seq": "not a pattern"}')
+            wire.put(daemon_session, T.BELT, "alice", b'{"seq": "not a pattern"}')
             pattern = BeltPattern(seq=1, kind=PatternKind.GUIDE, motors=motors, period_ms=0,
                                   ttl_ms=5000, stamp=time.time())  # fmt: skip
-            daemon_session.put(keys.belt("alice"), codec.encode(pattern))
+            wire.put(daemon_session, T.BELT, "alice", codec.encode(pattern))
             assert await asyncio.to_thread(belt.wait_levels, motors, 3.0)
             assert service.rejected == 1
             assert await _until(lambda: healths and healths[-1].acks > 0
@@ -123,11 +126,13 @@ def test_guidebelt_belt_process_drives_the_simulated_belt(belt_kind, tmp_path):
 
     port = _free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
-    session = zenoh.open(zenoh.Config.from_json5(zenoh_config_json5([], [endpoint], False)))
+    session = open_session(loopback(listen_port=port))
     healths: list[BeltHealth] = []
-    sub = session.declare_subscriber(
-        keys.belt_health("bob"),
+    sub = wire.declare_subscriber(
+        session,
+        T.BELT_HEALTH,
         lambda s: healths.append(BeltHealth.model_validate_json(s.payload.to_bytes())),
+        "bob",
     )
     motors = (0, 0, 255, 0)
     try:
@@ -138,7 +143,7 @@ def test_guidebelt_belt_process_drives_the_simulated_belt(belt_kind, tmp_path):
             assert healths and healths[-1].connected
             pattern = BeltPattern(seq=1, kind=PatternKind.TURN_AROUND, motors=motors,
                                   period_ms=0, ttl_ms=5000, stamp=time.time())  # fmt: skip
-            session.put(keys.belt("bob"), codec.encode(pattern))
+            wire.put(session, T.BELT, "bob", codec.encode(pattern))
             assert belt.wait_levels(motors, 3.0) is not None
         # Leaving stopped the driver (its parting STOP) and then the belt.
         assert any(e.level == 0 and e.motor == 2 for e in belt.events[-4:])

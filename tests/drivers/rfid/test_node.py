@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import math
 import socket
 import threading
@@ -14,11 +13,14 @@ import numpy as np
 import pytest
 
 from drivers.rfid.mock_reader import MockReader
-from drivers.rfid.node import RfidNode, open_session
+from drivers.rfid.node import RfidNode
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import generate
-from protocol import keys
-from protocol.messages import Pose
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import Pose, RfidStats
+from protocol.session import loopback, open_session
 
 
 def free_port() -> int:
@@ -36,11 +38,11 @@ def test_node_publishes_poses_at_10_hz_or_more(tmp_path) -> None:
     truth = (2.53, 1.37)  # standing still, between floor tags' lattice lines
     model = ReadModel.for_tags(tag_map, seed=6)
 
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    node_session = open_session(listen=[endpoint], scouting=False)
-    client = open_session(connect=[endpoint], scouting=False)
+    port = free_port()
+    node_session = open_session(loopback(listen_port=port))
+    client = open_session(loopback(connect_port=port))
     poses: list[tuple[float, Pose]] = []
-    stats: list[dict] = []
+    stats: list[RfidStats] = []
     lock = threading.Lock()
 
     def on_pose(sample) -> None:
@@ -50,11 +52,11 @@ def test_node_publishes_poses_at_10_hz_or_more(tmp_path) -> None:
 
     def on_stats(sample) -> None:
         with lock:
-            stats.append(json.loads(sample.payload.to_bytes()))
+            stats.append(codec.decode(RfidStats, sample.payload.to_bytes()))
 
     subs = [
-        client.declare_subscriber(keys.pose("alice"), on_pose),
-        client.declare_subscriber(keys.rfid("alice", "stats"), on_stats),
+        wire.declare_subscriber(client, T.POSE, on_pose, "alice"),
+        wire.declare_subscriber(client, T.RFID_STATS, on_stats, "alice"),
     ]
     mock = MockReader(model, lambda t: truth, link=str(tmp_path / "ttyRFID")).start()
     node = RfidNode(node_session, "alice", tag_map, mock.path, rate_hz=20.0)
@@ -86,4 +88,4 @@ def test_node_publishes_poses_at_10_hz_or_more(tmp_path) -> None:
     errors = [math.hypot(p.x - truth[0], p.y - truth[1]) for p in recent]
     assert float(np.median(errors)) <= 0.10  # a floor tag is in reach: the LF fix
     assert all(0.0 <= p.quality <= 1.0 for p in recent)
-    assert stats and stats[-1]["accepted"] > 0 and stats[-1]["connected"] is True
+    assert stats and stats[-1].accepted > 0 and stats[-1].connected is True

@@ -1,0 +1,205 @@
+"""The wire in one table: every zenoh key guidebelt uses, its message, its parties and QoS.
+
+Everything per user lives under ``guidebelt/<user>/…``; daemon-wide keys under
+``guidebelt/@daemon/…`` (``@`` cannot start a user name, so the two never clash). Every
+publisher, subscriber, queryable, query and liveliness token in the product is declared
+from a ``Topic`` of ``TOPICS`` (through ``protocol.session``), so a key's leaf, its message
+model and its QoS are written here and nowhere else.
+
+QoS is chosen for a safety system. What steers or stops the user (belt patterns, status,
+voice cues, goals, map deltas) is never dropped on a busy link: congestion control BLOCK,
+at a priority above bulk data so it overtakes a snapshot on the same link; the belt
+pattern, the last hop before the motors, goes at REAL_TIME, ahead of everything. Poses are
+latest-wins (each supersedes the one before), so a full queue may drop one; so may paths,
+belt health and RFID stats. Everything a step of the guidance loop waits for is
+``express`` (sent at once, not batched), so map change to belt carries no batching delay.
+Reliability is RELIABLE throughout: the wearable's links are TCP (or loopback), where best
+effort buys nothing, and a lost sample must show up as a gap, not vanish.
+
+This module is plain data and imports no zenoh: the QoS words below are mapped onto
+zenoh's enums by ``protocol.session``, so the table (and ``guidebelt schema``) can be read
+on a machine without zenoh.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from .messages import (
+    BeltHealth,
+    BeltPattern,
+    Goal,
+    Health,
+    MapDelta,
+    MapSnapshot,
+    Message,
+    NavPath,
+    NavStatus,
+    Pose,
+    RfidStats,
+    VoiceCue,
+)
+
+ROOT = "guidebelt"
+DAEMON_SCOPE = "@daemon"
+USER_RE = re.compile(r"^[a-z0-9][a-z0-9_-]{0,31}$")
+
+
+def check_user(user: str) -> str:
+    if not USER_RE.match(user):
+        raise ValueError(f"bad user name {user!r}: use [a-z0-9_-], 1..32 chars, no leading _ or -")
+    return user
+
+
+def user_of(key: object) -> str:
+    """The user segment of a per-user key (``str(key)``, so a zenoh ``KeyExpr`` will do)."""
+    parts = str(key).split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
+        raise ValueError(f"not a guidebelt key: {key!r}")
+    return check_user(parts[1])
+
+
+class Kind(StrEnum):
+    PUBSUB = "publish/subscribe"
+    QUERYABLE = "queryable"
+    LIVELINESS = "liveliness token"
+
+
+class Reliability(StrEnum):
+    RELIABLE = "reliable"
+    BEST_EFFORT = "best_effort"
+
+
+class Congestion(StrEnum):
+    BLOCK = "block"  # wait for the queue: never lost silently
+    DROP = "drop"  # a full queue loses it: only for latest-wins data
+
+
+class Priority(StrEnum):
+    """zenoh's priorities, highest first (same names as ``zenoh.Priority``)."""
+
+    REAL_TIME = "real_time"
+    INTERACTIVE_HIGH = "interactive_high"
+    INTERACTIVE_LOW = "interactive_low"
+    DATA_HIGH = "data_high"
+    DATA = "data"
+    DATA_LOW = "data_low"
+    BACKGROUND = "background"
+
+
+@dataclass(frozen=True)
+class QoS:
+    reliability: Reliability = Reliability.RELIABLE
+    congestion: Congestion = Congestion.BLOCK
+    priority: Priority = Priority.DATA
+    express: bool = False
+
+
+# The three QoS classes the table uses.
+MUST_ARRIVE = QoS(priority=Priority.INTERACTIVE_HIGH, express=True)
+"""Steers or stops the user: blocks rather than drops, ahead of bulk data, not batched."""
+LATEST_WINS = QoS(congestion=Congestion.DROP, express=True)
+"""Superseded by the next sample: dropping one on a full queue is harmless."""
+BULK = QoS(priority=Priority.DATA_LOW)
+"""Large and rare (snapshots): must arrive, but behind everything that steers."""
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One row of the wire: a key, what travels on it, who sends and who listens, and how."""
+
+    name: str
+    leaf: str
+    """The key below ``guidebelt/<user>/`` (or ``guidebelt/@daemon/`` when not per user)."""
+    model: type[Message] | None
+    """The message on it (a reply's, for a queryable); None for a liveliness token."""
+    kind: Kind
+    producer: str
+    """Who publishes, answers the queries, or holds the token."""
+    consumers: str
+    qos: QoS = field(default=MUST_ARRIVE)
+    per_user: bool = True
+
+    def key(self, user: str | None = None) -> str:
+        """The concrete key, e.g. ``POSE.key("ann")`` → ``guidebelt/ann/pose``."""
+        if not self.per_user:
+            if user is not None:
+                raise ValueError(f"{self.name} is daemon-wide, not per user")
+            return f"{ROOT}/{DAEMON_SCOPE}/{self.leaf}"
+        if user is None:
+            raise ValueError(f"{self.name} is per user: name the user")
+        return f"{ROOT}/{check_user(user)}/{self.leaf}"
+
+    def any_user(self) -> str:
+        """The wildcard over every user, e.g. ``guidebelt/*/pose``."""
+        if not self.per_user:
+            raise ValueError(f"{self.name} is daemon-wide, not per user")
+        return f"{ROOT}/*/{self.leaf}"
+
+    def selector(self, user: str | None) -> str:
+        """One user's key, or every user's when ``user`` is None (or ``"*"``)."""
+        if not self.per_user:
+            return self.key()
+        return self.any_user() if user in (None, "*") else self.key(user)
+
+    def user_of(self, key: object) -> str:
+        """The user of a concrete key of this topic; ValueError for any other key."""
+        if not (self.per_user and self.matches(key)):
+            raise ValueError(f"{key!r} is not a per-user key of {self.name}")
+        return user_of(key)
+
+    def matches(self, key: object) -> bool:
+        """Whether a concrete key is this topic's (for any user)."""
+        parts = str(key).split("/", 2)
+        if len(parts) != 3 or parts[0] != ROOT or parts[2] != self.leaf:
+            return False
+        return (parts[1] == DAEMON_SCOPE) != self.per_user
+
+
+def _t(name: str, leaf: str, model, kind: Kind, producer: str, consumers: str, **kw) -> Topic:
+    return Topic(name, leaf, model, kind, producer, consumers, **kw)
+
+
+PS, Q, LV = Kind.PUBSUB, Kind.QUERYABLE, Kind.LIVELINESS
+
+MAP_DELTA = _t("map_delta", "map/delta", MapDelta, PS, "mapper / sim", "daemon")
+MAP_SNAPSHOT = _t("map_snapshot", "map/snapshot", MapSnapshot, Q, "daemon", "view, tools",
+                  qos=BULK)
+MAP_SOURCE = _t("map_source", "map/source", MapSnapshot, Q, "mapper / sim",
+                "daemon (after a sequence gap)", qos=BULK)
+POSE = _t("pose", "pose", Pose, PS, "localiser / RFID node / sim", "daemon",
+          qos=QoS(congestion=Congestion.DROP, priority=Priority.INTERACTIVE_HIGH, express=True))
+GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI", "daemon")
+PATH = _t("path", "path", NavPath, PS, "daemon", "sim, view, recorder", qos=LATEST_WINS)
+STATUS = _t("status", "status", NavStatus, PS, "daemon", "client, CLI, sim, recorder")
+STATUS_QUERY = _t("status_query", "status", NavStatus, Q, "daemon", "CLI (`guidebelt status`)")
+BELT = _t("belt", "belt", BeltPattern, PS, "daemon", "belt driver, sim, recorder",
+          qos=QoS(priority=Priority.REAL_TIME, express=True))
+BELT_HEALTH = _t("belt_health", "belt/health", BeltHealth, PS, "belt driver", "view, tools",
+                 qos=LATEST_WINS)
+VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder")
+RFID_STATS = _t("rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools",
+                qos=LATEST_WINS)
+HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", per_user=False)
+ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)",
+           per_user=False)
+
+TOPICS: tuple[Topic, ...] = (
+    MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,
+    BELT, BELT_HEALTH, VOICE, RFID_STATS, HEALTH, ALIVE,
+)  # fmt: skip
+
+
+def topic_of(key: object, kind: Kind = Kind.PUBSUB) -> Topic:
+    """The ``kind`` of topic a concrete key belongs to; ValueError for a key not in the table."""
+    for topic in TOPICS:
+        if topic.kind is kind and topic.matches(key):
+            return topic
+    raise ValueError(f"no {kind} topic has the key {key!r}")
+
+
+def wire_models() -> tuple[type[Message], ...]:
+    """Every message that travels on some key, each once, in table order."""
+    return tuple(dict.fromkeys(t.model for t in TOPICS if t.model is not None))
