@@ -66,12 +66,15 @@ def run_walk(
     pose_source: PoseSource = true_pose,
     mover: Mover | None = None,
     stop_on_no_path: bool = True,
+    map_first: bool = False,
     on_step: Callable[[Walk], None] | None = None,
 ) -> Walk:
     """Walk ``world.scenario`` from its start to its goal with ``navigator`` guiding.
 
     ``stop_on_no_path``: end the walk the first time the navigator finds no path (in a static
     world nothing will change that); a walker in a changing world may wait instead.
+    ``map_first``: give each action's map delta a step of its own before the pose's, as the
+    zenoh sim node does (it waits for the daemon's answer to a delta before the next pose).
     """
     now = 0.0
     goal = Goal(target=GoalCell(row=world.scenario.goal[0], col=world.scenario.goal[1]), stamp=now)
@@ -81,6 +84,9 @@ def run_walk(
     inbox = Inbox(deltas=deltas, goal=goal)
     belt: BeltPattern | None = None
     for _ in range(max_actions):
+        if map_first and inbox.deltas and inbox.goal is None:
+            navigator.step(inbox, now)
+            inbox = Inbox()
         inbox.pose = pose_source(world, now)
         out = navigator.step(inbox, now)
         walk.reports.append(navigator.last)

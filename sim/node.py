@@ -5,8 +5,9 @@ For one user it plays everything outside the daemon through ``sim.world.World``:
 localiser (``POSE``) and the person (a walker moving on the true map). It runs in lock step
 with the daemon: publish a pose, wait for the path planned from that very pose, let the
 walker act on it (and on the belt pattern published with it), sense, publish the delta,
-repeat. A pose is re-sent every ``pose_period_s`` while nothing comes back, so the daemon
-never sees it go stale while it is merely waiting for a goal.
+wait for the path planned on it, repeat. A pose is re-sent every ``pose_period_s`` while
+nothing comes back, so the daemon never sees it go stale while it is merely waiting for a
+goal.
 
 Walkers are those of ``sim.world.WALKERS`` (``--follow``).
 """
@@ -43,6 +44,8 @@ class SimResult:
     """The user's cell after every step, start first."""
     step_ms: list[float] = field(default_factory=list)
     """Pose sent → path for that pose received: the daemon's whole loop, as the user sees it."""
+    belts: list[BeltPattern] = field(default_factory=list)
+    """The pattern the belt showed when the walker acted, one per path acted on."""
     actions: dict[str, int] = field(default_factory=dict)
     last_status: NavStatus | None = None
     known: np.ndarray | None = None
@@ -142,11 +145,22 @@ class SimNode:
     def cell(self) -> Cell:
         return self.world.cell()
 
-    def _sense(self) -> None:
+    def _sense(self, stop: threading.Event) -> None:
+        """Publish what the sensor sees now, then wait (at most a pose period) for the path
+        the daemon planned on it: the next pose then meets a map that already holds it, so
+        the daemon's steps come in the same order whatever its timing."""
         with self._map_lock:
             delta = self.world.sense(time.time())
-        if delta is not None:
-            self._pub_delta.put(codec.encode(delta))
+        if delta is None:
+            return
+        self._pub_delta.put(codec.encode(delta))
+        end = time.monotonic() + self.pose_period_s
+        with self._cond:
+            while not stop.is_set() and time.monotonic() < end:
+                p = self._path
+                if p is not None and p.map_seq >= delta.seq:
+                    return
+                self._cond.wait(end - time.monotonic())
 
     def _send_pose(self) -> float:
         stamp = time.time()
@@ -194,12 +208,14 @@ class SimNode:
                     continue
                 result.step_ms.append((time.perf_counter() - t0) * 1e3)
                 cells = np.array(path.cells, dtype=np.int32).reshape(-1, 2)
+                if self._belt is not None:
+                    result.belts.append(self._belt)
                 action = self.world.act(cells, self._belt, time.time())
                 result.actions[action] = result.actions.get(action, 0) + 1
                 if action == "step":
                     result.walked.append(self.cell())
                 if action in ("step", "turn", "bump"):  # a bump turned the user, too
-                    self._sense()
+                    self._sense(stop)
                 if on_step is not None:
                     on_step(result)
                 if result.steps >= max_steps:
