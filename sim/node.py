@@ -28,7 +28,7 @@ from daemon.planning.grid import Cell
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, MapSnapshot, NavPath, NavState, NavStatus
+from protocol.messages import BeltPattern, MapSnapshot, NavPath, NavState, NavStatus, PatternKind
 
 from .courtyard import Scenario
 from .world import WALKERS, Walker, World
@@ -121,7 +121,10 @@ class SimNode:
             self._cond.notify_all()
 
     def _on_belt(self, sample: zenoh.Sample) -> None:
-        self._belt = codec.decode(BeltPattern, sample.payload.to_bytes())
+        belt = codec.decode(BeltPattern, sample.payload.to_bytes())
+        with self._cond:
+            self._belt = belt
+            self._cond.notify_all()
 
     def _on_status(self, sample: zenoh.Sample) -> None:
         status = codec.decode(NavStatus, sample.payload.to_bytes())
@@ -154,13 +157,7 @@ class SimNode:
         if delta is None:
             return
         self._pub_delta.put(codec.encode(delta))
-        end = time.monotonic() + self.pose_period_s
-        with self._cond:
-            while not stop.is_set() and time.monotonic() < end:
-                p = self._path
-                if p is not None and p.map_seq >= delta.seq:
-                    return
-                self._cond.wait(end - time.monotonic())
+        self._await(lambda: self._path is not None and self._path.map_seq >= delta.seq, stop)
 
     def _send_pose(self) -> float:
         stamp = time.time()
@@ -200,17 +197,20 @@ class SimNode:
                 t0 = time.perf_counter()
                 stamp = self._send_pose()
                 path = self._wait_for_path(stamp, stop)
-                status = self._status
-                if status is not None and status.state == NavState.ARRIVED:
+                belt = self._wait_for_belt(path.stamp, stop) if path is not None else None
+                at_goal = belt is not None and belt.kind == PatternKind.ARRIVED
+                if at_goal:
+                    self._await(self._arrived, stop)  # that step's status comes after its belt
+                if at_goal or self._arrived():
                     result.arrived, result.reason = True, "arrived"
                     break
                 if path is None:
                     continue
                 result.step_ms.append((time.perf_counter() - t0) * 1e3)
                 cells = np.array(path.cells, dtype=np.int32).reshape(-1, 2)
-                if self._belt is not None:
-                    result.belts.append(self._belt)
-                action = self.world.act(cells, self._belt, time.time())
+                if belt is not None:
+                    result.belts.append(belt)
+                action = self.world.act(cells, belt, time.time())
                 result.actions[action] = result.actions.get(action, 0) + 1
                 if action == "step":
                     result.walked.append(self.cell())
@@ -230,18 +230,31 @@ class SimNode:
             self.close()
         return result
 
+    def _wait_for_belt(self, stamp: float, stop: threading.Event) -> BeltPattern | None:
+        """The pattern made in the same step as the path stamped ``stamp`` (the daemon sends
+        it first, but on another key), so the walker feels what that step decided."""
+        self._await(lambda: self._belt is not None and abs(self._belt.stamp - stamp) < 1e-6, stop)
+        return self._belt
+
     def _wait_for_path(self, stamp: float, stop: threading.Event) -> NavPath | None:
         """The path planned from the pose sent at ``stamp``; None on ARRIVED or timeout."""
+        self._await(lambda: self._planned_from(stamp) or self._arrived(stamp), stop)
+        return self._path if self._planned_from(stamp) else None
+
+    def _planned_from(self, stamp: float) -> bool:
+        return self._path is not None and abs(self._path.pose_stamp - stamp) < 1e-6
+
+    def _arrived(self, since: float = 0.0) -> bool:
+        s = self._status
+        return s is not None and s.state == NavState.ARRIVED and s.stamp >= since
+
+    def _await(self, done: Callable[[], bool], stop: threading.Event) -> bool:
+        """Wait at most a pose period for ``done()`` (read under the lock the callbacks take)."""
         end = time.monotonic() + self.pose_period_s
         with self._cond:
-            while not stop.is_set():
-                p, s = self._path, self._status
-                if p is not None and abs(p.pose_stamp - stamp) < 1e-6:
-                    return p
-                if s is not None and s.state == NavState.ARRIVED and s.stamp >= stamp:
-                    return None
+            while not done():
                 left = end - time.monotonic()
-                if left <= 0:
-                    return None
+                if stop.is_set() or left <= 0:
+                    return False
                 self._cond.wait(left)
-        return None
+        return True
