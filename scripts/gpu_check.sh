@@ -2,22 +2,23 @@
 # The GPU machine's whole check in one device call:
 #   1. pytest -m gpu over tests/daemon/planning (the cuda cases of the property tests against
 #      the reference Dijkstra, and the cuda planner's own tests), with the slowest listed;
-#   2. guidebelt bench --backend cuda: the paper's closed-loop walk, 100/200/400 x 20/40/60 %;
-#   3. guidebelt bench --backend cuda at 1000 and 2000, 40 %, each walk capped at $BIG_STEPS
-#      steps (rows say "capped");
-#   4. scripts/time_cuda_planner.py: DSS from scratch + path at 400, 2000, 4000 (fast and the
-#      paper's form where it fits), exactness checked against the CPU;
+#   2. guidebelt bench --backend cuda: the paper's closed-loop walk through the daemon's
+#      navigator, 100/200/400 x 20/40/60 %;
+#   3. guidebelt bench --backend cuda at 1000 and 2000, 40 %, whole walks (BIG_STEPS caps them;
+#      rows say "capped");
+#   4. scripts/time_dss.py: DSS from scratch + path at 400, 2000, 4000 (fast and the paper's
+#      form where it fits), exactness checked against the CPU, the planner's memory;
 #   5. the short table (scripts/gpu_table.py), last.
 # CPU figures are measured on the development machine, not here.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed;
 # the last line names each step's exit status (124: it ran past its limit). PARTS (default
-# "tests bench replay") picks steps.
+# "tests bench dss") picks steps.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${GPU_CHECK_OUT:-out/gpu_check}
-BIG_STEPS=${BIG_STEPS:-300}
-PARTS=${PARTS:-tests bench replay}
+BIG_STEPS=${BIG_STEPS:-}
+PARTS=${PARTS:-tests bench dss}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
 mkdir -p "$OUT"
 rm -f "$OUT/steps.txt"
@@ -41,16 +42,16 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"  # a copied checkout may be stale: dirty says so
 } >"$OUT/device.txt"
-has tests && step pytest 240 python3 -m pytest -m gpu tests/daemon/planning -q \
+has tests && step pytest 200 python3 -m pytest -m gpu tests/daemon/planning -q \
     -p no:cacheprovider --timeout 120 --durations=8
 has bench && {
-step bench_cuda 120 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
+step bench_cuda 150 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cuda --json "$OUT/bench_cuda.json"
-step bench_big_cuda 90 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
-    --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/bench_big_cuda.json"
+step bench_big_cuda 160 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
+    --backend cuda ${BIG_STEPS:+--max-steps "$BIG_STEPS"} --json "$OUT/bench_big_cuda.json"
 }
-has replay && step replay 120 python3 scripts/time_cuda_planner.py --variants fast,paper \
-    --grid "" --dss 400,2000,4000 --paper-max 400 --json "$OUT/replay.json"
+has dss && step dss 70 python3 scripts/time_dss.py --variants fast,paper \
+    --sizes 400,2000,4000 --paper-max 400 --json "$OUT/dss.json"
 has tests && sed -n '/slowest/,$p' "$OUT/pytest.log" | tail -n 14
 python3 scripts/gpu_table.py "$OUT"
 echo "steps: $(tr '\n' ' ' <"$OUT/steps.txt")"
