@@ -47,7 +47,7 @@ has tests && step pytest 200 python3 -m pytest -m gpu tests/daemon/planning -q \
 has bench && {
 step bench_cuda 150 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
     --backend cuda --json "$OUT/bench_cuda.json"
-step bench_big_cuda 160 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
+step bench_big_cuda 240 python3 -m cli.app bench --grid 1000,2000 --unknown 0.4 \
     --backend cuda ${BIG_STEPS:+--max-steps "$BIG_STEPS"} --json "$OUT/bench_big_cuda.json"
 }
 has dss && step dss 70 python3 scripts/time_dss.py --variants fast,paper \

@@ -1,7 +1,8 @@
 """A walk in one process: the world and the daemon's own ``Navigator``, on a simulated clock.
 
 Each action: what the sensor saw since the last one (a map delta) and the user's pose go to
-the navigator in one step, as the daemon's runner coalesces them; the walker acts on the path
+the navigator in one step, as the daemon's runner coalesces them (and the world's snapshot
+when the navigator asked for one); the walker acts on the path
 and the belt pattern the step produced; the clock moves on by ``step_s``. The walk ends when
 the navigator says ARRIVED, when it has no path and the walker stands still, or at a limit.
 
@@ -82,6 +83,8 @@ def run_walk(
     walk = Walk(arrived=False, reason="action limit", walked=[world.cell()],
                 track=[(world.walker.x, world.walker.y)])  # fmt: skip
     inbox = Inbox(deltas=deltas, goal=goal)
+    if not deltas or deltas[0].seq != 0:  # the known map did not fit in delta 0: a snapshot
+        inbox = Inbox(snapshot=world.snapshot(now), goal=goal)
     belt: BeltPattern | None = None
     for _ in range(max_actions):
         if map_first and inbox.deltas and inbox.goal is None:
@@ -116,8 +119,9 @@ def run_walk(
         now += step_s
         if mover is not None:
             mover(world, now)
-        seen = world.sense(now)
-        inbox = Inbox(deltas=[seen] if seen is not None else [])
+        inbox = Inbox(deltas=world.sense(now))
+        if out.want_snapshot:  # as the sim node's map source answers the daemon's query
+            inbox.snapshot = world.snapshot(now)
     walk.final_state = navigator.state
     return walk
 

@@ -28,7 +28,7 @@ from daemon.planning.grid import Cell
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, MapSnapshot, NavPath, NavState, NavStatus, PatternKind
+from protocol.messages import BeltPattern, NavPath, NavState, NavStatus, PatternKind
 
 from .courtyard import Scenario
 from .world import WALKERS, Walker, World
@@ -134,7 +134,7 @@ class SimNode:
 
     def _on_source(self, query: zenoh.Query) -> None:
         with self._map_lock:
-            snap = MapSnapshot.from_array(max(self.world.seq, 0), self.world.known, time.time())
+            snap = self.world.snapshot(time.time())
         wire.reply(query, T.MAP_SOURCE, self.user, codec.encode(snap))
         query.drop()
 
@@ -153,11 +153,13 @@ class SimNode:
         the daemon planned on it: the next pose then meets a map that already holds it, so
         the daemon's steps come in the same order whatever its timing."""
         with self._map_lock:
-            delta = self.world.sense(time.time())
-        if delta is None:
+            deltas = self.world.sense(time.time())
+        if not deltas:
             return
-        self._pub_delta.put(codec.encode(delta))
-        self._await(lambda: self._path is not None and self._path.map_seq >= delta.seq, stop)
+        for delta in deltas:
+            self._pub_delta.put(codec.encode(delta))
+        seq = deltas[-1].seq
+        self._await(lambda: self._path is not None and self._path.map_seq >= seq, stop)
 
     def _send_pose(self) -> float:
         stamp = time.time()

@@ -123,7 +123,9 @@ def walk(
     # steps at every action unless it bumps, so the action limit is only a backstop.
     done = run_walk(world, nav, max_actions=4 * max_steps + 1, max_steps=max_steps, step_s=1.0,
                     on_step=report)  # fmt: skip
-    reports = done.reports[1:]  # the first step is the initial plan
+    # The steps before the first plan set the walk up; the first plan is its init_ms.
+    first = next((i for i, r in enumerate(done.reports) if r.plan.planned), len(done.reports))
+    reports = done.reports[first + 1 :]
     stats = [r.plan.stats for r in reports]
 
     def column(values: list, dtype: type) -> np.ndarray:
@@ -145,7 +147,7 @@ def walk(
         guide_ms=column([r.guide_ms for r in reports], np.float64),
         nav_ms=column([r.step_ms for r in reports], np.float64),
         changed=column([r.changed for r in reports], np.int64),
-        init_ms=done.reports[0].plan.plan_ms if done.reports else math.nan,
+        init_ms=done.reports[first].plan.plan_ms if first < len(done.reports) else math.nan,
         known=grid.occupancy.copy(),
         blocked=grid.blocked.copy(),
         cell_m=scenario.cell_m,

@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from daemon.planning.grid import OCCUPIED, Cell, cell_to_xy, xy_to_cell
-from protocol.messages import MAX_DELTA_CELLS, BeltPattern, MapDelta, Pose
+from protocol.messages import MAX_DELTA_CELLS, BeltPattern, MapDelta, MapSnapshot, Pose
 
 from .belt_walker import belt_walker_for, step_hits
 from .courtyard import Scenario
@@ -135,16 +135,22 @@ class World:
         out = []
         occupied = np.flatnonzero(self.known == OCCUPIED)
         if occupied.size <= MAX_DELTA_CELLS:
-            out.append(self._delta(occupied, np.full(occupied.size, OCCUPIED, np.uint8), stamp))
+            out += self._deltas(occupied, np.full(occupied.size, OCCUPIED, np.uint8), stamp,
+                                at_least_one=True)  # fmt: skip
         else:
             self.seq = 0
-        seen = self.sense(stamp)
-        return out + ([seen] if seen is not None else [])
+        return out + self.sense(stamp)
 
-    def sense(self, stamp: float) -> MapDelta | None:
-        """The delta of what the sensor sees now that the map does not know yet."""
+    def sense(self, stamp: float) -> list[MapDelta]:
+        """The deltas of what the sensor sees now that the map does not know yet (none when
+        nothing is new; several when a sweep changes more cells than one delta may carry)."""
         cells, values = self.sensor.sense(self.true, self.known, self.cell(), self.walker.heading)
-        return self._delta(cells, values, stamp) if cells.size else None
+        return self._deltas(cells, values, stamp)
+
+    def snapshot(self, stamp: float) -> MapSnapshot:
+        """Everything published so far in one message: the map producer's answer when the
+        navigator has lost the sequence (or a first map too large for one delta)."""
+        return MapSnapshot.from_array(max(self.seq, 0), self.known, stamp)
 
     def pose(self, stamp: float) -> Pose:
         return Pose(x=self.walker.x, y=self.walker.y, heading=self.walker.heading, stamp=stamp)
@@ -152,7 +158,14 @@ class World:
     def act(self, path: np.ndarray | None, belt: BeltPattern | None, now: float) -> str:
         return self.walker.act(WalkerView(path, belt, self.true, now))
 
-    def _delta(self, cells: np.ndarray, values: np.ndarray, stamp: float) -> MapDelta:
+    def _deltas(
+        self, cells: np.ndarray, values: np.ndarray, stamp: float, at_least_one: bool = False
+    ) -> list[MapDelta]:
+        """The change as deltas of at most ``MAX_DELTA_CELLS`` cells, in sequence."""
         self.known.reshape(-1)[cells] = values
-        self.seq += 1
-        return MapDelta.from_arrays(self.seq, self.shape, cells, values, stamp)
+        out = []
+        for at in range(0, max(cells.size, int(at_least_one)), MAX_DELTA_CELLS):
+            self.seq += 1
+            part = slice(at, at + MAX_DELTA_CELLS)
+            out.append(MapDelta.from_arrays(self.seq, self.shape, cells[part], values[part], stamp))
+        return out

@@ -20,7 +20,7 @@ import numpy as np
 
 from daemon.planning import device_errors
 from daemon.planning.escape import escape_path
-from daemon.planning.grid import INF, Cell
+from daemon.planning.grid import INF, Cell, path_cost
 from daemon.planning.interface import GlobalPlanner, UpdateStats
 
 log = logging.getLogger("guidebelt.navigation")
@@ -110,7 +110,9 @@ class Route:
         else:
             stats, path = planner.update_and_path(*self._take(), cell)
             self._record(stats)
-        return path, (int(planner.cost_at(cell)) if len(path) else int(INF))
+        # The path's own cost is g at the user's cell (the path descends g by each step's cost
+        # to the goal's 0); summed on the host, it costs no device round trip.
+        return path, (path_cost(path) if len(path) else int(INF))
 
     def _take(self) -> tuple[np.ndarray, np.ndarray]:
         pending, self._pending = self._pending, None
