@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 CELL_M = 0.10
 """Default cell size in metres."""
@@ -65,13 +66,27 @@ def xy_to_cell(shape: tuple[int, int], x: float, y: float, cell_m: float = CELL_
 
 
 def path_cost(path: np.ndarray) -> int:
-    """Sum of 10/14 step costs along a ``(k, 2)`` path of adjacent cells."""
-    if len(path) < 2:
-        return 0
-    d = np.abs(np.diff(path.astype(np.int64), axis=0))
-    if np.any(d > 1) or np.any(d.sum(axis=1) == 0):
+    """Sum of 10/14 step costs along a ``(k, 2)`` path of adjacent cells.
+
+    Compiled: the navigator sums every step's path (hundreds of cells) to report g at the
+    user's cell without asking the device for it.
+    """
+    cost = _path_cost(np.asarray(path)) if len(path) >= 2 else 0
+    if cost < 0:
         raise ValueError("path has a step between non-adjacent cells")
-    return int(np.where(d.sum(axis=1) == 2, DIAGONAL, STRAIGHT).sum())
+    return int(cost)
+
+
+@njit(cache=True)
+def _path_cost(path: np.ndarray) -> int:  # pragma: no cover - compiled
+    total = 0
+    for i in range(1, path.shape[0]):
+        dr = abs(int(path[i, 0]) - int(path[i - 1, 0]))
+        dc = abs(int(path[i, 1]) - int(path[i - 1, 1]))
+        if dr > 1 or dc > 1 or dr + dc == 0:
+            return -1
+        total += DIAGONAL if dr + dc == 2 else STRAIGHT
+    return total
 
 
 def checked_plan_input(blocked: np.ndarray, goal: Cell) -> tuple[np.ndarray, tuple[int, int], Cell]:
