@@ -18,7 +18,8 @@ from sim.node import SimResult
 
 def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
     """The picture of a walk over zenoh, drawn by the same code as the in-process walk."""
-    from sim.render import WalkPicture, render_walk
+    from sim.render import render_walk
+    from sim.walk import WalkPicture
 
     known = result.known if result.known is not None else scenario.known
     walk = WalkPicture(

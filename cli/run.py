@@ -16,6 +16,9 @@ def run(
         Path | None,
         typer.Option(help="TOML file; default $GUIDEBELT_CONFIG or /etc/guidebelt/guidebelt.toml"),
     ] = None,
+    planner: Annotated[
+        str | None, typer.Option(help="A planner of the registry (eds, dss); overrides the config.")
+    ] = None,
 ) -> None:
     """Serve goals, poses and map deltas over zenoh until SIGTERM."""
     import uvloop
@@ -24,7 +27,7 @@ def run(
     from daemon.service.daemon import serve
     from daemon.service.logs import setup_logging
 
-    cfg = load_config(config)
+    cfg = load_config(config, **({"planner": planner} if planner else {}))
     setup_logging(cfg.log_level, cfg.log_format)
     uvloop.run(serve(cfg))
     # Everything the daemon owns is closed by now. Skip the interpreter's teardown: the

@@ -7,7 +7,6 @@ matplotlib (Agg) is imported only here, so the planner and the benchmark run wit
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,30 +14,7 @@ import numpy as np
 from daemon.planning.grid import OCCUPIED, UNKNOWN
 
 from .courtyard import Scenario
-from .walk import walked_metres
-
-
-@dataclass(frozen=True)
-class WalkPicture:
-    """What a picture shows of a walk; a ``walk.WalkResult`` has all of it too."""
-
-    mode: str
-    arrived: bool
-    reason: str
-    walked: np.ndarray
-    """``(steps + 1, 2)`` cells, start first."""
-    known: np.ndarray
-    blocked: np.ndarray
-    cell_m: float
-
-    @property
-    def steps(self) -> int:
-        return len(self.walked) - 1
-
-    @property
-    def walked_m(self) -> float:
-        return walked_metres(self.walked, self.cell_m)
-
+from .walk import WalkPicture
 
 COLOURS = {
     "free, seen": (1.0, 1.0, 1.0),

@@ -36,17 +36,39 @@ StepCallback = Callable[[int, Cell, int, float], None]
 """``on_step(step, cell, cells_changed, step_ms)`` after each step."""
 
 
-@dataclass
-class WalkResult:
-    """What one walk did, step by step (arrays have one entry per replanning step)."""
+@dataclass(frozen=True)
+class WalkPicture:
+    """What a picture shows of a walk (``render.py``); the zenoh walk makes one too."""
 
     mode: str
-    planner: str
     arrived: bool
     reason: str
     """``arrived``, ``no path`` (the goal cannot be reached from the user) or ``step limit``."""
     walked: np.ndarray
     """``(steps + 1, 2) int32``: the cells the user stood on, start first."""
+    known: np.ndarray
+    """The known occupancy at the end of the walk."""
+    blocked: np.ndarray
+    """The inflated known map at the end of the walk."""
+    cell_m: float
+
+    @property
+    def steps(self) -> int:
+        return len(self.walked) - 1
+
+    @property
+    def walked_m(self) -> float:
+        if len(self.walked) < 2:
+            return 0.0
+        d = np.abs(np.diff(self.walked.astype(np.int64), axis=0)).sum(axis=1)
+        return float(np.where(d == 2, math.sqrt(2.0), 1.0).sum() * self.cell_m)
+
+
+@dataclass(frozen=True)
+class WalkResult(WalkPicture):
+    """What one walk did, step by step (arrays have one entry per replanning step)."""
+
+    planner: str
     iterations: np.ndarray
     cells_touched: np.ndarray
     plan_ms: np.ndarray
@@ -61,27 +83,6 @@ class WalkResult:
     """Cells whose blocked state flipped at this step."""
     init_ms: float
     """The first full plan on the known map (the walk's first step), before the walk."""
-    known: np.ndarray
-    """The known occupancy at the end of the walk."""
-    blocked: np.ndarray
-    """The inflated known map at the end of the walk."""
-    cell_m: float
-
-    @property
-    def steps(self) -> int:
-        return len(self.walked) - 1
-
-    @property
-    def walked_m(self) -> float:
-        return walked_metres(self.walked, self.cell_m)
-
-
-def walked_metres(walked: np.ndarray, cell_m: float) -> float:
-    """Length of a walk of 8-connected cell steps, in metres."""
-    if len(walked) < 2:
-        return 0.0
-    d = np.abs(np.diff(walked.astype(np.int64), axis=0)).sum(axis=1)
-    return float(np.where(d == 2, math.sqrt(2.0), 1.0).sum() * cell_m)
 
 
 def paper_settings(scenario: Scenario, mode: str, backend: str, variant: str) -> NavigatorSettings:

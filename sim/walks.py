@@ -71,11 +71,14 @@ def user_radius_m(scenario: Scenario) -> float:
     return scenario.radius_cells * scenario.cell_m
 
 
-def belt_settings(scenario: Scenario, backend: str = "cpu", lang: str = "en") -> NavigatorSettings:
+def belt_settings(
+    scenario: Scenario, backend: str = "cpu", lang: str = "en", planner: str = "eds"
+) -> NavigatorSettings:
     """The navigator as the daemon runs it, at the scenario's cell size and user radius."""
     from daemon.navigation import NavigatorSettings
 
     return NavigatorSettings(
+        planner=planner,
         backend=backend,
         cell_m=scenario.cell_m,
         user_radius_m=user_radius_m(scenario),
@@ -93,6 +96,7 @@ def belt_walk(
     lang: str = "en",
     max_actions: int | None = None,
     guidance: Guidance | None = None,
+    planner: str = "eds",
 ) -> BeltWalk:
     """One walk of ``scenario`` by a belt walker with noise seeded by ``seed``.
 
@@ -102,7 +106,7 @@ def belt_walk(
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
 
-    settings = belt_settings(scenario, backend, lang)
+    settings = belt_settings(scenario, backend, lang, planner)
     if guidance is None and smooth:
         guidance = Guidance(
             cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
@@ -133,9 +137,9 @@ def belt_walk(
 
 
 def _one(task: tuple) -> tuple[int, float, bool, float, int, int, int]:
-    grid, unknown, seed, backend, smooth, params = task
+    grid, unknown, seed, backend, smooth, params, planner = task
     w = belt_walk(make_courtyard(grid, unknown, seed=seed), seed=seed, backend=backend,
-                  smooth=smooth, params=params)
+                  smooth=smooth, params=params, planner=planner)
     return grid, unknown, w.arrived, w.length_ratio, w.collisions, w.cues, w.holds
 
 
@@ -166,6 +170,7 @@ def run_table(
     first_seed: int = 0,
     jobs: int = 1,
     params: WalkerParams | None = None,
+    planner: str = "eds",
     on_row: Callable[[dict], None] | None = None,
 ) -> list[dict]:
     """``runs`` seeded walks (seed i: the courtyard and the walker's noise) per grid and
@@ -180,7 +185,8 @@ def run_table(
         for grid in grids:
             for unknown in unknowns:
                 tasks = [
-                    (grid, unknown, first_seed + i, backend, smooth, params) for i in range(runs)
+                    (grid, unknown, first_seed + i, backend, smooth, params, planner)
+                    for i in range(runs)
                 ]
                 results = list(pool.map(_one, tasks) if pool else map(_one, tasks))
                 rows.append(summarise(grid, unknown, results))

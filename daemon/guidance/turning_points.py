@@ -47,6 +47,16 @@ def is_core(blocked: np.ndarray, r: int, c: int, depth: int) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
+def _first_crossing(cell: int, start: float, delta: float) -> tuple[float, float]:
+    """Along one axis of a segment: the fraction of it where it first leaves ``cell``, and
+    the fraction between crossings (never, for a segment parallel to the other axis)."""
+    if delta == 0.0:
+        return 1e30, 1e30
+    edge = (cell + 1.0 if delta > 0 else float(cell)) - start
+    return edge / delta, abs(1.0 / delta)
+
+
+@numba.njit(cache=True, nogil=True)
 def segment_clear(
     blocked: np.ndarray, r0: float, c0: float, r1: float, c1: float, depth: int
 ) -> bool:
@@ -63,21 +73,8 @@ def segment_clear(
     dr, dc = r1 - r0, c1 - c0
     step_r = 1 if dr > 0 else -1
     step_c = 1 if dc > 0 else -1
-    inf = 1e30
-    if dr != 0.0:
-        next_r = (r + 1.0 if dr > 0 else float(r)) - r0
-        t_max_r = next_r / dr
-        t_delta_r = abs(1.0 / dr)
-    else:
-        t_max_r = inf
-        t_delta_r = inf
-    if dc != 0.0:
-        next_c = (c + 1.0 if dc > 0 else float(c)) - c0
-        t_max_c = next_c / dc
-        t_delta_c = abs(1.0 / dc)
-    else:
-        t_max_c = inf
-        t_delta_c = inf
+    t_max_r, t_delta_r = _first_crossing(r, r0, dr)
+    t_max_c, t_delta_c = _first_crossing(c, c0, dc)
     n = abs(r_end - r) + abs(c_end - c) + 1
     for _ in range(n + 1):
         if r < 0 or r >= h or c < 0 or c >= w:
