@@ -48,7 +48,6 @@ def run_with_daemon(
     import time
 
     from rich.console import Console
-    from zenoh import CongestionControl
 
     from daemon.service.embedded import DaemonThread
     from daemon.service.logs import setup_logging
@@ -56,7 +55,9 @@ def run_with_daemon(
     from drivers.belt.hil import summary as belt_summary
     from drivers.belt.recorder import BeltRecorder
     from drivers.voice.recorder import VoiceRecorder
-    from protocol import codec, keys
+    from protocol import codec
+    from protocol import session as wire
+    from protocol import topics as T
     from protocol.messages import Goal, GoalCell
     from sim.node import SimNode
 
@@ -100,9 +101,7 @@ def run_with_daemon(
                 goal = Goal(
                     target=GoalCell(row=scenario.goal[0], col=scenario.goal[1]), stamp=time.time()
                 )
-                client.put(
-                    keys.goal(user), codec.encode(goal), congestion_control=CongestionControl.BLOCK
-                )
+                wire.put(client, T.GOAL, user, codec.encode(goal))
                 walker.join()
         except KeyboardInterrupt:
             stop.set()

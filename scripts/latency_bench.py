@@ -34,11 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from daemon.service.embedded import free_port, open_peer  # noqa: E402
-from protocol import codec, keys  # noqa: E402
+from protocol import codec  # noqa: E402
+from protocol import session as wire  # noqa: E402
+from protocol import topics as T  # noqa: E402
 from protocol.messages import Goal, GoalCell, MapDelta, NavPath, NavStatus, Pose  # noqa: E402
 
 USER = "bench"
-BLOCK = zenoh.CongestionControl.BLOCK
 
 
 def subscriber(port: int, out: Path) -> None:
@@ -58,8 +59,8 @@ def subscriber(port: int, out: Path) -> None:
 
     session = open_peer(port)
     subs = [
-        session.declare_subscriber(keys.belt(USER), Callback(on_belt, indirect=False)),
-        session.declare_subscriber(keys.path(USER), Callback(on_path, indirect=False)),
+        wire.declare_subscriber(session, T.BELT, Callback(on_belt, indirect=False), USER),
+        wire.declare_subscriber(session, T.PATH, Callback(on_path, indirect=False), USER),
     ]
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
@@ -147,23 +148,20 @@ def run(args: argparse.Namespace) -> dict:
         wait_for(Path(str(arrivals_file) + ".ready"), 60)
         session = open_peer(port)
         statuses: list[NavStatus] = []
-        st = session.declare_subscriber(
-            keys.status(USER),
-            lambda s: statuses.append(codec.decode(NavStatus, s.payload.to_bytes())),
-        )
-        # BLOCK: a delta dropped under load would be a sequence gap, not a latency.
-        pub = session.declare_publisher(
-            keys.map_delta(USER), express=True, congestion_control=BLOCK
-        )
+        st = wire.declare_subscriber(
+            session, T.STATUS,
+            lambda s: statuses.append(codec.decode(NavStatus, s.payload.to_bytes())), USER,
+        )  # fmt: skip
+        pub = wire.declare_publisher(session, T.MAP_DELTA, USER)
         time.sleep(0.5)
         walls = np.flatnonzero(np.pad(np.zeros((n - 2, n - 2), bool), 1, constant_values=True))
         first = MapDelta.from_arrays(0, (n, n), walls, np.ones(walls.size), time.time())
         pub.put(codec.encode(first))
         goal = Goal(target=GoalCell(row=n // 10, col=n // 2), stamp=time.time())
-        session.put(keys.goal(USER), codec.encode(goal), congestion_control=BLOCK)
+        wire.put(session, T.GOAL, USER, codec.encode(goal))
         x, y = (n // 2 + 0.5) * cell_m, (n // 10 + 0.5) * cell_m
         pose = Pose(x=x, y=y, heading=1.57, stamp=time.time())
-        session.put(keys.pose(USER), codec.encode(pose), congestion_control=BLOCK)
+        wire.put(session, T.POSE, USER, codec.encode(pose))
         end = time.monotonic() + 60
         while not any(s.state == "guiding" for s in statuses):
             if time.monotonic() > end:

@@ -18,7 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 import zenoh
 
 from daemon.navigation import Inbox, Navigator, Rejection, StepOutput
-from protocol import codec, keys
+from protocol import codec
+from protocol import topics as T
 from protocol.messages import Goal, MapDelta, MapSnapshot, Pose
 
 log = logging.getLogger("guidebelt.runner")
@@ -108,22 +109,22 @@ class UserRunner:
         """Publish ``out`` (on the worker thread)."""
         user = self.user
         for pattern in out.belt:
-            self._publish(keys.belt(user), codec.encode(pattern))
+            self._publish(T.BELT.key(user), codec.encode(pattern))
         for cue in out.voice:
-            self._publish(keys.voice(user), codec.encode(cue))
+            self._publish(T.VOICE.key(user), codec.encode(cue))
         path = out.path()
         if path is not None:
-            self._publish(keys.path(user), codec.encode(path))
+            self._publish(T.PATH.key(user), codec.encode(path))
         for status in out.statuses:
             self.last_status = codec.encode(status)
-            self._publish(keys.status(user), self.last_status)
+            self._publish(T.STATUS.key(user), self.last_status)
         if out.want_snapshot:
             self._loop.call_soon_threadsafe(self._ask_for_snapshot)
 
     def _ask_for_snapshot(self) -> None:
         if not self._snapshot_pending and not self._closed:
             self._snapshot_pending = True
-            self._request(keys.map_source(self.user), self._snapshot_timeout_s, self._on_snapshot)
+            self._request(T.MAP_SOURCE.key(self.user), self._snapshot_timeout_s, self._on_snapshot)
 
     def _on_snapshot(self, payload: bytes | None) -> None:
         self._snapshot_pending = False
