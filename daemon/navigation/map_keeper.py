@@ -14,7 +14,7 @@ import numpy as np
 
 from daemon.planning.grid import UNKNOWN
 from daemon.planning.inflation import InflatedMap
-from protocol.messages import MapDelta, MapSnapshot
+from protocol.messages import MapDelta, MapSnapshot, StatusCode
 
 from .outcomes import Rejection
 
@@ -77,9 +77,8 @@ class MapKeeper:
                 self._gap(f"first delta seen is {d.seq}, not 0", d, update)
                 continue
             if shape != self.map.shape:
-                update.rejections.append(
-                    Rejection("shape_mismatch", f"delta for {shape}, map is {self.map.shape}")
-                )
+                why = f"delta for {shape}, map is {self.map.shape}"
+                update.rejections.append(Rejection(StatusCode.SHAPE_MISMATCH, why))
                 update.want_snapshot = self.resyncing = True
                 continue
             if self.resyncing:
@@ -105,7 +104,8 @@ class MapKeeper:
 
     def _gap(self, reason: str, d: MapDelta, update: MapUpdate) -> None:
         if not self.resyncing:
-            update.rejections.append(Rejection("sequence_gap", reason + "; asking for a snapshot"))
+            why = reason + "; asking for a snapshot"
+            update.rejections.append(Rejection(StatusCode.SEQUENCE_GAP, why))
         self.resyncing = True
         update.want_snapshot = True
         self._buffer(d)

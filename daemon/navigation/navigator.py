@@ -34,6 +34,7 @@ from protocol.messages import (
     NavStatus,
     PatternKind,
     Pose,
+    StatusCode,
 )
 
 from .inbox import Inbox, StepOutput
@@ -43,6 +44,7 @@ from .route import PlannerFactory, PlanReport, Route
 
 log = logging.getLogger("guidebelt.navigation")
 
+OK = StatusCode.OK
 STATUS_REFRESH_S = 1.0
 ESCAPE_MARGIN_CELLS = 2
 """How far beyond the inflation radius a way out of the margin is looked for."""
@@ -137,7 +139,7 @@ class Navigator:
             self.goal, self.goal_cell = inbox.goal, None
             self.route.invalidate()
             self.guidance.reset()
-            self._set_state(NavState.PLANNING, "", "goal received", now, out, force=True)
+            self._set_state(NavState.PLANNING, OK, "goal received", now, out, force=True)
         if self.goal is not None and self.goal_cell is None and self.maps.map is not None:
             self._resolve_goal(now, out)
         if inbox.pose is not None:
@@ -152,7 +154,7 @@ class Navigator:
         return out
 
     def shutdown(
-        self, now: float, code: str = "shutdown", reason: str = "daemon stopping"
+        self, now: float, code: StatusCode = StatusCode.SHUTDOWN, reason: str = "daemon stopping"
     ) -> StepOutput:
         """The last words: a STOP (or, for an idle user, OFF) pattern and a final status."""
         out = StepOutput()
@@ -189,16 +191,19 @@ class Navigator:
         elif isinstance(target, GoalLandmark):
             where = self.settings.landmarks.get(target.name)
             if where is None:
-                return self._drop_goal("unknown_landmark", f"no landmark {target.name!r}", now, out)
+                why = f"no landmark {target.name!r}"
+                return self._drop_goal(StatusCode.UNKNOWN_LANDMARK, why, now, out)
             cell = xy_to_cell(shape, where[0], where[1], cell_m)
         if not in_bounds(shape, cell):
-            return self._drop_goal("goal_off_map", f"goal cell {cell} is outside {shape}", now, out)
+            why = f"goal cell {cell} is outside {shape}"
+            return self._drop_goal(StatusCode.GOAL_OFF_MAP, why, now, out)
         if self.maps.map.blocked[cell]:
             what = "an obstacle" if self.maps.map.occupancy[cell] == 1 else "too close to one"
-            return self._drop_goal("goal_in_obstacle", f"goal cell {cell} is {what}", now, out)
+            why = f"goal cell {cell} is {what}"
+            return self._drop_goal(StatusCode.GOAL_IN_OBSTACLE, why, now, out)
         self.goal_cell = (int(cell[0]), int(cell[1]))
 
-    def _drop_goal(self, code: str, reason: str, now: float, out: StepOutput) -> None:
+    def _drop_goal(self, code: StatusCode, reason: str, now: float, out: StepOutput) -> None:
         self.goal, self.goal_cell = None, None
         self.route.invalidate()
         self._reject(Rejection(code, reason), now, out)
@@ -207,7 +212,8 @@ class Navigator:
         self.pose, self.pose_cell = None, None
         age = now - pose.stamp
         if age > self.settings.stale_pose_s:
-            return self._reject(Rejection("stale_pose", f"pose is {age:.2f} s old"), now, out)
+            why = f"pose is {age:.2f} s old"
+            return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         self.pose = pose
         if self.maps.map is None:
             return
@@ -215,7 +221,8 @@ class Navigator:
         if not in_bounds(self.maps.map.shape, cell):
             self.pose = None
             where = f"({pose.x:.2f}, {pose.y:.2f}) m"
-            return self._reject(Rejection("pose_off_map", f"pose {where} is off the map"), now, out)
+            why = f"pose {where} is off the map"
+            return self._reject(Rejection(StatusCode.POSE_OFF_MAP, why), now, out)
         self.pose_cell = cell
 
     # -- path and guidance ----------------------------------------------------------------
@@ -228,7 +235,8 @@ class Navigator:
         if age > self.settings.stale_pose_s:
             # No fresh position: never keep guiding on an old one.
             self.pose, self.pose_cell = None, None
-            return self._reject(Rejection("stale_pose", f"no pose for {age:.2f} s"), now, out)
+            why = f"no pose for {age:.2f} s"
+            return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         path, cost = self.route.path_from(
             grid.blocked, grid.occupancy, self.goal_cell, self.pose_cell
         )
@@ -237,7 +245,8 @@ class Navigator:
         if len(path) == 0:
             self._distance_m = None
             if self.state != NavState.NO_PATH:
-                self._reject(Rejection("no_path", "no path to the goal", counted=False), now, out)
+                no_path = Rejection(StatusCode.NO_PATH, "no path to the goal", counted=False)
+                self._reject(no_path, now, out)
             return
         self._distance_m = cost / 10 * self.settings.cell_m
         t0 = time.perf_counter()
@@ -257,13 +266,13 @@ class Navigator:
             map_seq=self.maps.seq,
         )
         if g.pattern.kind == PatternKind.ARRIVED:
-            self._set_state(NavState.ARRIVED, "", "at the goal", now, out)
+            self._set_state(NavState.ARRIVED, OK, "at the goal", now, out)
             self.goal, self.goal_cell = None, None  # done: stay quiet until the next goal
             self.route.invalidate()
         elif g.pattern.kind == PatternKind.REROUTE:
-            self._set_state(NavState.REROUTING, "", "new path around an obstacle", now, out)
+            self._set_state(NavState.REROUTING, OK, "new path around an obstacle", now, out)
         else:
-            self._set_state(NavState.GUIDING, "", "", now, out)
+            self._set_state(NavState.GUIDING, OK, "", now, out)
 
     # -- reporting ------------------------------------------------------------------------
 
@@ -285,7 +294,7 @@ class Navigator:
     def _set_state(
         self,
         state: NavState,
-        code: str,
+        code: StatusCode,
         reason: str,
         now: float,
         out: StepOutput,
@@ -300,7 +309,9 @@ class Navigator:
         self._last_status_at = now
         out.statuses.append(self.status(now, code=code, reason=reason))
 
-    def status(self, now: float, code: str = "", reason: str = "") -> NavStatus:
+    def status(
+        self, now: float, code: StatusCode = StatusCode.OK, reason: str = ""
+    ) -> NavStatus:
         if self._last_status is not None and not code and not reason:
             _, code, reason = self._last_status
         guiding = self.state in (NavState.GUIDING, NavState.REROUTING)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from protocol.messages import NavState, PatternKind
+from protocol.messages import NavState, PatternKind, StatusCode
 
 
 @dataclass(frozen=True)
@@ -20,29 +20,30 @@ class Outcome:
     pattern: PatternKind
 
 
-OUTCOMES: dict[str, Outcome] = {
+OUTCOMES: dict[StatusCode, Outcome] = {
     # Undecodable or invalid messages, whatever key they came on.
-    "malformed": Outcome(NavState.ERROR, PatternKind.STOP),
-    "wrong_type": Outcome(NavState.ERROR, PatternKind.STOP),
-    "unknown_field": Outcome(NavState.ERROR, PatternKind.STOP),
-    "invalid": Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.MALFORMED: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.WRONG_TYPE: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.UNKNOWN_FIELD: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.INVALID: Outcome(NavState.ERROR, PatternKind.STOP),
     # Goals the planner cannot take.
-    "goal_off_map": Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
-    "goal_in_obstacle": Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
-    "unknown_landmark": Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
-    "no_path": Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
+    StatusCode.GOAL_OFF_MAP: Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
+    StatusCode.GOAL_IN_OBSTACLE: Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
+    StatusCode.UNKNOWN_LANDMARK: Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
+    StatusCode.NO_PATH: Outcome(NavState.NO_PATH, PatternKind.NO_PATH),
     # Position the daemon cannot trust: never guide on it.
-    "pose_off_map": Outcome(NavState.ERROR, PatternKind.STOP),
-    "stale_pose": Outcome(NavState.STALE, PatternKind.STOP),
+    StatusCode.POSE_OFF_MAP: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.STALE_POSE: Outcome(NavState.STALE, PatternKind.STOP),
     # Map updates refused whole; the map is out of date until a snapshot arrives.
-    "oversized": Outcome(NavState.ERROR, PatternKind.WAIT),
-    "shape_mismatch": Outcome(NavState.ERROR, PatternKind.WAIT),
-    "sequence_gap": Outcome(NavState.STALE, PatternKind.WAIT),
+    StatusCode.OVERSIZED: Outcome(NavState.ERROR, PatternKind.WAIT),
+    StatusCode.SHAPE_MISMATCH: Outcome(NavState.ERROR, PatternKind.WAIT),
+    StatusCode.SEQUENCE_GAP: Outcome(NavState.STALE, PatternKind.WAIT),
     # The daemon itself.
-    "too_many_users": Outcome(NavState.ERROR, PatternKind.STOP),
-    "internal": Outcome(NavState.ERROR, PatternKind.STOP),
-    "shutdown": Outcome(NavState.IDLE, PatternKind.STOP),
-    "idle": Outcome(NavState.IDLE, PatternKind.OFF),  # nothing heard from the user for long
+    StatusCode.TOO_MANY_USERS: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.INTERNAL: Outcome(NavState.ERROR, PatternKind.STOP),
+    StatusCode.SHUTDOWN: Outcome(NavState.IDLE, PatternKind.STOP),
+    # Nothing heard from the user for long.
+    StatusCode.IDLE: Outcome(NavState.IDLE, PatternKind.OFF),
 }
 
 
@@ -50,7 +51,7 @@ OUTCOMES: dict[str, Outcome] = {
 class Rejection:
     """One refused message (or detected trouble) waiting to be reported."""
 
-    code: str
+    code: StatusCode
     reason: str
     counted: bool = True
     """False for conditions that are not a refused message (shutdown, no path)."""

@@ -120,7 +120,7 @@ class Daemon:
         log.info("idle user forgotten", extra={"fields": {"user": user}})
         bridge = self._bridge
         task = asyncio.get_running_loop().create_task(
-            runner.close("idle", f"nothing heard for {self.config.user_idle_s:g} s")
+            runner.close(StatusCode.IDLE, f"nothing heard for {self.config.user_idle_s:g} s")
         )
         if bridge is not None:
             task.add_done_callback(lambda _t: bridge.forget_user(user))

@@ -20,7 +20,7 @@ import zenoh
 from daemon.navigation import Inbox, Navigator, Rejection, StepOutput
 from protocol import codec
 from protocol import topics as T
-from protocol.messages import Goal, MapDelta, MapSnapshot, Pose
+from protocol.messages import Goal, MapDelta, MapSnapshot, Pose, StatusCode
 
 log = logging.getLogger("guidebelt.runner")
 
@@ -50,7 +50,7 @@ class UserRunner:
 
     # -- inputs (loop thread) -------------------------------------------------------------
 
-    def reject(self, code: str, reason: str) -> None:
+    def reject(self, code: StatusCode, reason: str) -> None:
         self._inbox.rejections.append(Rejection(code, reason))
         self._heard()
 
@@ -98,7 +98,8 @@ class UserRunner:
             out = self.navigator.step(inbox, time.time())
         except Exception as exc:  # a bug must not take every user down with it
             log.exception("step failed", extra={"fields": {"user": self.user}})
-            fail = Inbox(rejections=[Rejection("internal", f"{type(exc).__name__}: {exc}")])
+            why = f"{type(exc).__name__}: {exc}"
+            fail = Inbox(rejections=[Rejection(StatusCode.INTERNAL, why)])
             out = self.navigator.step(fail, time.time())
         try:
             self._emit(out)
@@ -155,7 +156,9 @@ class UserRunner:
 
     # -- the end --------------------------------------------------------------------------
 
-    async def close(self, code: str = "shutdown", reason: str = "daemon stopping") -> None:
+    async def close(
+        self, code: StatusCode = StatusCode.SHUTDOWN, reason: str = "daemon stopping"
+    ) -> None:
         """Publish the last pattern and the final status, then stop the worker."""
         if self._closed:
             return
