@@ -43,6 +43,10 @@ class MapKeeper:
         self.map: InflatedMap | None = None
         self.seq = -1
         self.resyncing = False
+        """A snapshot has been asked for and the deltas that come meanwhile are buffered."""
+        self.stale = False
+        """Deltas are known to be missing: from a gap or a refused delta until a snapshot is
+        applied (a failed snapshot leaves the map stale; the next delta asks again)."""
         self._buffered: dict[int, MapDelta] = {}
 
     def snapshot_failed(self) -> None:
@@ -53,7 +57,7 @@ class MapKeeper:
     def take_snapshot(self, snap: MapSnapshot, user: str) -> MapUpdate:
         self.map = InflatedMap(snap.array(), self.radius_cells)
         self.seq = snap.seq
-        self.resyncing = False
+        self.resyncing = self.stale = False
         buffered = sorted(self._buffered.values(), key=lambda d: d.seq)
         self._buffered.clear()
         log.info(
@@ -79,7 +83,7 @@ class MapKeeper:
             if shape != self.map.shape:
                 why = f"delta for {shape}, map is {self.map.shape}"
                 update.rejections.append(Rejection(StatusCode.SHAPE_MISMATCH, why))
-                update.want_snapshot = self.resyncing = True
+                update.want_snapshot = self.resyncing = self.stale = True
                 continue
             if self.resyncing:
                 self._buffer(d)
@@ -106,7 +110,7 @@ class MapKeeper:
         if not self.resyncing:
             why = reason + "; asking for a snapshot"
             update.rejections.append(Rejection(StatusCode.SEQUENCE_GAP, why))
-        self.resyncing = True
+        self.resyncing = self.stale = True
         update.want_snapshot = True
         self._buffer(d)
 

@@ -117,12 +117,14 @@ class Navigator:
         self._last_status: tuple | None = None
         self._last_status_at = 0.0
         self._distance_m: float | None = None
+        self._held = False
 
     # -- the step -------------------------------------------------------------------------
 
     def step(self, inbox: Inbox, now: float) -> StepOutput:
         t0 = time.perf_counter()
         self.last = StepReport()
+        self._held = False  # a STOP or WAIT of this step is not undone by a GUIDE of this step
         out = StepOutput()
         for rej in inbox.rejections:
             self._reject(rej, now, out)
@@ -147,16 +149,20 @@ class Navigator:
         elif self.pose is not None and self.pose_cell is None and self.maps.map is not None:
             self._take_pose(self.pose, now, out)  # the pose came before the map
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
-            self._guide(now, out)
+            if self.maps.stale:
+                self._wait_for_map(now, out)
+            elif not self._held:
+                self._guide(now, out)
         self.route.settle()  # no path read this step: the planner still gets the changes
         self.steps += 1
         self.last.step_ms = (time.perf_counter() - t0) * 1e3
         return out
 
-    def shutdown(
+    def halt(
         self, now: float, code: StatusCode = StatusCode.SHUTDOWN, reason: str = "daemon stopping"
     ) -> StepOutput:
-        """The last words: a STOP (or, for an idle user, OFF) pattern and a final status."""
+        """A STOP (or, for an idle user, OFF) pattern and its status, touching nothing else:
+        the daemon's last words to a user, and what a step that failed says instead."""
         out = StepOutput()
         self._reject(Rejection(code, reason, counted=False), now, out)
         return out
@@ -211,8 +217,9 @@ class Navigator:
     def _take_pose(self, pose: Pose, now: float, out: StepOutput) -> None:
         self.pose, self.pose_cell = None, None
         age = now - pose.stamp
-        if age > self.settings.stale_pose_s:
-            why = f"pose is {age:.2f} s old"
+        if abs(age) > self.settings.stale_pose_s:
+            # A pose from the future would never go stale: a clock that far off is no clock.
+            why = f"pose is {age:.2f} s old" if age > 0 else f"pose is {-age:.2f} s ahead"
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         self.pose = pose
         if self.maps.map is None:
@@ -227,12 +234,20 @@ class Navigator:
 
     # -- path and guidance ----------------------------------------------------------------
 
+    def _wait_for_map(self, now: float, out: StepOutput) -> None:
+        """Deltas are missing: the map is out of date, so the belt keeps saying WAIT (and its
+        pattern keeps being refreshed) until a snapshot brings the map back."""
+        if self._held:
+            return  # this step said WAIT or STOP already
+        g = self.guidance.event(PatternKind.WAIT, now, reason="map out of date")
+        out.belt.append(g.pattern)
+
     def _guide(self, now: float, out: StepOutput) -> None:
         grid = self.maps.map
         assert grid is not None and self.goal_cell is not None and self.pose_cell is not None
         assert self.pose is not None
         age = now - self.pose.stamp
-        if age > self.settings.stale_pose_s:
+        if abs(age) > self.settings.stale_pose_s:
             # No fresh position: never keep guiding on an old one.
             self.pose, self.pose_cell = None, None
             why = f"no pose for {age:.2f} s"
@@ -278,6 +293,7 @@ class Navigator:
 
     def _reject(self, rej: Rejection, now: float, out: StepOutput) -> None:
         outcome = OUTCOMES[rej.code]
+        self._held |= outcome.pattern in (PatternKind.STOP, PatternKind.WAIT)
         if rej.counted:
             self.rejected += 1
         log.log(

@@ -61,8 +61,13 @@ def cell_to_xy(shape: tuple[int, int], cell: Cell, cell_m: float = CELL_M) -> tu
 
 
 def xy_to_cell(shape: tuple[int, int], x: float, y: float, cell_m: float = CELL_M) -> Cell:
-    """The cell containing the point (x, y); may be out of bounds — check with in_bounds."""
-    return (shape[0] - 1 - math.floor(y / cell_m), math.floor(x / cell_m))
+    """The cell containing the point (x, y); may be out of bounds — check with in_bounds.
+
+    A point so far out that the division overflows (1e308 m) is simply out of bounds."""
+    col, row = x / cell_m, y / cell_m
+    if not (math.isfinite(col) and math.isfinite(row)):
+        return (-1, -1)
+    return (shape[0] - 1 - math.floor(row), math.floor(col))
 
 
 def path_cost(path: np.ndarray) -> int:

@@ -98,9 +98,9 @@ class UserRunner:
             out = self.navigator.step(inbox, time.time())
         except Exception as exc:  # a bug must not take every user down with it
             log.exception("step failed", extra={"fields": {"user": self.user}})
+            # Not another step: whatever failed may fail again. The user is stopped and told.
             why = f"{type(exc).__name__}: {exc}"
-            fail = Inbox(rejections=[Rejection(StatusCode.INTERNAL, why)])
-            out = self.navigator.step(fail, time.time())
+            out = self.navigator.halt(time.time(), StatusCode.INTERNAL, why)
         try:
             self._emit(out)
         except zenoh.ZError as exc:  # the session is closing under us: nothing to tell
@@ -168,7 +168,7 @@ class UserRunner:
         try:
             await loop.run_in_executor(
                 self._executor,
-                lambda: self._emit(self.navigator.shutdown(time.time(), code, reason)),
+                lambda: self._emit(self.navigator.halt(time.time(), code, reason)),
             )
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)

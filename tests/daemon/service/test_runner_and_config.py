@@ -16,7 +16,17 @@ from daemon.service.logs import JournalFormatter
 from daemon.service.runner import UserRunner
 from daemon.service.sdnotify import Notifier
 from protocol import codec
-from protocol.messages import Goal, GoalCell, MapDelta, NavPath, Pose
+from protocol.messages import (
+    BeltPattern,
+    Goal,
+    GoalCell,
+    MapDelta,
+    NavPath,
+    NavStatus,
+    PatternKind,
+    Pose,
+    StatusCode,
+)
 
 SHAPE = (30, 30)
 
@@ -58,6 +68,30 @@ def test_the_latest_pose_wins_and_deltas_coalesce_in_the_runner():
     assert len(paths) == 1 and steps == 1
     assert paths[0].pose_stamp == poses[-1].stamp and paths[0].cells[0] == (20, 4)
     assert published[-1][0].endswith("/status")  # close(): the final status comes last
+
+
+def test_a_step_that_raises_stops_the_user_and_says_why():
+    published: list[tuple[str, bytes]] = []
+
+    class Broken(Navigator):
+        def step(self, inbox, now):
+            raise RuntimeError("a bug in the step")
+
+    async def scenario():
+        navigator = Broken("u", DaemonConfig(backend="cpu").navigator_settings())
+        runner = UserRunner(navigator, lambda k, b: published.append((k, b)), lambda *a: None, 1.0)
+        runner.put_pose(pose((20, 3)))
+        for _ in range(200):
+            await asyncio.sleep(0.01)
+            if any(k.endswith("/status") for k, _ in published):
+                break
+        await runner.close()
+
+    asyncio.run(scenario())
+    belts = [codec.decode(BeltPattern, b) for k, b in published if k.endswith("/belt")]
+    statuses = [codec.decode(NavStatus, b) for k, b in published if k.endswith("/status")]
+    assert belts[0].kind == PatternKind.STOP
+    assert statuses[0].code == StatusCode.INTERNAL and "a bug in the step" in statuses[0].reason
 
 
 def test_config_file_environment_and_arguments_in_that_order(tmp_path, monkeypatch):

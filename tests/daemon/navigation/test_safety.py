@@ -1,0 +1,86 @@
+"""Safety decisions hold: a STOP or WAIT is not undone by the same step, a map known to be out
+of date is never guided on, and input far off the scale is refused, not a crash."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from daemon.navigation import Inbox, Navigator, NavigatorSettings, Rejection
+from protocol.messages import (
+    Goal,
+    GoalCell,
+    GoalMetres,
+    MapDelta,
+    MapSnapshot,
+    NavState,
+    PatternKind,
+    Pose,
+    StatusCode,
+)
+
+SHAPE = (30, 30)
+
+
+def pose(cell: tuple[int, int], stamp: float | None = None, far: float | None = None) -> Pose:
+    r, c = cell
+    x, y = (c + 0.5) / 10, (SHAPE[0] - r - 0.5) / 10
+    return Pose(x=far or x, y=far or y, heading=1.57, stamp=time.time() if stamp is None else stamp)
+
+
+def guiding() -> Navigator:
+    s = Navigator("u", NavigatorSettings(backend="cpu"))
+    now = time.time()
+    first = MapDelta.from_arrays(0, SHAPE, np.array([0]), np.array([1]), now)
+    out = s.step(Inbox(deltas=[first], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
+                       pose=pose((26, 15))), now)  # fmt: skip
+    assert s.state == NavState.GUIDING and kinds(out) == [PatternKind.GUIDE]
+    return s
+
+
+def kinds(out) -> list[PatternKind]:
+    return [b.kind for b in out.belt]
+
+
+def test_a_map_known_to_be_stale_is_waited_on_not_guided_on_until_the_snapshot():
+    s = guiding()
+    gap = MapDelta.from_arrays(5, SHAPE, np.array([400]), np.array([1]), time.time())
+    out = s.step(Inbox(deltas=[gap], pose=pose((26, 15))), time.time())
+    assert kinds(out) == [PatternKind.WAIT] and out.want_snapshot and out.path_cells is None
+    for r in (25, 24):  # new poses, no snapshot yet: still WAIT, never a GUIDE
+        out = s.step(Inbox(pose=pose((r, 15))), time.time())
+        assert kinds(out) == [PatternKind.WAIT] and out.path_cells is None
+    out = s.step(Inbox(snapshot_failed=True, pose=pose((24, 15))), time.time())
+    assert kinds(out) == [PatternKind.WAIT]  # no snapshot came: the map is still stale
+    occ = np.full(SHAPE, 2, np.uint8)
+    occ.reshape(-1)[[0, 400]] = 1
+    snap = MapSnapshot.from_array(5, occ, time.time())
+    out = s.step(Inbox(snapshot=snap, pose=pose((24, 15))), time.time())
+    assert kinds(out) == [PatternKind.GUIDE] and s.maps.map.occupancy.reshape(-1)[400] == 1
+
+
+def test_a_refusal_stops_the_user_and_the_same_step_does_not_guide_again():
+    s = guiding()
+    bad = Rejection(StatusCode.MALFORMED, "not a message")
+    out = s.step(Inbox(rejections=[bad], pose=pose((25, 15))), time.time())
+    assert kinds(out) == [PatternKind.STOP] and out.path_cells is None
+    assert [st.code for st in out.statuses] == [StatusCode.MALFORMED]
+    out = s.step(Inbox(pose=pose((25, 15))), time.time())
+    assert kinds(out) == [PatternKind.GUIDE]  # the next step, with a good pose, guides again
+
+
+def test_a_pose_stamped_in_the_future_is_refused():
+    s = guiding()
+    out = s.step(Inbox(pose=pose((25, 15), stamp=time.time() + 5.0)), time.time())
+    assert kinds(out) == [PatternKind.STOP] and s.state == NavState.STALE
+    assert "ahead" in out.statuses[-1].reason
+
+
+def test_a_goal_or_a_pose_at_1e308_metres_is_off_the_map_not_a_crash():
+    s = guiding()
+    out = s.step(Inbox(pose=pose((25, 15), far=1e308)), time.time())
+    assert [st.code for st in out.statuses] == [StatusCode.POSE_OFF_MAP]
+    far_goal = Goal(target=GoalMetres(x=1e308, y=1e308), stamp=time.time())
+    out = s.step(Inbox(goal=far_goal, pose=pose((25, 15))), time.time())
+    assert out.statuses[-1].code == StatusCode.GOAL_OFF_MAP and s.goal is None
