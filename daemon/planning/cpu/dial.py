@@ -35,6 +35,8 @@ NB = DIAGONAL + 1
 INF = int(_GRID_INF)  # a Python int: numba freezes it as a 64-bit constant, as the loops expect
 OVERFLOW = -2
 """Returned as the pop count when the queue's pool of entries ran out."""
+CUT_OVER = -3
+"""Returned as the pop count when a repair would cost more than the field from scratch."""
 WS_FIELDS = 3
 QUEUED, MARK, STAMP = range(WS_FIELDS)
 
@@ -157,7 +159,17 @@ def _has_support(blocked, g, off, cost, ws, v):
 
 
 @njit(cache=True)
-def raise_(blocked, g, off, cost, seeds, ws, pool, marked, n_marked, epoch):
+def _give_up(ws, pool, head, meta, marked, first, n_marked):
+    """Undo a raise in progress: nothing marked or queued (g was not touched yet)."""
+    for i in range(first, n_marked):
+        ws[marked[i], MARK] = 0
+    for b in range(NB):
+        while head[b] >= 0:
+            ws[_pop(pool, head, meta, b), QUEUED] = 0
+
+
+@njit(cache=True)
+def raise_(blocked, g, off, cost, seeds, ws, pool, marked, n_marked, epoch, limit):
     """Propagate the inconsistency from newly blocked ``seeds`` (g still the old field).
 
     A cell is invalidated when every neighbour that supported its g (``g[n] + cost == g[v]``)
@@ -166,6 +178,10 @@ def raise_(blocked, g, off, cost, seeds, ws, pool, marked, n_marked, epoch):
     invalidated set is exactly the cells whose cost rises (when cells are only blocked), not
     the whole predecessor subtree. Marks them (``ws[:, MARK] = 1``), lists them from
     ``marked[n_marked]`` on and sets their g to INF. Returns (new n_marked, pops, touched).
+
+    Past ``limit`` invalidated cells it gives up — marks and queued flags cleared, g as it was
+    — and returns ``CUT_OVER`` as the pop count: repairing that many cells costs more than
+    computing the field from scratch.
     """
     keys, order = _seed_order(g, seeds)
     head, meta = _new_queue()
@@ -192,6 +208,9 @@ def raise_(blocked, g, off, cost, seeds, ws, pool, marked, n_marked, epoch):
             touched += _touch(ws, v, epoch)
             if not blocked[v] and _has_support(blocked, g, off, cost, ws, v):
                 continue
+            if n_marked - first >= limit:
+                _give_up(ws, pool, head, meta, marked, first, n_marked)
+                return n_marked, CUT_OVER, 0
             ws[v, MARK] = 1
             marked[n_marked] = v
             n_marked += 1
@@ -216,7 +235,9 @@ def _to_padded(flat, w):
 
 
 @njit(cache=True)
-def eds_update(blocked, g, off, cost, goal, w, n_cells, cells, values, ws, pool, marked, epoch):
+def eds_update(
+    blocked, g, off, cost, goal, w, n_cells, cells, values, ws, pool, marked, epoch, limit
+):
     """EDS: apply ``blocked[cells] = values`` (unpadded flat indices), repair g.
 
     1. set inconsistencies: cells now blocked whose g was finite are the raise seeds; cells now
@@ -224,7 +245,9 @@ def eds_update(blocked, g, off, cost, goal, w, n_cells, cells, values, ws, pool,
     2. propagate inconsistency (``raise_``), 3. re-seed every invalidated or freed cell from
     its neighbours, 4. relax until nothing changes (``lower``).
     Returns (pops, cells touched), (-1, i) when ``cells[i]`` lies outside the map (nothing
-    changed), or (OVERFLOW, 0) when the queue's pool ran out: the map is then updated but g
+    changed), (CUT_OVER, 0) when more than ``limit`` cells' costs rise (the map is updated, g
+    is not: the caller computes it from scratch), or (OVERFLOW, 0) when the queue's pool ran
+    out: the map is then updated but g
     and the marks are not, and the caller must clear ``ws`` and recompute from scratch.
     """
     for i in range(cells.size):
@@ -240,10 +263,10 @@ def eds_update(blocked, g, off, cost, goal, w, n_cells, cells, values, ws, pool,
             raise_seeds[n_raise] = v
             n_raise += 1
     n_marked, pops, touched = raise_(
-        blocked, g, off, cost, raise_seeds[:n_raise], ws, pool, marked, 0, epoch
+        blocked, g, off, cost, raise_seeds[:n_raise], ws, pool, marked, 0, epoch, limit
     )
-    if pops == OVERFLOW:
-        return OVERFLOW, 0
+    if pops in (OVERFLOW, CUT_OVER):
+        return pops, 0
     for i in range(cells.size):
         v = _to_padded(cells[i], w)
         if not blocked[v] and g[v] >= INF and ws[v, MARK] == 0:
