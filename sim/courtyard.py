@@ -89,7 +89,7 @@ def base_courtyard() -> np.ndarray:
 
 
 @njit(cache=True)
-def _bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
+def bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
     """Flat cells of some 8-connected path start → goal avoiding blocked; empty if none."""
     h, w = blocked.shape
     flat = blocked.ravel()
@@ -134,7 +134,7 @@ def _bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
 def connected(blocked: np.ndarray, start: Cell, goal: Cell) -> bool:
     """True when an 8-connected path of unblocked cells joins start and goal."""
     w = blocked.shape[1]
-    path = _bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
+    path = bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
                      goal[0] * w + goal[1])
     return path.size > 0
 
@@ -164,7 +164,7 @@ def _place_blobs(
     start = ends[0][0] * w + ends[0][1]
     goal = ends[1][0] * w + ends[1][1]
     on_path = np.zeros(h * w, dtype=bool)
-    on_path[_bfs_path(inflated.blocked, start, goal)] = True
+    on_path[bfs_path(inflated.blocked, start, goal)] = True
     covered = np.zeros(h * w, dtype=bool)
     n_covered = 0
     blobs: list[np.ndarray] = []
@@ -180,7 +180,7 @@ def _place_blobs(
         cells = cells[allowed[cells] & ~covered[cells]]
         flipped, _ = inflated.apply(cells, np.full(cells.size, OCCUPIED))
         if on_path[flipped].any():
-            path = _bfs_path(inflated.blocked, start, goal)
+            path = bfs_path(inflated.blocked, start, goal)
             if path.size == 0:
                 inflated.apply(cells, np.full(cells.size, UNKNOWN))
                 continue
@@ -195,14 +195,18 @@ def _place_blobs(
 def resample(base: np.ndarray, grid: int) -> np.ndarray:
     """The square ``base`` map at ``grid`` cells per side, whatever the ratio of the sides.
 
-    A cell takes OCCUPIED when any base cell it overlaps is, else UNKNOWN when any is, else
-    FREE: an obstacle never thins away at a coarser grid nor at a ratio that is not a whole
-    number (a cell straddling a wall's edge is wall), so a 10 cm wall is still a wall at
-    any resolution and known obstacles stay a subset of true ones. For a multiple of the
-    base side this is repetition, for a divisor any-pooling.
+    Finer: a cell takes the base cell its centre lies in, so every base cell keeps at least
+    one cell (a 10 cm wall stays a wall) and areas keep their size on average (blobs cover
+    the fraction asked); for a multiple of the base side this is repetition. Coarser: a cell
+    takes OCCUPIED when any base cell it overlaps is, else UNKNOWN when any is, else FREE,
+    so an obstacle never thins away (for a divisor, any-pooling). Either way an obstacle of
+    a map is one of a map with more obstacles: known ones stay a subset of true ones.
     """
     n = base.shape[0]
     c = np.arange(grid, dtype=np.int64)
+    if grid >= n:
+        centre = ((2 * c + 1) * n) // (2 * grid)  # as scale_cell
+        return np.ascontiguousarray(base[centre][:, centre])
     lo = (c * n) // grid  # first base cell the target cell overlaps
     hi = -(-((c + 1) * n) // grid)  # one past the last (exact integer arithmetic)
 
