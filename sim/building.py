@@ -173,6 +173,15 @@ def _close_doors(
     return closed
 
 
+def check_grid(grid: int) -> None:
+    """ValueError unless the building can be drawn at ``grid`` cells per side."""
+    if grid < MIN_GRID:
+        raise ValueError(
+            f"building: grid must be at least {MIN_GRID} cells per side "
+            f"({EXTENT_M / MIN_GRID:.2f} m cells; a door must pass the user), got {grid}"
+        )
+
+
 def make_building(
     grid: int = 100,
     unknown: float = 0.0,
@@ -185,11 +194,7 @@ def make_building(
     The rooms, doors and which doors are closed depend on ``seed`` only, so every grid and
     every ``unknown`` fraction walks the same building; the blobs depend on all three.
     """
-    if grid < MIN_GRID:
-        raise ValueError(
-            f"building: grid must be at least {MIN_GRID} cells per side "
-            f"({EXTENT_M / MIN_GRID:.2f} m cells; a door must pass the user), got {grid}"
-        )
+    check_grid(grid)
     if not 0.0 <= unknown < 1.0:
         raise ValueError(f"unknown must be in [0, 1), got {unknown}")
     cell_m = EXTENT_M / grid

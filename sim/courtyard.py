@@ -269,6 +269,12 @@ def scatter_blobs(
     return true, coverage
 
 
+def check_grid(grid: int) -> None:
+    """ValueError unless the courtyard can be drawn at ``grid`` cells per side."""
+    if grid <= 0 or (grid % BASE != 0 and BASE % grid != 0):
+        raise ValueError(f"grid must be a multiple or a divisor of {BASE}, got {grid}")
+
+
 def make_courtyard(
     grid: int = BASE,
     unknown: float = 0.4,
@@ -277,8 +283,7 @@ def make_courtyard(
     sensor_range_m: float = SENSOR_RANGE_M,
 ) -> Scenario:
     """The courtyard at ``grid`` cells per side (a multiple or divisor of 100), seeded."""
-    if grid <= 0 or (grid % BASE != 0 and BASE % grid != 0):
-        raise ValueError(f"grid must be a multiple or a divisor of {BASE}, got {grid}")
+    check_grid(grid)
     if not 0.0 <= unknown < 1.0:
         raise ValueError(f"unknown must be in [0, 1), got {unknown}")
     cell_m = CELL_M * BASE / grid

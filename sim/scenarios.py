@@ -21,6 +21,7 @@ import numpy as np
 
 from daemon.planning.grid import UNKNOWN
 
+from . import building, courtyard, streets
 from .building import make_building
 from .courtyard import Scenario, make_courtyard
 from .streets import make_streets
@@ -45,6 +46,23 @@ def make_scenario(name: str, grid: int = 100, unknown: float = 0.4, seed: int = 
     if name == "streets":
         return make_streets(grid, unknown, seed)
     raise ValueError(f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}")
+
+
+def check_grid(name: str, grid: int) -> None:
+    """ValueError, naming the scenario, unless ``name`` exists and can be drawn at ``grid``.
+
+    Cheap: the benchmark checks every (scenario, grid) before its first walk, not after an
+    hour of them.
+    """
+    if name not in SCENARIOS:
+        raise ValueError(f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}")
+    if name in ("courtyard", "explore"):
+        try:
+            courtyard.check_grid(grid)
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from None
+    else:
+        (building if name == "building" else streets).check_grid(grid)
 
 
 def scenario_list(text: str) -> list[str]:

@@ -105,6 +105,15 @@ def _layout(seed: int) -> tuple[np.ndarray, Cell, Cell]:
     return town, start, goal
 
 
+def check_grid(grid: int) -> None:
+    """ValueError unless the streets can be drawn at ``grid`` cells per side."""
+    if grid < MIN_GRID:
+        raise ValueError(
+            f"streets: grid must be at least {MIN_GRID} cells per side "
+            f"({EXTENT_M / MIN_GRID:.2f} m cells), got {grid}"
+        )
+
+
 def make_streets(
     grid: int = 100,
     unknown: float = 0.4,
@@ -117,11 +126,7 @@ def make_streets(
     The streets and buildings depend on ``seed`` only, the obstacles on the pavement on
     ``seed`` and ``unknown``, so every grid walks the same quarter.
     """
-    if grid < MIN_GRID:
-        raise ValueError(
-            f"streets: grid must be at least {MIN_GRID} cells per side "
-            f"({EXTENT_M / MIN_GRID:.2f} m cells), got {grid}"
-        )
+    check_grid(grid)
     if not 0.0 <= unknown < 1.0:
         raise ValueError(f"unknown must be in [0, 1), got {unknown}")
     cell_m = EXTENT_M / grid
