@@ -257,7 +257,7 @@ def plot_steps(result: BenchResult, out: Path | str) -> Path:
             ax.legend(fontsize=7)
             ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(f"Time per step along the walk — {result.device}", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / fig.get_figheight()))  # room for the title
     out = Path(out)
     fig.savefig(out, dpi=120)
     plt.close(fig)

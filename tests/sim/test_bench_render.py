@@ -128,6 +128,11 @@ def test_render_command(tmp_path):
     res = CliRunner().invoke(app, ["render", "--grid", "50", "--unknown", "0.2", "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert "arrived" in res.output and out.read_bytes().startswith(PNG)
+    res = CliRunner().invoke(app, ["render", "--scenario", "building", "--unknown", "0.2",
+                                   "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 0 and "arrived" in res.output, res.output
+    res = CliRunner().invoke(app, ["render", "--scenario", "building", "--grid", "50"])
+    assert res.exit_code != 0 and "at least 100" in " ".join(res.output.split())
 
 
 def test_demo_walks_in_process_and_saves_the_picture(tmp_path):
