@@ -152,3 +152,19 @@ def test_plain_entry_point_needs_no_typer(tmp_path, capsys):
     assert "Iter_avg" in text and "device:" in text
     (row,) = json.loads(out.read_text())
     assert row["mode"] == "eds" and set(ROW_FIELDS) <= row.keys()
+
+
+def test_plain_entry_point_takes_scenarios(tmp_path, capsys):
+    from sim.benchmark import main
+
+    out = tmp_path / "rows.json"
+    main(["--scenario", "streets", "--grid", "100", "--unknown", "0.2", "--modes", "eds",
+          "--json", str(out)])  # fmt: skip
+    assert "streets" in capsys.readouterr().out
+    (row,) = json.loads(out.read_text())
+    assert row["scenario"] == "streets" and row["arrived"]
+    for bad in (["--scenario", "mall"], ["--scenario", "building", "--grid", "50"]):
+        with pytest.raises(SystemExit):
+            main(bad)
+    err = capsys.readouterr().err
+    assert "unknown scenario 'mall'" in err and "building: grid must be at least 100" in err
