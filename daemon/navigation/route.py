@@ -107,6 +107,10 @@ class Route:
             return escape_path(planner, blocked, occupancy, cell, self._escape_reach)
         if self._pending is None:
             path = planner.path(cell)
+            # A planner that searches at every path read (A*) says what that search cost.
+            searched = getattr(planner, "search_stats", None)
+            if searched is not None:
+                self._record(searched)
         else:
             stats, path = planner.update_and_path(*self._take(), cell)
             self._record(stats)
