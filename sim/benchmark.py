@@ -23,7 +23,7 @@ import numpy as np
 from daemon.planning import resolve_backend
 
 from .courtyard import make_courtyard
-from .walk import walk
+from .walk import MODES, walk
 
 ROW_FIELDS = (
     "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
@@ -149,10 +149,11 @@ def run_bench(
                     "fov_deg": config.fov_deg,
                     "device": device,
                 })
-            if len(walked) == 2:
+            if "eds" in walked and "dss" in walked:  # the same field: the same cells
                 same = bool(np.array_equal(walked["eds"], walked["dss"]))
-                for row in rows[-2:]:
-                    row["same_walk"] = same
+                for row in rows[-len(walked) :]:
+                    if row["mode"] in ("eds", "dss"):
+                        row["same_walk"] = same
     return BenchResult(rows=rows, series=series, device=device)
 
 
@@ -203,6 +204,25 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
     return t1, t2
 
 
+PLANNER_HEADS = ("grid", "unknown", "planner", "steps", "Iter_avg", "median", "p99", "max",
+                 "walk")  # fmt: skip
+
+
+def planner_rows(rows: list[dict]) -> list[list[str]]:
+    """One line per (grid, unknown, planner), in the rows' order: Steps, Iter_avg and the ms
+    per replanning step (median, p99, max, the walk's total) — every planner, not only the
+    paper's two (``table_rows``)."""
+    out = []
+    for r in rows:
+        steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
+        if r.get("capped"):
+            steps = f"{r['steps']} (capped)"
+        out.append([f"{r['grid']}", f"{r['unknown']:.0%}", r["mode"], steps,
+                    f"{r['iter_avg']:.1f}", *(f"{r[k]:.3f}" for k in
+                    ("ms_median", "ms_p99", "ms_max")), f"{r['walk_ms']:.0f}"])  # fmt: skip
+    return out
+
+
 def plot_steps(result: BenchResult, out: Path | str) -> Path:
     """Time per replanning step along each walk, DSS against EDS (like the paper's Figure 9)."""
     import matplotlib
@@ -246,8 +266,11 @@ def format_tables(rows: list[dict]) -> str:
     heads2 = ["grid", "unknown", "DSS med", "DSS p99", "DSS max", "DSS walk", "EDS med",
               "EDS p99", "EDS max", "EDS walk", "DSS/EDS"]  # fmt: skip
     out = []
-    for title, heads, body in (("Steps and Iter_avg", heads1, t1),
-                               ("ms per replanning step", heads2, t2)):  # fmt: skip
+    tables = [("Steps and Iter_avg", heads1, t1), ("ms per replanning step", heads2, t2)]
+    if any(row["mode"] not in ("eds", "dss") for row in rows):
+        tables.append(("ms per replanning step, by planner", list(PLANNER_HEADS),
+                       planner_rows(rows)))  # fmt: skip
+    for title, heads, body in tables:
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(heads)]
         out.append(title)
         for line in (heads, *body):
@@ -278,8 +301,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--plot", type=Path)
     a = p.parse_args(argv)
     modes = [m for m in a.modes.split(",") if m]
-    if not modes or any(m not in ("eds", "dss") for m in modes):
-        p.error(f"--modes {a.modes!r}: choose from eds, dss")
+    if not modes or any(m not in MODES for m in modes):
+        p.error(f"--modes {a.modes!r}: choose from {', '.join(MODES)}")
     config = BenchConfig(
         grids=[int(x) for x in a.grid.split(",") if x],
         unknowns=[float(x) for x in a.unknown.split(",") if x],
