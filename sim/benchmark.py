@@ -145,6 +145,9 @@ def run_bench(
                     ),
                     "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
                     "init_ms": float(np.median([r.init_ms for r in runs])),
+                    # A*'s open list (issue 22); -1 for a planner that keeps a field.
+                    "max_open": int(first.max_open.max(initial=-1)),
+                    "max_open_median": float(np.median(first.max_open)) if first.steps else -1.0,
                     "repeats": config.repeats,
                     "fov_deg": config.fov_deg,
                     "device": device,
@@ -205,13 +208,14 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
 
 
 PLANNER_HEADS = ("grid", "unknown", "planner", "steps", "Iter_avg", "median", "p99", "max",
-                 "walk")  # fmt: skip
+                 "walk", "open max")  # fmt: skip
 
 
 def planner_rows(rows: list[dict]) -> list[list[str]]:
     """One line per (grid, unknown, planner), in the rows' order: Steps, Iter_avg and the ms
-    per replanning step (median, p99, max, the walk's total) — every planner, not only the
-    paper's two (``table_rows``)."""
+    per replanning step (median, p99, max, the walk's total) and the largest open list of a
+    searching planner (A*; ``-`` for a field) — every planner, not only the paper's two
+    (``table_rows``)."""
     out = []
     for r in rows:
         steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
@@ -219,7 +223,8 @@ def planner_rows(rows: list[dict]) -> list[list[str]]:
             steps = f"{r['steps']} (capped)"
         out.append([f"{r['grid']}", f"{r['unknown']:.0%}", r["mode"], steps,
                     f"{r['iter_avg']:.1f}", *(f"{r[k]:.3f}" for k in
-                    ("ms_median", "ms_p99", "ms_max")), f"{r['walk_ms']:.0f}"])  # fmt: skip
+                    ("ms_median", "ms_p99", "ms_max")), f"{r['walk_ms']:.0f}",
+                    f"{r['max_open']}" if r.get("max_open", -1) >= 0 else "-"])  # fmt: skip
     return out
 
 

@@ -29,6 +29,7 @@ def test_astar_walks_the_courtyard_to_the_goal():
     assert not np.any(scenario.true[result.walked[:, 0], result.walked[:, 1]] == OCCUPIED)
     # every step searched: the statistics say so
     assert len(result.iterations) == result.steps and np.all(result.iterations > 0)
+    assert np.all(result.max_open > 0) and np.all(result.max_open <= result.cells_touched)
     eds = walk(scenario, backend="cpu", mode="eds")
     # Same costs at every step, not always the same cells: the walks are about as long.
     assert abs(result.walked_m - eds.walked_m) <= 0.1 * eds.walked_m
@@ -42,7 +43,11 @@ def test_bench_rows_and_the_planner_table_include_astar():
     assert rows["eds"]["same_walk"] and "same_walk" not in rows["astar"]
     assert rows["astar"]["planner"] == "astar-cpu-octile" and rows["astar"]["iter_avg"] > 0
     lines = planner_rows(result.rows)
-    assert [line[2] for line in lines] == ["eds", "dss", "astar"] and len(lines[0]) == 9
+    assert [line[2] for line in lines] == ["eds", "dss", "astar"] and len(lines[0]) == 10
+    # the open list is reported for the planner that has one
+    assert rows["eds"]["max_open"] == -1 and lines[0][-1] == "-"
+    top = rows["astar"]["max_open"]
+    assert 0 < top < 50 * 50 and lines[2][-1] == str(top)
     assert "by planner" in format_tables(result.rows)
 
 
