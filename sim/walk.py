@@ -10,7 +10,8 @@ cell of the path and faces half a metre ahead along it; arrival is the goal cell
 in the paper.
 
 Both modes compute the same exact field and read the path with the same neighbour order,
-so EDS and DSS walk the same cells; only their cost differs.
+so EDS and DSS walk the same cells; only their cost differs. ``astar`` searches from the
+user's cell at every step: paths of the same cost, not always the same cells.
 """
 
 from __future__ import annotations
