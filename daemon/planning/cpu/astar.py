@@ -47,8 +47,10 @@ What differs from EDS/DSS
   between equal-cost paths are broken by the search, not by ``grid.NEIGHBOUR_*`` order.
 - ``cost_at(cell)`` runs the search from ``cell`` and gives its path's cost (INF if the cell
   is blocked, outside or cut off): the optimum under the conditions above.
-  ``costs()`` — what the escape from the inflation margin reads — is the exact field, one
-  Dijkstra from the goal over the component (the grid is undirected), O(n log n).
+  ``costs_within(r0, r1, c0, c1)`` — what the escape from the inflation margin reads — is
+  the exact g of a window: one A* from the goal towards the window (the grid is undirected),
+  stopped once the window's free cells are settled. ``costs()`` is the whole exact field,
+  one Dijkstra from the goal, O(n log n).
 - CPU only: the registry builds it for every backend (``cuda``, ``auto``, ``reference``).
 
 Statistics: ``UpdateStats.iterations`` is the cells expanded, ``cells_touched`` the cells
@@ -247,9 +249,31 @@ class AStarPlanner(GlobalPlanner):
         expanded, generated = (stats.iterations, stats.cells_touched) if stats else (0, 0)
         return UpdateStats(expanded, generated, (time.perf_counter() - t0) * 1e3), path
 
+    def costs_within(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """The exact cost-to-goal of the cells of rows [r0, r1) x columns [c0, c1) (clipped
+        to the map; ``int32``, INF where blocked or unreachable): one A* from the goal
+        towards the window, stopped once every free cell of it is settled. What the escape
+        from the margin reads: a window around the user, not the whole field."""
+        self._require_plan()
+        h, w = self._shape
+        r0, r1 = max(0, int(r0)), min(h, int(r1))
+        c0, c1 = max(0, int(c0)), min(w, int(c1))
+        out = np.full((max(0, r1 - r0), max(0, c1 - c0)), INF, dtype=np.int32)
+        goal = self._padded(self._goal)
+        if out.size and not self._blk[goal]:
+            epoch = self._next_epoch()
+            k.window_search(
+                self._blk, self._g, self._stamp, self._pos, self._par, self._hkey, self._hcell,
+                self._off, self._cost, self._width, goal, r0 + 1, r1 + 1, c0 + 1, c1 + 1, epoch,
+                self._stats,
+            )  # fmt: skip
+            k.window_field(self._g, self._stamp, self._pos, epoch, r0 + 1, r1 + 1, c0 + 1,
+                           c1 + 1, self._width, out)  # fmt: skip
+        return out
+
     def costs(self) -> np.ndarray:
         """The exact cost-to-goal of every cell (``int32``, (h, w), INF where unreachable):
-        one Dijkstra from the goal. For the escape from the margin, which reads a window."""
+        one Dijkstra from the goal."""
         self._require_plan()
         out = np.empty(self._blk.size, dtype=np.int32)
         goal = self._padded(self._goal)

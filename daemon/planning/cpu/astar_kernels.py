@@ -195,3 +195,78 @@ def field(g, stamp, epoch, out):
     """``out[v] = g[v]`` where this epoch's search reached v, else INF."""
     for v in range(out.size):
         out[v] = g[v] if stamp[v] == epoch else INF
+
+
+@njit(cache=True)
+def window_search(
+    blocked, g, stamp, pos, par, hkey, hcell, off, cost, width,
+    goal, r0, r1, c0, c1, epoch, stats,
+):  # fmt: skip
+    """Exact g (cost to ``goal``) of the free cells of the padded window rows [r0, r1) x
+    columns [c0, c1): A* from the goal towards the window, heuristic the octile distance to
+    the window (consistent: it drops by at most a step's cost), stopped once every free
+    window cell is closed. A window cell that is closed holds its exact g; one that is not
+    is unreachable (the search ran out). Returns the free window cells left unreached."""
+    left = 0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            if not blocked[r * width + c]:
+                left += 1
+    stamp[goal] = epoch
+    g[goal] = 0
+    par[goal] = -1
+    size = _push(hkey, hcell, pos, 0, goal, _to_window(goal, r0, r1, c0, c1, width))
+    expanded = 0
+    generated = 1
+    max_open = 1
+    while size > 0 and left > 0:
+        u, size = _pop(hkey, hcell, pos, size)
+        expanded += 1
+        ur = u // width
+        uc = u - ur * width
+        if r0 <= ur < r1 and c0 <= uc < c1:
+            left -= 1
+        gu = g[u]
+        for k in range(8):
+            v = u + off[k]
+            if blocked[v]:
+                continue
+            nd = gu + cost[k]
+            if stamp[v] != epoch:
+                stamp[v] = epoch
+                g[v] = nd
+                par[v] = k
+                size = _push(hkey, hcell, pos, size, v, nd + _to_window(v, r0, r1, c0, c1, width))
+                generated += 1
+            elif pos[v] != CLOSED and nd < g[v]:
+                g[v] = nd
+                par[v] = k
+                hkey[pos[v]] = nd + _to_window(v, r0, r1, c0, c1, width)
+                _sift_up(hkey, hcell, pos, pos[v])
+        if size > max_open:
+            max_open = size
+    stats[EXPANDED] = expanded
+    stats[GENERATED] = generated
+    stats[MAX_OPEN] = max_open
+    return left
+
+
+@njit(cache=True)
+def _to_window(v, r0, r1, c0, c1, width):
+    """Octile distance (10/14) from padded cell v to the nearest cell of the window."""
+    r = v // width
+    c = v - r * width
+    dr = max(r0 - r, 0, r - (r1 - 1))
+    dc = max(c0 - c, 0, c - (c1 - 1))
+    return 10 * max(dr, dc) + 4 * min(dr, dc)
+
+
+@njit(cache=True)
+def window_field(g, stamp, pos, epoch, r0, r1, c0, c1, width, out):
+    """``out[i, j]`` = g of padded cell (r0 + i, c0 + j) when this epoch's search closed it,
+    else INF."""
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            v = r * width + c
+            closed = stamp[v] == epoch and pos[v] == CLOSED
+            out[r - r0, c - c0] = g[v] if closed else INF

@@ -153,6 +153,29 @@ def test_costs_is_the_reference_field(world):
     np.testing.assert_array_equal(p.costs(), dijkstra_field(truth, goal))
 
 
+@PROPERTY
+@given(world=maps(max_side=30), data=st.data())
+def test_costs_within_a_window_are_the_reference_field_there(world, data):
+    truth, goal, _ = world
+    h, w = truth.shape
+    r0, c0 = data.draw(st.integers(-3, h), label="r0"), data.draw(st.integers(-3, w), label="c0")
+    r1, c1 = r0 + data.draw(st.integers(0, 9), label="rows"), c0 + data.draw(st.integers(0, 9))
+    p = AStarPlanner()
+    p.plan(truth, goal)
+    ref = dijkstra_field(truth, goal)[max(0, r0) : max(0, r1), max(0, c0) : max(0, c1)]
+    np.testing.assert_array_equal(p.costs_within(r0, r1, c0, c1), ref)
+
+
+def test_costs_within_stops_once_the_window_is_settled():
+    a = AStarPlanner()
+    a.plan(np.zeros((400, 400), bool), (390, 200))
+    np.testing.assert_array_equal(
+        a.costs_within(370, 381, 195, 206),
+        dijkstra_field(np.zeros((400, 400), bool), (390, 200))[370:381, 195:206],
+    )
+    assert a._stats[k.EXPANDED] < 2000  # a few hundred cells, not the 160,000 of the map
+
+
 def test_inadmissible_heuristics_overestimate_and_manhattan_costs_more():
     """Manhattan and Euclidean overestimate on this grid (a diagonal step costs 14 < 10 sqrt 2
     < 20): Manhattan's paths are often longer; Euclidean's overestimate, at most 1 %, rarely
