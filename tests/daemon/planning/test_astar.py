@@ -111,8 +111,13 @@ def test_cost_equals_reference_dijkstra_after_every_delta(world, data):
         if n:
             cells, values = a_delta(data, truth, exact.path(start))
             truth.reshape(-1)[cells] = values
-            for p in planners:
+            for p in (cheb, paper, eds):
                 p.update(cells, values)
+            stats, path = exact.update_and_path(cells, values, start)  # the navigator's call
+            g = int(dijkstra_field(truth, goal)[start])
+            check_path(path, truth, start, goal, g)
+            searched = not (truth[start] or truth[goal])  # else nothing to search
+            assert (stats.iterations >= 1) == searched and stats.cells_touched >= stats.iterations
         g = int(dijkstra_field(truth, goal)[start])
         assert eds.cost_at(start) == g
         for p in (exact, cheb):
