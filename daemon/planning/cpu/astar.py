@@ -38,12 +38,14 @@ Search
   ``Break h`` overestimates by up to ``h / (L + W)`` (up to 14 units), so the search is
   weighted A* with weight ``Break``: with a consistent heuristic and no reopening the
   path's cost ``C`` satisfies ``C <= Break C*``, i.e. ``(L + W) C <= (L + W + 1) C*``, and is
-  often but not always optimal (see ``tests/daemon/planning/test_astar.py``, which tests
-  exactly this bound).
+  often but not always optimal (measured: 1 miss in 14,609 random queries on maps up to
+  60 x 60, by 0.6 %; ``tests/daemon/planning/test_astar.py`` tests exactly this bound and
+  holds a 9 x 4 map where it misses).
   ``none``: ``f = g + h``, ties in the heap's order.
 
 What differs from EDS/DSS
-- The path has the optimal cost but need not be the same cells as ``reference_path``: ties
+- The path has the optimal cost (``exact`` with octile or chebyshev) but need not be the
+  same cells as ``reference_path``: ties
   between equal-cost paths are broken by the search, not by ``grid.NEIGHBOUR_*`` order.
 - ``cost_at(cell)`` runs the search from ``cell`` and gives its path's cost (INF if the cell
   is blocked, outside or cut off): the optimum under the conditions above.
