@@ -45,8 +45,8 @@ Search
 
 What differs from EDS/DSS
 - The path has the optimal cost (``exact`` with octile or chebyshev) but need not be the
-  same cells as ``reference_path``: ties
-  between equal-cost paths are broken by the search, not by ``grid.NEIGHBOUR_*`` order.
+  same cells as ``reference_path``: ties between equal-cost paths are broken by the search,
+  not by ``grid.NEIGHBOUR_*`` order.
 - ``cost_at(cell)`` runs the search from ``cell`` and gives its path's cost (INF if the cell
   is blocked, outside or cut off): the optimum under the conditions above.
   ``costs_within(r0, r1, c0, c1)`` — what the escape from the inflation margin reads — is
