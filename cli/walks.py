@@ -28,7 +28,9 @@ def walks(
     grid: Annotated[str, typer.Option(help="Grid sides, comma separated.")] = "100,200",
     unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
     backend: Annotated[str, typer.Option(help="Planner: cpu, cuda, auto or reference.")] = "cpu",
-    planner: Annotated[str, typer.Option(help="A planner of the registry: eds, dss.")] = "eds",
+    planner: Annotated[
+        str, typer.Option(help="A planner of the registry: eds, dss, astar.")
+    ] = "eds",
     smooth: Annotated[bool, typer.Option(help="Rubber-band smoothing before guidance.")] = False,
     seed: Annotated[int, typer.Option(help="First seed; run i uses seed + i.")] = 0,
     jobs: Annotated[int, typer.Option(min=1, help="Worker processes.")] = 1,

@@ -25,7 +25,7 @@ from daemon.planning import resolve_backend
 
 from .courtyard import make_courtyard
 from .scenarios import SCENARIOS, check_grid, make_scenario, scenario_list
-from .walk import walk
+from .walk import MODES, walk
 
 ROW_FIELDS = (
     "scenario", "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
@@ -161,14 +161,18 @@ def run_bench(
                 ),
                 "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
                 "init_ms": float(np.median([r.init_ms for r in runs])),
+                # A*'s open list (issue 22); -1 for a planner that keeps a field.
+                "max_open": int(first.max_open.max(initial=-1)),
+                "max_open_median": float(np.median(first.max_open)) if first.steps else -1.0,
                 "repeats": config.repeats,
                 "fov_deg": config.fov_deg,
                 "device": device,
             })
-        if len(walked) == 2:
+        if "eds" in walked and "dss" in walked:  # the same field: the same cells
             same = bool(np.array_equal(walked["eds"], walked["dss"]))
-            for row in rows[-2:]:
-                row["same_walk"] = same
+            for row in rows[-len(walked) :]:
+                if row["mode"] in ("eds", "dss"):
+                    row["same_walk"] = same
     return BenchResult(rows=rows, series=series, device=device)
 
 
@@ -228,6 +232,27 @@ TABLE2_HEADS = ("scenario", "grid", "unknown", "DSS med", "DSS p99", "DSS max", 
 """Column heads of ``table_rows``'s two tables, for whoever prints them."""
 
 
+PLANNER_HEADS = ("scenario", "grid", "unknown", "planner", "steps", "Iter_avg", "median",
+                 "p99", "max", "walk", "open max")  # fmt: skip
+
+
+def planner_rows(rows: list[dict]) -> list[list[str]]:
+    """One line per (scenario, grid, unknown, planner), in the rows' order: Steps, Iter_avg and
+    the ms per replanning step (median, p99, max, the walk's total) and the largest open list of a
+    searching planner (A*; ``-`` for a field) — every planner, not only the paper's two
+    (``table_rows``)."""
+    out = []
+    for r in rows:
+        steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
+        if r.get("capped"):
+            steps = f"{r['steps']} (capped)"
+        out.append([r.get("scenario", "courtyard"), f"{r['grid']}", f"{r['unknown']:.0%}",
+                    r["mode"], steps, f"{r['iter_avg']:.1f}", *(f"{r[k]:.3f}" for k in
+                    ("ms_median", "ms_p99", "ms_max")), f"{r['walk_ms']:.0f}",
+                    f"{r['max_open']}" if r.get("max_open", -1) >= 0 else "-"])  # fmt: skip
+    return out
+
+
 def plot_steps(result: BenchResult, out: Path | str) -> Path:
     """Time per replanning step along each walk, DSS against EDS (like the paper's Figure 9)."""
     import matplotlib
@@ -268,8 +293,13 @@ def format_tables(rows: list[dict]) -> str:
     """Both tables as plain text, for machines without rich."""
     t1, t2 = table_rows(rows)
     out = []
-    for title, heads, body in (("Steps and Iter_avg", TABLE1_HEADS, t1),
-                               ("ms per replanning step", TABLE2_HEADS, t2)):  # fmt: skip
+    tables = [
+        ("Steps and Iter_avg", TABLE1_HEADS, t1),
+        ("ms per replanning step", TABLE2_HEADS, t2),
+    ]
+    if any(row["mode"] not in ("eds", "dss") for row in rows):
+        tables.append(("ms per replanning step, by planner", PLANNER_HEADS, planner_rows(rows)))
+    for title, heads, body in tables:
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(heads)]
         out.append(title)
         for line in (heads, *body):
@@ -301,8 +331,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--plot", type=Path)
     a = p.parse_args(argv)
     modes = [m for m in a.modes.split(",") if m]
-    if not modes or any(m not in ("eds", "dss") for m in modes):
-        p.error(f"--modes {a.modes!r}: choose from eds, dss")
+    if not modes or any(m not in MODES for m in modes):
+        p.error(f"--modes {a.modes!r}: choose from {', '.join(MODES)}")
     try:
         scenarios = scenario_list(a.scenario)
     except ValueError as exc:
