@@ -1,8 +1,9 @@
 """Print the short table of ``scripts/gpu_check.sh``: cuda against cpu, and the targets.
 
-Reads ``bench_cuda.json`` and ``bench_big_cuda.json`` (``guidebelt bench`` rows: the walk
-through the daemon's navigator), ``dss.json`` (``scripts/time_dss.py`` rows) and
-``device.txt`` from the folder given; missing files are skipped. The target is on the median
+Reads ``bench_cuda.json``, ``bench_big_cuda.json``, ``bench_2000_cuda.json`` and
+``bench_scen_cuda.json`` (``guidebelt bench`` rows: the walk through the daemon's navigator),
+``dss.json`` (``scripts/time_dss.py`` rows) and ``device.txt`` from the folder given; missing
+files are skipped. The target is on the median
 replanning step (repair + path to the host).
 
     python3 scripts/gpu_table.py out/gpu_check
@@ -34,7 +35,7 @@ def main() -> None:
     print(f"{'scenario':9} {'grid':>5} {'unk':>4} {'mode':4} {'planner':16} {'steps':>6} "
           f"{'median':>7} {'p99':>7} {'max':>7} {'walk':>8} {'own med':>7} {'nav med':>7} "
           f"{'nav p99':>7} {'target':>8}")  # fmt: skip
-    for name in ("bench_cuda", "bench_big_cuda", "bench_2000_cuda"):
+    for name in ("bench_cuda", "bench_big_cuda", "bench_2000_cuda", "bench_scen_cuda"):
         for r in load(out / f"{name}.json"):
             # rows from before the scenario field are the courtyard's
             scenario = r.get("scenario", "courtyard")
