@@ -49,7 +49,11 @@ MB_COUNT = 7
 C_BAR = 0
 """Grid barrier arrivals (only ever grows)."""
 C_CNT = 2
-"""Three rotating sums of the tile flags set for the next round."""
+"""Three rotating sums of the tile flags set for the next round (the raise's also carry the
+kernels' give-up bit, fast.cu's CUT_PENDING)."""
+C_CUT = 5
+"""EDS: the cells raised when the call gave up its repair for a plan from scratch (0: it did
+not; ``C_RAISED`` is then 0)."""
 C_EXITS = 7
 """Tiles whose path exits were recomputed."""
 C_ROUNDS = 8
@@ -59,7 +63,7 @@ C_TILES = 9
 C_SWEEPS = 10
 """In-tile sweeps, summed over visits."""
 C_RAISED = 11
-"""Cells EDS raised to INF."""
+"""Cells EDS raised to INF (counted as they are raised: the cut-over's measure)."""
 C_CHANGED = 12
 """Cells whose g the relaxation lowered."""
 C_LONGEST = 13
@@ -99,9 +103,9 @@ _WORDS = (
     "PARAM_NDELTA", "PARAM_MODE", "PARAM_START", "PARAM_GOAL", "PARAM_SEQ", "PARAM_USED", "PARAMS",
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
-    "C_BAR", "C_CNT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED", "C_CHANGED",
-    "C_LONGEST", "C_BASE", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO", "C_CMD", "CTRL_READ",
-    "PATH_CTRL",
+    "C_BAR", "C_CNT", "C_CUT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO", "C_CMD",
+    "CTRL_READ", "PATH_CTRL",
     "IO_REJECT", "REJECT_RANGE", "REJECT_ORDER", "IO_DONE", "IO_PATH",
     "PATH_DONE", "PATH_MORE", "PATH_NONE", "PATH_BROKEN",
 )  # fmt: skip

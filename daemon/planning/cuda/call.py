@@ -55,6 +55,8 @@ class FastCall:
     _loop: resident.ResidentLoop | None
     sweeps: int
     raised_cells: int
+    cut_cells: int
+    cut_over: int
     tiles: int
     exit_tiles: int
 
@@ -127,6 +129,7 @@ class FastCall:
         st = self._result
         self.sweeps, self.raised_cells = st[abi.C_SWEEPS], st[abi.C_RAISED]
         self.tiles, self.exit_tiles = st[abi.C_TILES], st[abi.C_EXITS]
+        self.cut_cells = st[abi.C_CUT]
         return st[abi.C_ROUNDS], self.raised_cells + st[abi.C_CHANGED]
 
     def _new_loop(self) -> resident.ResidentLoop:
@@ -135,7 +138,7 @@ class FastCall:
         args = (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
                 np.int32(h), np.int32(w), self._exits, self._segs,
                 np.uint64(self._io_host.device_ptr), np.int32(self._path_cap),
-                np.uint64(self._stage.device_ptr))  # fmt: skip
+                np.uint64(self._stage.device_ptr), np.uint32(self.cut_over))  # fmt: skip
         k = self._k_loop()
         blocks = self._blocks
 

@@ -19,6 +19,10 @@ cost must rise (``fast``; ``paper`` raises the whole subtree of its stored pred 
 superset); then raised and newly freed cells are re-seeded from their neighbours and
 everything is relaxed until nothing changes. Every value is an integer path cost, so the
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
+As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` of the
+map's cells (a wall across the route raises the whole shadow behind it) and the same call
+computes the field from scratch, as DSS does: the device decides at the end of a raise round,
+with no host round trip (``fast.cu``); ``cut_cells`` tells whether the last call did.
 
 ``path`` runs on the device with the rule of ``dijkstra.reference_path`` (``path_exits.cuh``:
 tile-to-tile jumps, segments walked in parallel); only the path's cells come back.
@@ -47,6 +51,10 @@ from .path import PathReader
 VARIANTS = ("fast", "paper")
 PATH_THREADS = 128
 """Threads of a path_tiles block (its __launch_bounds__)."""
+CUT_OVER = 0.005
+"""The share of the map's cells an EDS repair (``fast``) may raise before it computes the
+field from scratch instead: the CPU's value (``cpu.fast.CUT_OVER``). Read when a planner is
+made, so a benchmark can try another."""
 
 
 class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
@@ -55,15 +63,21 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     Calls are serialised on the device (``device.DEVICE_LOCK``): the resident loop needs every
     block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
     reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
+    ``cut_over`` (``fast``): the share of the map's cells an EDS repair may raise before the
+    call computes the field from scratch instead (default ``CUT_OVER``; 1.0: never).
     """
 
     backend = "cuda"
 
-    def __init__(self, variant: str = "fast", *, dss: bool = False) -> None:
+    def __init__(
+        self, variant: str = "fast", *, dss: bool = False, cut_over: float | None = None
+    ) -> None:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         self.variant = variant
         super().__init__(dss)
+        self._cut_over_share = CUT_OVER if cut_over is None else cut_over
+        self.cut_over = 1  # in cells, set with the map's size
         self._loop: resident.ResidentLoop | None = None
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
@@ -85,8 +99,9 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._path_guess = 256
         self._slot = 0  # paper: which flag_stop slot the next launch writes
         # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run,
-        # tiles whose path exits were recomputed (update_and_path; the rest were reused).
-        self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = 0
+        # tiles whose path exits were recomputed (update_and_path; the rest were reused), and
+        # the cells raised when the repair gave up for a plan from scratch (0: it did not).
+        self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = self.cut_cells = 0
 
     # -- test hook ----------------------------------------------------------------------------
 
@@ -106,6 +121,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         h, w = shape
         n = h * w
         self._shape = shape
+        self.cut_over = max(1, int(self._cut_over_share * n))
         self._blocked_d = cp.zeros(n, dtype=np.uint8)
         self._g = cp.full(n, INF, dtype=np.int32)
         self._path_cap = int(min(n, 4 * (h + w) + 1024))

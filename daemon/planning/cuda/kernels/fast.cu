@@ -15,6 +15,14 @@
 // soon as it is flagged, so the wave moves at the pace of one tile instead of a grid-wide
 // round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
+// Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
+// whole shadow behind it) gives up the repair at the end of that round and computes the
+// field from scratch, as a DSS call does: raising and re-lowering that many cells costs more
+// than a plan from the goal (the CPU's rule, cpu/dial.py). The raised cells are counted as
+// they are raised, into ctrl[C_RAISED]; the visit that passes the limit sets CUT_PENDING in
+// the round's flag count, which every block reads after the round's barrier anyway, so the
+// decision is the same in every block and costs no extra barrier or host round trip.
+//
 // With start >= 0 the call then extracts the path from `start` (path_exits.cuh), reusing
 // the exits of every tile whose g and halo did not change since the last extraction.
 //
@@ -40,6 +48,17 @@
 // phases (ops) of a round
 #define OP_RAISE 1
 #define OP_RESET 2
+// In a raise round's flag count: the cells raised so far passed the limit (flag counts never
+// come near it).
+#define CUT_PENDING 0x80000000u
+
+// Count n newly raised cells; past `limit` in all, set CUT_PENDING in *cnt, the count of the
+// round that every block reads after its barrier.
+__device__ __forceinline__ void count_raised(unsigned* ctrl, unsigned n, unsigned limit,
+                                             unsigned* cnt) {
+    unsigned before = atomicAdd(ctrl + C_RAISED, n);
+    if (before + n > limit) atomicOr(cnt, CUT_PENDING);
+}
 
 // Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
 // s_list (take_flag: one atomic each; a read first would cost a second round trip on the
@@ -68,12 +87,13 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 
 // One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
 // tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
-// count, 0 when no tile is flagged for the next round, the same in every block.
+// count, 0 when no tile is flagged for the next round, the same in every block; a raise that
+// passed `limit` raised cells in all sets CUT_PENDING in it.
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
                               unsigned* stale, unsigned* ctrl, int r, int* g,
                               const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
                               unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
-                              int* s_n, unsigned* bar) {
+                              int* s_n, unsigned* bar, unsigned limit) {
     unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
     if (blockIdx.x == 0 && threadIdx.x == 0) {
         ctrl[C_CNT + (r + 2) % 3] = 0;
@@ -85,11 +105,14 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
             int tile = s_list[i];
             if (op == OP_RAISE) {
                 bool any = false;
-                unsigned bits = raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any);
+                unsigned fresh = 0;
+                unsigned bits =
+                    raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any, &fresh);
                 flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
                 if (any && threadIdx.x == 8) atomicExch(seeds + tile, 1u);
+                if (fresh && threadIdx.x == 9) count_raised(ctrl, fresh, limit, cnt_next);
             } else {
-                unsigned bits = reset_tile(G, tile, g, raised, ctrl + C_RAISED);
+                unsigned bits = reset_tile(G, tile, g, raised);
                 if (threadIdx.x == 0) flag_tile(next, cnt_next, tile);
                 mark_exits_stale(G, tile, bits, (int)threadIdx.x - 32, stale);
             }
@@ -99,6 +122,34 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
     }
     grid_barrier(ctrl, bar);
     return *((volatile unsigned*)cnt_next);
+}
+
+// EDS: the raise passed the limit (CUT_PENDING) in the round before round r. Give the repair
+// up for a plan from scratch, as MODE_DSS: g = INF and no cell raised anywhere, the flags that
+// round left for a next one (`left`) and the seeds dropped, every tile's exits stale, and the
+// goal flagged for the relaxation where the reset round would have flagged its tiles (`dirty`,
+// the flags that round took, all zero now, and its count `cnt`, which it zeroed). The raised
+// count moves to ctrl[C_CUT]: the call is then a plan from scratch, its statistics too.
+__device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, unsigned* left,
+                               unsigned* dirty, unsigned* cnt, unsigned* seeds,
+                               unsigned* stale, unsigned* ctrl, unsigned* bar) {
+    int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    for (int i = tid; i < G.h * G.w; i += stride) {
+        g[i] = INF;
+        raised[i] = 0;
+    }
+    for (int i = tid; i < G.ntiles; i += stride) {
+        left[i] = 0u;
+        seeds[i] = 0u;
+        stale[i] = 1u;
+    }
+    if (tid == 0) {
+        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
+        ctrl[C_RAISED] = 0u;
+        ctrl[C_ROUNDS] += 1;
+        if (G.goal >= 0) flag_tile(dirty, cnt, tile_of(G.goal, G.w, G.tiles_x));
+    }
+    grid_barrier(ctrl, bar);
 }
 
 #define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
@@ -175,6 +226,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 //   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
+//   Past `limit` raised cells: as MODE_DSS from there on (give_up_repair).
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
 // params: device memory, the PARAM_* words; delta[i] = cell * 2 + new_blocked,
 // in device memory, read with ld.cv (the resident loop rewrites it between calls: never an
@@ -185,7 +237,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
                           const int* params, const int* delta, unsigned* flags, unsigned* ctrl,
                           int h, int w, int2* exits, int4* segs, int* io, int cap,
-                          unsigned* bar_ptr) {
+                          unsigned limit, unsigned* bar_ptr) {
     __shared__ __align__(16) int gs[HT][HT];  // aligned: walk_segments stores int2 pairs in it
     __shared__ unsigned char bs[TILE][TILE + 1];
     __shared__ unsigned char rs[HT][HT];
@@ -224,6 +276,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         for (int i = tid; i < G.ntiles; i += stride) stale[i] = 1u;
         if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
+        unsigned mine = 0;  // newly blocked cells: raised, counted towards the limit
         for (int i = tid; i < ndelta; i += stride) {
             int code = __ldcv(delta + i);
             int cell = code >> 1;
@@ -234,6 +287,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             if (now) {
                 // Its children may lie in the tiles around: each of those looks at it.
                 raised[cell] = 1;
+                ++mine;
                 for (int dy = -1; dy <= 1; ++dy) {
                     for (int dx = -1; dx <= 1; ++dx) {
                         int ny = cy + dy, nx = cx + dx;
@@ -244,18 +298,25 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             }
             atomicExch(seeds + (cy / TILE) * G.tiles_x + cx / TILE, 1u);
         }
+        mine = __reduce_add_sync(FULL, mine);
+        if (mine && (threadIdx.x & 31) == 0) count_raised(ctrl, mine, limit, cnt1);
     }
     grid_barrier(ctrl, &bar);
     unsigned pending = *((volatile unsigned*)cnt1);
     int r = 1;
     if (mode == MODE_EDS) {
-        while (pending) {
+        while (pending && !(pending & CUT_PENDING)) {
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
-                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
             ++r;
         }
-        pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r, g,
-                            blocked, raised, gs, bs, rs, s_list, &s_n, &bar);
+        if (pending & CUT_PENDING) {
+            give_up_repair(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
+                           ctrl + C_CNT + (r + 1) % 3, seeds, stale, ctrl, &bar);
+        } else {
+            pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
+                                g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
+        }
         ++r;
     }
     // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
@@ -298,6 +359,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         if (threadIdx.x == 0) {
             for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
             ctrl[C_EXITS] = 0;
+            ctrl[C_CUT] = 0;
             for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
             ctrl[C_BASE] = bar;
         }

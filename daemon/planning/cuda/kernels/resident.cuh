@@ -134,11 +134,12 @@ __device__ int await_command(unsigned* ctrl, unsigned* gen) {
 }
 
 // The loop. mail: the host's mailbox (mapped); params: device memory the loop copies each
-// call's params words into. ctrl[C_GO] and ctrl[C_BASE] carry over from launch to launch.
+// call's params words into; limit: the cells an EDS repair may raise before it gives up for
+// a plan from scratch (fast.cu). ctrl[C_GO] and ctrl[C_BASE] carry over from launch to launch.
 extern "C" __global__ void __launch_bounds__(THREADS, 1)
 plan_resident(int* g, unsigned char* blocked, unsigned char* raised, int* params,
               unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* io,
-              int cap, const int* mail, unsigned idle_us) {
+              int cap, const int* mail, unsigned limit, unsigned idle_us) {
     // Thread 0's state across calls lives in shared memory: registers held across plan_call
     // would push its own values into spills (ptxas -v).
     __shared__ unsigned s_bar, s_gen;
@@ -156,7 +157,7 @@ plan_resident(int* g, unsigned char* blocked, unsigned char* raised, int* params
                                   : await_command(ctrl, &s_gen);
         if (cmd != CMD_RUN) break;
         plan_call(g, blocked, raised, params, params + PARAMS, flags, ctrl, h, w, exits, segs, io,
-                  cap, &s_bar);
+                  cap, limit, &s_bar);
     }
     // Nothing arrives at a barrier after the exit command: every block's target is the same.
     if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_BASE] = s_bar;

@@ -171,10 +171,10 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
 // neighbour, g[n] + c == g[v] in the unchanged old field) is raised or newly blocked. That
 // is exactly the set of cells whose cost must rise (the CPU's rule), smaller than the whole
 // pred subtree. Returns the edge bits of newly raised cells; *any_raised tells whether the
-// tile holds one.
+// tile holds one, *fresh how many it raised in this visit.
 __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
                                int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
-                               bool* any_raised) {
+                               bool* any_raised, unsigned* fresh) {
     __shared__ unsigned s_bits;
     __shared__ int s_any;
     const TileCell c = tile_cell(G, t);
@@ -215,32 +215,31 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
         if (!__syncthreads_or(ch)) break;
     }
     bool now = rs[y + 1][x + 1] != 0;
-    if (inside && now && !was) {
+    bool newly = inside && now && !was;
+    if (newly) {
         raised[idx] = 1;
         atomicOr(&s_bits, edge_bits(y, x));
     }
     if (inside && now) s_any = 1;
-    __syncthreads();
+    *fresh = __syncthreads_count(newly);
     if (threadIdx.x == 0) atomicAdd(sweeps, n);
     *any_raised = s_any != 0;
     return s_bits;
 }
 
-// EDS step 2, one tile: raised cells take INF and are cleared. Returns the edge bits of
-// reset cells and CHANGED_ANY if there were any (their exits change).
-__device__ unsigned reset_tile(const Grid& G, int t, int* g, unsigned char* raised, unsigned* count) {
+// EDS step 2, one tile: raised cells take INF and are cleared (they were counted as they
+// were raised). Returns the edge bits of reset cells and CHANGED_ANY if there were any (their
+// exits change).
+__device__ unsigned reset_tile(const Grid& G, int t, int* g, unsigned char* raised) {
     __shared__ unsigned s_bits;
     const TileCell c = tile_cell(G, t);
     if (threadIdx.x == 0) s_bits = 0;
     __syncthreads();
-    unsigned r = 0;
     if (c.inside && __ldcg(raised + c.idx)) {
         __stcg(g + c.idx, INF);
         raised[c.idx] = 0;
-        r = 1;
         atomicOr(&s_bits, edge_bits(c.y, c.x) | CHANGED_ANY);
     }
-    unsigned total = __syncthreads_count(r);
-    if (threadIdx.x == 0) atomicAdd(count, total);
+    __syncthreads();
     return s_bits;
 }

@@ -20,12 +20,17 @@ pytestmark = [
 
 # The product's form and the paper's Figure 4 form.
 VARIANTS = ["fast", "paper"]
+REPAIR = "fast-repair"
+"""fast that never cuts over to a plan from scratch: on these small maps most EDS changes
+would, so the comparison with the CPU after every update runs it too, to test the repair."""
 SHAPES = [(1, 1), (1, 97), (83, 1), (2, 3), (37, 53), (64, 64), (65, 33), (100, 129)]
 
 
 def cuda_planner(variant: str, dss: bool = False):
     from daemon.planning.cuda.planner import CudaPlanner
 
+    if variant == REPAIR:
+        return CudaPlanner("fast", dss=dss, cut_over=1.0)
     return CudaPlanner(variant, dss=dss)
 
 
@@ -67,7 +72,7 @@ def random_delta(rng, blocked, goal, path):
 
 
 @pytest.mark.timeout(600)
-@pytest.mark.parametrize("variant", VARIANTS)
+@pytest.mark.parametrize("variant", [*VARIANTS, REPAIR])
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: f"{s[0]}x{s[1]}")
 def test_eds_and_dss_equal_cpu_after_every_update(variant, shape):
     rng = np.random.default_rng(hash(shape) % 2**32)

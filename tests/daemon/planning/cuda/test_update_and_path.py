@@ -133,7 +133,7 @@ def test_fused_walk_with_local_changes_keeps_the_exits_it_reuses_exact():
         blocked.reshape(-1)[cells] = values
         full = planner.dss = i % 10 == 9
         _, path = planner.update_and_path(cells, values, start)
-        if full:
+        if full or planner.cut_cells:  # DSS, or an EDS repair that raised too much and cut over
             assert planner.exit_tiles == tiles  # a plan from scratch changes every tile
         else:
             recomputed.append(planner.exit_tiles)
@@ -142,5 +142,7 @@ def test_fused_walk_with_local_changes_keeps_the_exits_it_reuses_exact():
         assert np.array_equal(path, reference_path(g, blocked, start)), f"step {i}"
         if len(path) > 3:
             start = (int(path[3][0]), int(path[3][1]))  # the user walks on
-    # a local change leaves most tiles' exits as they were (the start's tile is always redone)
+    # a local change leaves most tiles' exits as they were (the start's tile is always redone);
+    # on the CPU, 25 of these 54 EDS steps stay a repair
+    assert len(recomputed) >= 10, recomputed
     assert min(recomputed) >= 1 and np.median(recomputed) < tiles / 2, recomputed

@@ -1,0 +1,71 @@
+"""The fast variant's cut-over: an EDS repair that raises more than ``cut_over`` cells gives up
+on the device and computes the field from scratch in the same call; the field stays exact.
+
+Runs only where a CUDA device answers (``pytest -m gpu``); skipped cleanly elsewhere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from daemon.planning import cuda_available, make_planner
+from daemon.planning.dijkstra import dijkstra_field, reference_path
+
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device"),
+]
+
+
+def test_a_big_raise_cuts_over_and_a_small_change_stays_a_repair():
+    """A wall across the map raises everything behind it: past the limit the call gives up
+    the repair and plans from scratch, exactly (the CPU's field, the reference Dijkstra's, the
+    reference path in the same call); a delta that alone blocks more than the limit gives up
+    before any raise round; a small change stays a repair, and the aborted raises left no
+    raised cell or tile flag behind that could spoil it."""
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    n = 200
+    truth = np.zeros((n, n), bool)
+    goal = (0, 100)
+    eds, never = CudaPlanner("fast"), CudaPlanner("fast", cut_over=1.0)
+    cpu = make_planner("eds", "cpu", "fast")
+    for p in (eds, never, cpu):
+        p.plan(truth, goal)
+    assert eds.cut_over == n * n // 200 and never.cut_over == n * n
+
+    def change(cells: np.ndarray, value: bool, start=(n - 1, 0)) -> np.ndarray:
+        values = np.full(cells.size, value)
+        truth.reshape(-1)[cells] = value
+        _, path = eds.update_and_path(cells, values, start)
+        never.update(cells, values)
+        cpu.update(cells, values)
+        g = dijkstra_field(truth, goal)
+        for p in (eds, never, cpu):
+            np.testing.assert_array_equal(p.costs(), g)
+        assert np.array_equal(path, reference_path(g, truth, start))
+        return path
+
+    wall = np.arange(20 * n, 20 * n + n - 1)  # row 20, open only at the east edge
+    assert wall.size <= eds.cut_over  # the delta alone stays under the limit: a raise round cuts
+    assert len(change(wall, True)) > n
+    assert eds.cut_cells > eds.cut_over and eds.raised_cells == 0
+    assert never.cut_cells == 0 and never.raised_cells > 100 * eds.cut_over
+
+    box = np.array([100 * n + 50, 100 * n + 51])
+    change(box, True)
+    assert eds.cut_cells == 0 and 0 < eds.raised_cells <= eds.cut_over
+    assert eds.raised_cells == never.raised_cells
+
+    ys, xs = np.mgrid[150:170, 20:40]  # 400 cells blocked at once: more than the limit
+    block = (ys * n + xs).ravel()
+    change(block, True)
+    assert eds.cut_cells >= block.size and eds.raised_cells == 0
+
+    tiles = eds._flags.size // 5
+    assert not eds._raised.get().any() and not eds._flags.get()[: 3 * tiles].any()
+    change(box, False)  # freed cells: a repair that lowers, no raise
+    assert eds.cut_cells == 0 and eds.raised_cells == 0
+    change(wall[::2], False)
+    assert eds.cut_cells == 0
