@@ -19,10 +19,10 @@ cost must rise (``fast``; ``paper`` raises the whole subtree of its stored pred 
 superset); then raised and newly freed cells are re-seeded from their neighbours and
 everything is relaxed until nothing changes. Every value is an integer path cost, so the
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
-As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` of the
-map's cells (a wall across the route raises the whole shadow behind it) and the same call
-computes the field from scratch, as DSS does: the device decides at the end of a raise round,
-with no host round trip (``fast.cu``); ``cut_cells`` tells whether the last call did.
+As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` cells (a
+wall across the route raises the whole shadow behind it) and the same call computes the field
+from scratch, as DSS does: the device decides at the end of a raise round, with no host round
+trip (``fast.cu``); ``cut_cells`` tells whether the last call did.
 
 ``path`` runs on the device with the rule of ``dijkstra.reference_path`` (``path_exits.cuh``:
 tile-to-tile jumps, segments walked in parallel); only the path's cells come back.
@@ -51,10 +51,16 @@ from .path import PathReader
 VARIANTS = ("fast", "paper")
 PATH_THREADS = 128
 """Threads of a path_tiles block (its __launch_bounds__)."""
-CUT_OVER = 0.005
-"""The share of the map's cells an EDS repair (``fast``) may raise before it computes the
-field from scratch instead: the CPU's value (``cpu.fast.CUT_OVER``). Read when a planner is
-made, so a benchmark can try another."""
+CUT_OVER = 1.0
+"""How many cells an EDS repair (``fast``) may raise per row and column of the map (the limit
+is ``CUT_OVER * (h + w)`` cells) before the call computes the field from scratch instead. Not
+a share of the cells as on the CPU (``cpu.fast.CUT_OVER``, 0.5 %): a plan from scratch on the
+device costs about as many tile visits in a row as the map is tiles across (a wave front's
+tiles run in parallel), a raise about as many as the cells it raises, so the break-even grows
+with the side. Measured (H100, the four scenario walks, 40 %): at 400² the CPU's 0.5 % (800
+cells, the limit here too) beat 0.2 % (320) on p99 and walk; at 1000² 0.2 % (2,000, the limit
+here) beat 0.5 % (5,000) on p99 by 4-17 % in every scenario, walk time the same. Read when a
+planner is made, so a benchmark can try another."""
 
 
 class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
@@ -63,8 +69,9 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     Calls are serialised on the device (``device.DEVICE_LOCK``): the resident loop needs every
     block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
     reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
-    ``cut_over`` (``fast``): the share of the map's cells an EDS repair may raise before the
-    call computes the field from scratch instead (default ``CUT_OVER``; 1.0: never).
+    ``cut_over`` (``fast``): the cells an EDS repair may raise per row and column of the map
+    before the call computes the field from scratch instead (default ``CUT_OVER``;
+    ``math.inf``: never).
     """
 
     backend = "cuda"
@@ -76,7 +83,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         self.variant = variant
         super().__init__(dss)
-        self._cut_over_share = CUT_OVER if cut_over is None else cut_over
+        self._cut_over_rate = CUT_OVER if cut_over is None else cut_over
         self.cut_over = 1  # in cells, set with the map's size
         self._loop: resident.ResidentLoop | None = None
         self._shape: tuple[int, int] = (0, 0)
@@ -121,7 +128,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         h, w = shape
         n = h * w
         self._shape = shape
-        self.cut_over = max(1, int(self._cut_over_share * n))
+        self.cut_over = int(min(n, max(1.0, self._cut_over_rate * (h + w))))
         self._blocked_d = cp.zeros(n, dtype=np.uint8)
         self._g = cp.full(n, INF, dtype=np.int32)
         self._path_cap = int(min(n, 4 * (h + w) + 1024))

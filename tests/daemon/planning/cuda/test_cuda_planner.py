@@ -6,6 +6,8 @@ skipped cleanly elsewhere.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -30,7 +32,7 @@ def cuda_planner(variant: str, dss: bool = False):
     from daemon.planning.cuda.planner import CudaPlanner
 
     if variant == REPAIR:
-        return CudaPlanner("fast", dss=dss, cut_over=1.0)
+        return CudaPlanner("fast", dss=dss, cut_over=math.inf)
     return CudaPlanner(variant, dss=dss)
 
 
