@@ -1,24 +1,25 @@
-"""The default CPU planner: the paper's field, touching only the cells that can change.
+"""The default CPU planner: the paper's field, repaired only as far as the user needs it.
 
 Choice and why
 - **Dial's buckets, compiled with numba** (``dial.py``). Costs are the integers 10 and
   14, so a circular array of 15 buckets is an exact O(1) priority queue: Dijkstra without a
   heap. numba compiles the loops to machine code with no C extension to build, and
   ``cache=True`` compiles them once per machine.
-- **DSS** is Dijkstra from the goal over the whole grid.
-- **EDS** repairs the field from the changed cells only: (1) the cells whose cost must rise are
-  invalidated (g = INF) — a cell is invalidated when *every* neighbour that supported its g is
-  blocked or invalidated, decided in increasing old g: exactly the cells whose cost rises,
-  not the whole predecessor subtree, which on a grid full of equal-cost ties is far larger
-  (a 3 x 3 box below the goal on an open 200 x 200 grid: 141 cells rise, the subtree has 1366);
-  (2) every invalidated or newly freed cell is re-seeded with the best cost its neighbours
-  offer; (3) Dijkstra with the buckets from those seeds until the queue is empty. Work is
-  proportional to the cells whose cost changes and their neighbours.
+- **DSS** is Dijkstra from the goal over the whole grid, at every change.
+- **EDS** repairs the field from the changed cells (``repair.py``): the changed cells become
+  inconsistent (``g != rhs``) and wait in a queue that outlives the call; a query works the
+  queue in key order only until what it reads is exact — ``path(start)`` until every key left
+  exceeds ``g(start)``, ``cost_at(cell)`` likewise, ``costs()`` until the queue is empty. A
+  newly seen obstacle that cuts the route raises every cell behind it; the user needs only
+  those nearer the goal than they stand, so the step pays for those and the rest waits (and
+  is never paid for if the user walks away from it).
+
+  The contract: after every call, ``path(start)`` is ``dijkstra.reference_path`` over the
+  current map, tie for tie, and g along it is exact; ``cost_at`` and ``costs()`` equal
+  ``dijkstra.dijkstra_field``; ``settle()`` makes the whole stored field exact.
 - **No stored pred map.** ``pred`` is derived from g when it is needed: a path follows the
   first neighbour in ``grid.NEIGHBOUR_*`` order with ``g[n] + cost == g[cur]``, exactly
-  ``dijkstra.reference_path``, compiled. Keeping a stored pred true to that tie-break rule
-  would cost a re-check of every neighbour of every changed cell on each update, to save a
-  few hundred look-ups on the one path that is read.
+  ``dijkstra.reference_path``, compiled.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ import numpy as np
 
 from ..field import FieldPlanner
 from ..grid import (
+    DIAGONAL,
     INF,
+    STRAIGHT,
     NEIGHBOUR_COST,
     NEIGHBOUR_DC,
     NEIGHBOUR_DR,
@@ -38,19 +41,20 @@ from ..grid import (
 )
 from ..interface import UpdateStats
 from . import dial as k
+from . import repair as r
 
 
 class FastCpuPlanner(FieldPlanner):
     backend, variant = "cpu", "fast"
 
     def __init__(self, dss: bool = False, queue_capacity: int | None = None) -> None:
-        """``queue_capacity``: entries of the bucket queue's pool (default: an eighth of the
-        cells, at least 4096); it doubles whenever a call runs out."""
+        """``queue_capacity``: entries of the bucket pool and of the repair's heap (default: an
+        eighth of the cells, at least 4096); both double whenever a call runs out."""
         super().__init__(dss)
         self._queue_capacity = queue_capacity
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
-        self._epoch = 0
+        self._no_work = UpdateStats(0, 0, 0.0)
 
     # -- state ------------------------------------------------------------------------------
 
@@ -61,10 +65,16 @@ class FastCpuPlanner(FieldPlanner):
         self._shape = shape
         self._blk = np.ones(n, dtype=np.uint8)  # padded: the outer ring stays blocked
         self._g = np.full(n, INF, dtype=np.int32)
-        self._ws = np.zeros((n, k.WS_FIELDS), dtype=np.int32)
-        self._marked = np.zeros(n, dtype=np.int32)
         capacity = self._queue_capacity or max(4096, n // 8)
         self._pool = np.zeros((capacity, 2), dtype=np.int64)
+        if not self.dss:  # what only the repair keeps between calls
+            self._rhs = np.full(n, INF, dtype=np.int32)
+            self._qkey = np.full(n, -1, dtype=np.int32)
+            self._heap = np.zeros(capacity, dtype=np.int64)
+            self._heap_size = np.zeros(1, dtype=np.int64)
+            self._focus = np.zeros(5, dtype=np.int64)
+            """The repair's focus: the user's cell (padded index, row, column), the padded
+            width, and km (D* Lite's sum of the heuristic's shifts as the user moved)."""
         self._off = (NEIGHBOUR_DR.astype(np.int64) * width + NEIGHBOUR_DC).astype(np.int64)
         self._cost = NEIGHBOUR_COST.astype(np.int64)
 
@@ -74,13 +84,6 @@ class FastCpuPlanner(FieldPlanner):
 
     def _padded(self, cell: Cell) -> int:
         return (cell[0] + 1) * (self._shape[1] + 2) + cell[1] + 1
-
-    def _next_epoch(self) -> int:
-        self._epoch += 1
-        if self._epoch >= 2**31 - 1:
-            self._ws[:, k.STAMP] = 0
-            self._epoch = 1
-        return self._epoch
 
     def _require_plan(self) -> None:
         if self._shape == (0, 0):
@@ -94,19 +97,28 @@ class FastCpuPlanner(FieldPlanner):
         return self._dss(t0)
 
     def _dss(self, t0: float) -> UpdateStats:
+        """The field from scratch; for EDS also rhs = g and an empty queue."""
         while True:
             pops, touched = k.dss_field(
-                self._blk, self._g, self._off, self._cost, self._padded(self._goal),
-                self._ws, self._pool,
-            )  # fmt: skip
+                self._blk, self._g, self._off, self._cost, self._padded(self._goal), self._pool
+            )
             if pops != k.OVERFLOW:
-                return UpdateStats(int(pops), int(touched), (time.perf_counter() - t0) * 1e3)
-            self._grow_pool()
+                break
+            self._pool = np.zeros((2 * self._pool.shape[0], 2), dtype=np.int64)
+        if not self.dss:
+            self._rhs[:] = self._g
+            self._qkey[:] = -1
+            self._heap_size[0] = 0
+            goal = self._padded(self._goal)
+            width = self._shape[1] + 2
+            self._focus[:] = (goal, goal // width, goal % width, width, 0)
+        return UpdateStats(int(pops), int(touched), (time.perf_counter() - t0) * 1e3)
 
-    def _grow_pool(self) -> None:
+    def _overflowed(self, t0: float) -> UpdateStats:
+        """The queue ran out: larger arrays, and the field from scratch (the map is current)."""
         self._pool = np.zeros((2 * self._pool.shape[0], 2), dtype=np.int64)
-        self._ws[:, k.QUEUED] = 0
-        self._ws[:, k.MARK] = 0
+        self._heap = np.zeros(2 * self._heap.size, dtype=np.int64)
+        return self._dss(t0)
 
     def _apply(self, cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cells = np.asarray(cells, dtype=np.int64).ravel()
@@ -114,20 +126,58 @@ class FastCpuPlanner(FieldPlanner):
         return cells, values.astype(np.uint8)
 
     def _repair(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        """Apply the change and queue what it made inconsistent; queries repair what they read."""
         t0 = time.perf_counter()
         self._require_plan()
         cells, values = self._apply(cells, blocked)
         h, w = self._shape
-        pops, touched = k.eds_update(
-            self._blk, self._g, self._off, self._cost, self._padded(self._goal), w, h * w,
-            cells, values, self._ws, self._pool, self._marked, self._next_epoch(),
+        status, touched = r.apply_changes(
+            self._blk, self._g, self._rhs, self._qkey, self._off, self._cost,
+            self._padded(self._goal), self._focus, w, h * w, cells, values, self._heap,
+            self._heap_size,
         )  # fmt: skip
-        if pops == k.OVERFLOW:  # the map is updated, g is not: recompute it whole
-            self._grow_pool()
-            return self._dss(t0)
-        if pops < 0:
+        if status == -1:
             raise IndexError(f"cell index {int(cells[touched])} is outside the {h}x{w} map")
+        if status in (r.GOAL_BLOCKED, k.OVERFLOW):
+            return self._overflowed(t0) if status == k.OVERFLOW else self._dss(t0)
+        return UpdateStats(0, int(touched), (time.perf_counter() - t0) * 1e3)
+
+    def _aim(self, target: int) -> None:
+        """Focus the repair on padded cell ``target``: keys queued for the previous focus stay
+        lower bounds once km grows by the heuristic's distance between the two (D* Lite)."""
+        focus = self._focus
+        if target == focus[0]:
+            return
+        width = int(focus[3])
+        dr, dc = abs(target // width - int(focus[1])), abs(target % width - int(focus[2]))
+        focus[4] += STRAIGHT * max(dr, dc) + (DIAGONAL - STRAIGHT) * min(dr, dc)
+        focus[:3] = (target, target // width, target % width)
+
+    def _settle(self, target: int) -> UpdateStats:
+        """Repair until g is exact along every shortest path from padded cell ``target``
+        (-1: everywhere)."""
+        if self.dss:
+            return self._no_work
+        t0 = time.perf_counter()
+        if target >= 0:
+            self._aim(target)
+        pops, touched = r.settle(
+            self._blk, self._g, self._rhs, self._qkey, self._off, self._cost,
+            self._padded(self._goal), self._focus, target >= 0, self._heap, self._heap_size,
+            self._pool,
+        )  # fmt: skip
+        if pops == k.OVERFLOW:
+            return self._overflowed(t0)
         return UpdateStats(int(pops), int(touched), (time.perf_counter() - t0) * 1e3)
+
+    def settle(self) -> UpdateStats:
+        """Finish the repair everywhere (idle time); afterwards the stored field is exact."""
+        self._require_plan()
+        return self._settle(-1)
+
+    def pending(self) -> int:
+        """Cells still waiting for the repair (0 for DSS, and after ``settle``)."""
+        return 0 if self.dss else r.live_entries(self._qkey)
 
     def _recompute(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         t0 = time.perf_counter()
@@ -140,9 +190,24 @@ class FastCpuPlanner(FieldPlanner):
         self._blk[(rows + 1) * (w + 2) + cols + 1] = values
         return self._dss(t0)
 
+    def update_and_path(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell
+    ) -> tuple[UpdateStats, np.ndarray]:
+        t0 = time.perf_counter()
+        applied = self.update(cells, blocked)
+        path, repaired = self._path(start)
+        ms = (time.perf_counter() - t0) * 1e3
+        return UpdateStats(
+            applied.iterations + repaired.iterations,
+            applied.cells_touched + repaired.cells_touched,
+            ms,
+        ), path
+
     # -- queries ----------------------------------------------------------------------------
 
     def costs(self) -> np.ndarray:
+        if self._shape != (0, 0):
+            self._settle(-1)
         return self._interior(self._g).copy()
 
     def blocked(self) -> np.ndarray:
@@ -151,13 +216,24 @@ class FastCpuPlanner(FieldPlanner):
     def cost_at(self, cell: Cell) -> int:
         if not in_bounds(self._shape, cell):
             return int(INF)
-        return int(self._g[self._padded(cell)])
+        v = self._padded(cell)
+        if self._blk[v]:
+            return int(INF)
+        self._settle(v)
+        return int(self._g[v])
 
     def path(self, start: Cell) -> np.ndarray:
+        return self._path(start)[0]
+
+    def _path(self, start: Cell) -> tuple[np.ndarray, UpdateStats]:
         start = (int(start[0]), int(start[1]))
         if not in_bounds(self._shape, start):
-            return np.empty((0, 2), dtype=np.int32)
+            return np.empty((0, 2), dtype=np.int32), self._no_work
         s = self._padded(start)
-        if self._blk[s] or self._g[s] >= INF:
-            return np.empty((0, 2), dtype=np.int32)
-        return k.path_cells(self._blk, self._g, self._off, self._cost, s, self._shape[1] + 2)
+        if self._blk[s]:
+            return np.empty((0, 2), dtype=np.int32), self._no_work
+        stats = self._settle(s)
+        if self._g[s] >= INF:
+            return np.empty((0, 2), dtype=np.int32), stats
+        path = k.path_cells(self._blk, self._g, self._off, self._cost, s, self._shape[1] + 2)
+        return path, stats
