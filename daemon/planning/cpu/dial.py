@@ -32,9 +32,9 @@ OVERFLOW = -2
 
 
 @njit(cache=True)
-def _new_queue(buckets=NB):
+def _new_queue():
     """Bucket heads (entry index or -1) and ``meta = [free list head, entries used]``."""
-    return np.full(buckets, -1, np.int64), np.array([-1, 0])
+    return np.full(NB, -1, np.int64), np.array([-1, 0])
 
 
 @njit(cache=True, inline="always")
@@ -48,7 +48,7 @@ def _push(pool, head, meta, v, key):
         if e == pool.shape[0]:
             return False
         meta[1] = e + 1
-    b = key % head.size
+    b = key % NB
     pool[e, 0] = v
     pool[e, 1] = head[b]
     head[b] = e

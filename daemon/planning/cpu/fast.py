@@ -44,14 +44,21 @@ from . import dial as k
 from . import repair as r
 
 
+CUT_OVER = 0.25
+"""A step's repair may expand this share of the map's cells; past it, a plan from scratch."""
+
+
 class FastCpuPlanner(FieldPlanner):
     backend, variant = "cpu", "fast"
 
-    def __init__(self, dss: bool = False, queue_capacity: int | None = None) -> None:
+    def __init__(
+        self, dss: bool = False, queue_capacity: int | None = None, cut_over: float = CUT_OVER
+    ) -> None:
         """``queue_capacity``: entries of the bucket pool and of the repair's heap (default: an
         eighth of the cells, at least 4096); both double whenever a call runs out."""
         super().__init__(dss)
         self._queue_capacity = queue_capacity
+        self._cut_over = cut_over
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
         self._no_work = UpdateStats(0, 0, 0.0)
@@ -72,11 +79,22 @@ class FastCpuPlanner(FieldPlanner):
             self._qkey = np.full(n, -1, dtype=np.int32)
             self._heap = np.zeros(capacity, dtype=np.int64)
             self._heap_size = np.zeros(1, dtype=np.int64)
+            self._tie = np.zeros(capacity, dtype=np.int64)
+            self._tie_size = np.zeros(1, dtype=np.int64)
+            self._nb = np.stack(
+                [self._off_of(width), NEIGHBOUR_COST, NEIGHBOUR_DR, NEIGHBOUR_DC], axis=1
+            ).astype(np.int64)
+            """Per neighbour: the padded offset, the edge cost, the row and column steps."""
+            self._budget = max(1024, int(self._cut_over * h * w))
             self._focus = np.zeros(5, dtype=np.int64)
             """The repair's focus: the user's cell (padded index, row, column), the padded
             width, and km (D* Lite's sum of the heuristic's shifts as the user moved)."""
-        self._off = (NEIGHBOUR_DR.astype(np.int64) * width + NEIGHBOUR_DC).astype(np.int64)
+        self._off = self._off_of(width)
         self._cost = NEIGHBOUR_COST.astype(np.int64)
+
+    @staticmethod
+    def _off_of(width: int) -> np.ndarray:
+        return (NEIGHBOUR_DR.astype(np.int64) * width + NEIGHBOUR_DC).astype(np.int64)
 
     def _interior(self, flat: np.ndarray) -> np.ndarray:
         h, w = self._shape
@@ -118,6 +136,7 @@ class FastCpuPlanner(FieldPlanner):
         """The queue ran out: larger arrays, and the field from scratch (the map is current)."""
         self._pool = np.zeros((2 * self._pool.shape[0], 2), dtype=np.int64)
         self._heap = np.zeros(2 * self._heap.size, dtype=np.int64)
+        self._tie = np.zeros(2 * self._tie.size, dtype=np.int64)
         return self._dss(t0)
 
     def _apply(self, cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,9 +151,8 @@ class FastCpuPlanner(FieldPlanner):
         cells, values = self._apply(cells, blocked)
         h, w = self._shape
         status, touched = r.apply_changes(
-            self._blk, self._g, self._rhs, self._qkey, self._off, self._cost,
-            self._padded(self._goal), self._focus, w, h * w, cells, values, self._heap,
-            self._heap_size,
+            self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
+            self._focus, w, h * w, cells, values, self._heap, self._heap_size,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[touched])} is outside the {h}x{w} map")
@@ -153,22 +171,50 @@ class FastCpuPlanner(FieldPlanner):
         focus[4] += STRAIGHT * max(dr, dc) + (DIAGONAL - STRAIGHT) * min(dr, dc)
         focus[:3] = (target, target // width, target % width)
 
-    def _settle(self, target: int) -> UpdateStats:
-        """Repair until g is exact along every shortest path from padded cell ``target``
-        (-1: everywhere)."""
+    def _settle(self, target: int, bound: int = -1) -> UpdateStats:
+        """Repair until g is exact along every shortest path from padded cell ``target`` (or,
+        with ``bound`` >= 0, for every cell whose g plus its distance from ``target`` plus km
+        is at most ``bound``); ``target`` -1: everywhere."""
         if self.dss:
             return self._no_work
         t0 = time.perf_counter()
         if target >= 0:
             self._aim(target)
+        else:
+            bound = int(INF)
         pops, touched = r.settle(
-            self._blk, self._g, self._rhs, self._qkey, self._off, self._cost,
-            self._padded(self._goal), self._focus, target >= 0, self._heap, self._heap_size,
-            self._pool,
+            self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
+            self._focus, bound, self._budget if target >= 0 else self._g.size,
+            self._heap, self._heap_size, self._pool, self._tie, self._tie_size,
         )  # fmt: skip
+        if pops == r.CUT_OVER:
+            return self._dss(t0)
         if pops == k.OVERFLOW:
             return self._overflowed(t0)
         return UpdateStats(int(pops), int(touched), (time.perf_counter() - t0) * 1e3)
+
+    def costs_within(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """g over rows ``r0:r1`` and columns ``c0:c1``, exact (what the escape from the
+        inflation margin reads): the repair runs, focused on the window's centre, until every
+        free cell of it lies below the queue's smallest key; no further."""
+        self._require_plan()
+        window = self._interior(self._g)[r0:r1, c0:c1]
+        if not self.dss:
+            free = ~self._interior(self._blk)[r0:r1, c0:c1].astype(bool)
+            centre = self._padded(((r0 + r1 - 1) // 2, (c0 + c1 - 1) // 2))
+            self._aim(centre)
+            rows = np.abs(np.arange(r0, r1) + 1 - int(self._focus[1]))[:, None]
+            cols = np.abs(np.arange(c0, c1) + 1 - int(self._focus[2]))[None, :]
+            h = STRAIGHT * np.maximum(rows, cols) + (DIAGONAL - STRAIGHT) * np.minimum(rows, cols)
+            bound = -1
+            while True:
+                need = int((window.astype(np.int64) + h)[free].max(initial=0)) + int(self._focus[4])
+                if need <= bound or self._heap_size[0] == 0:
+                    break
+                bound = min(need, int(INF))
+                self._settle(centre, bound)
+                window = self._interior(self._g)[r0:r1, c0:c1]
+        return window.copy()
 
     def settle(self) -> UpdateStats:
         """Finish the repair everywhere (idle time); afterwards the stored field is exact."""

@@ -1,30 +1,39 @@
 """Compiled kernels of the focused EDS repair: ``g``, ``rhs`` and one queue that outlives a call.
 
-Terms are those of LPA* (Koenig, Likhachev and Furcy 2004), of which the paper's raise and
+Terms are those of LPA* and D* Lite (Koenig and Likhachev 2002), of which the paper's raise and
 lower are one schedule: ``g`` is the cost-to-goal field; ``rhs(v)`` is the one-step look-ahead,
 the least ``g(n) + c(v, n)`` over the free neighbours ``n`` (0 at the goal, INF on a blocked
 cell). A cell is *inconsistent* (the paper's ``incon``) when ``g != rhs``: over-consistent
 (``g > rhs``) when a cheaper way opened, under-consistent (``g < rhs``) when its way was cut.
-Every inconsistent cell waits in the queue under the key ``min(g, rhs)``, and no other cell does.
+Every inconsistent cell waits in the queue, and no other cell does, under the key
 
-Why the repair may stop early. When every key in the queue is greater than K, every cell with
-``g < K`` holds its exact cost: a consistent cell below K has a neighbour that gives it its g,
-so a chain of such cells leads down to the goal (g is the cost of a real path), and a cell
-whose exact cost is below K cannot be cheaper than g without an inconsistent cell below K on
-its way. A path from the user descends g from ``g(user)``, and every neighbour it compares
-lies below ``g(user)`` too; so the repair stops once the smallest key exceeds ``g(user)``,
-and the path it reads is the one Dijkstra from scratch gives, tie for tie. What lies farther
-from the goal than the user (the rest of a raise wave, fields behind the user) stays queued
-until a query reaches it; ``settle`` with no target empties the queue.
+    key(v) = min(g(v), rhs(v)) + h(user, v) + km
 
-The queue has two parts. Keys within the edge costs above the level being worked sit in Dial's
-fifteen buckets (``dial.py``): the wave of one call, O(1) a push. Keys far above it (a raised
-cell's new look-ahead, the changed cells, whatever a call leaves) wait in a binary heap of
-``key << 32 | cell``, which persists between calls. An entry is live only while
-``qkey[cell]`` still holds its key; a cell re-keyed is pushed again and its old entry skipped.
-When the heap fills it is compacted (stale entries dropped); should the live ones still not
-fit, a call returns ``OVERFLOW`` and the caller recomputes the field from scratch with larger
-arrays, which is always a correct answer.
+with ``h`` the octile distance in the planner's 10/14 units and ``km`` the sum of ``h`` over
+the user's moves since the queue was last empty (so that keys queued earlier stay lower bounds).
+
+Why the repair may stop early. Let K be the smallest key in the queue. (1) A consistent cell v
+with ``g(v) + h(v) + km < K`` has a neighbour n with ``g(v) = g(n) + c``, whose key is below K
+too (h is consistent), so n is consistent: a chain of such cells leads down to the goal and g(v)
+is the cost of a real path. (2) Every cell on a shortest path from a cell s with
+``g*(s) + h(s) + km < K`` is consistent — an inconsistent one would have a key below K — so by
+induction from the goal its g is exact. A path read from the user descends g from ``g(user)``,
+and the user's shortest paths, and every neighbour the path's tie-break compares, lie inside
+``g* + h <= g*(user)``. So the repair stops once K exceeds ``g(user) + km``, and the path it
+reads is the one Dijkstra from scratch gives, tie for tie. What lies outside waits in the queue
+until a query reaches it; ``settle`` with ``bounded`` False empties the queue.
+
+The queue. A neighbour's key lies within two edge costs above the key being expanded, so the
+wave of one call runs in 29 circular buckets (Dial's queue, ``dial.py``: O(1) a push). Other
+keys (a raised cell's new look-ahead, the changed cells, what a call leaves) wait in a binary
+heap of ``key << 32 | cell`` that persists between calls. An entry is live only while
+``qkey[cell]`` still holds its key: a cell re-keyed is pushed again and its old entry skipped.
+A full heap is compacted (stale entries dropped); when the live entries still do not fit, or a
+call's expansions pass its budget, a call returns ``OVERFLOW`` or ``CUT_OVER`` and the caller
+computes the field from scratch, which is always a correct answer.
+
+The hot loop of ``settle`` is written out in one function: a numba helper taking the arrays
+costs their reference counting on every call, which measured twice the whole repair.
 """
 
 from __future__ import annotations
@@ -32,24 +41,27 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .dial import INF, OVERFLOW, _new_queue, _pop, _push
 from ..grid import DIAGONAL, STRAIGHT
+from .dial import INF, OVERFLOW
 
 SHIFT = 32
 CELL = (1 << SHIFT) - 1
 NBR = 2 * DIAGONAL + 1
-"""Buckets of one repair: a neighbour's key lies within twice the largest edge cost of the
+"""Buckets of one repair: a neighbour's key lies within twice the largest edge cost above the
 key being expanded (one edge, and the heuristic's change along it)."""
 ROOM = 9
 """Queue entries one expansion may add: its eight neighbours and the cell itself."""
+CUT_OVER = -3
+"""Returned by ``settle`` past its budget of expansions: a plan from scratch is cheaper."""
 GOAL_BLOCKED = -4
 """Returned by ``apply_changes`` when the goal became blocked: every cost is INF; recompute."""
+OCTILE = DIAGONAL - STRAIGHT
 
 
 # -- the heap ------------------------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sift_down(heap, size, i, entry):
     while True:
         c = 2 * i + 1
@@ -64,7 +76,7 @@ def _sift_down(heap, size, i, entry):
     heap[i] = entry
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _heap_push(heap, hs, entry):
     i = hs[0]
     hs[0] = i + 1
@@ -77,7 +89,7 @@ def _heap_push(heap, hs, entry):
     heap[i] = entry
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _heap_pop(heap, hs):
     top = heap[0]
     size = hs[0] - 1
@@ -87,16 +99,13 @@ def _heap_pop(heap, hs):
     return top
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _heap_room(heap, hs, qkey, need):
     """True when ``need`` more entries fit, after dropping the stale ones if they do not. False
     also when the live entries fill more than three quarters of the heap: compacting again
     and again would cost more than a larger heap."""
-    return hs[0] + need <= heap.size or _compact(heap, hs, qkey, need)
-
-
-@njit(cache=True)
-def _compact(heap, hs, qkey, need):
+    if hs[0] + need <= heap.size:
+        return True
     live = 0
     for i in range(hs[0]):
         e = heap[i]
@@ -114,104 +123,43 @@ def live_entries(qkey: np.ndarray) -> int:
     return int(np.count_nonzero(qkey >= 0))
 
 
-# -- one cell ------------------------------------------------------------------------------
+# -- outside the hot loop ------------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
-def _lookahead(blk, g, off, cost, v):
+@njit(cache=True)
+def _lookahead(blk, g, nb, v):
     """rhs(v) from its free neighbours (not for the goal, whose rhs is 0)."""
     best = INF
     for k in range(8):
-        n = v + off[k]
+        n = v + nb[k, 0]
         if not blk[n]:
-            d = g[n] + cost[k]
+            d = g[n] + nb[k, 1]
             if d < best:
                 best = d
     return best
 
 
-@njit(cache=True, inline="always")
-def _key(g, rhs, v, focus):
-    """min(g, rhs) + h(start, v) + km: octile distance from the user's cell in 10/14 units,
-    plus what the user's moves since the queue's oldest keys took off them."""
-    dr = abs(v // focus[3] - focus[1])
-    dc = abs(v % focus[3] - focus[2])
-    h = STRAIGHT * max(dr, dc) + (DIAGONAL - STRAIGHT) * min(dr, dc)
-    return min(g[v], rhs[v]) + h + focus[4]
-
-
-@njit(cache=True, inline="always")
-def _requeue(g, rhs, qkey, v, focus, level, heap, hs, pool, head, meta):
-    """Queue v under its key if it is inconsistent (forget it if not). A key within the
-    buckets' reach of ``level`` goes to a bucket, any other to the heap (``level`` -1: outside a
-    repair, always the heap). Returns 1 when a bucket entry was added."""
+@njit(cache=True)
+def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
+    """Queue v in the heap under its key if it is inconsistent; forget it if not."""
     if g[v] == rhs[v]:
         qkey[v] = -1
-        return 0
-    key = _key(g, rhs, v, focus)
-    if qkey[v] == key:
-        return 0
-    qkey[v] = key
-    if level >= 0 and level <= key < level + NBR:
-        _push(pool, head, meta, v, key)
-        return 1
-    _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
-    return 0
+        return
+    r = v // focus[3]
+    dr, dc = abs(r - focus[1]), abs(v - r * focus[3] - focus[2])
+    key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + focus[4]
+    if qkey[v] != key:
+        qkey[v] = key
+        _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
 
 
-@njit(cache=True, inline="always")
-def _cut_from(blk, g, rhs, qkey, off, cost, goal, v, gold, focus, level, heap, hs, pool,
-              head, meta):
-    """v's g is gone (it was ``gold``): neighbours whose look-ahead came through v look again."""
-    queued = 0
-    touched = 0
-    for k in range(8):
-        n = v + off[k]
-        if blk[n] or n == goal or rhs[n] != gold + cost[k]:
-            continue
-        rhs[n] = _lookahead(blk, g, off, cost, n)
-        touched += 1
-        queued += _requeue(g, rhs, qkey, n, focus, level, heap, hs, pool, head, meta)
-    return queued, touched
-
-
-@njit(cache=True, inline="always")
-def _expand(blk, g, rhs, qkey, off, cost, goal, v, focus, level, heap, hs, pool, head, meta):
-    """Make v consistent: lower it to rhs, or raise it (g = INF) and queue it under its rhs.
-    Returns (bucket entries added, cells whose rhs was rewritten)."""
-    if g[v] > rhs[v]:  # over-consistent: its cost is rhs, final at this level
-        gv = rhs[v]
-        g[v] = gv
-        queued = 0
-        touched = 0
-        for k in range(8):
-            n = v + off[k]
-            if blk[n] or n == goal:
-                continue
-            d = gv + cost[k]
-            if d < rhs[n]:
-                rhs[n] = d
-                touched += 1
-                queued += _requeue(g, rhs, qkey, n, focus, level, heap, hs, pool, head, meta)
-        return queued, touched
-    gold = g[v]  # under-consistent: what v gave its neighbours is no longer there
-    g[v] = INF
-    queued, touched = _cut_from(blk, g, rhs, qkey, off, cost, goal, v, gold, focus, level, heap,
-                                hs, pool, head, meta)  # fmt: skip
-    queued += _requeue(g, rhs, qkey, v, focus, level, heap, hs, pool, head, meta)
-    return queued, touched
-
-
-# -- calls ---------------------------------------------------------------------------------
-
-
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _to_padded(flat, w):
     return (flat // w + 1) * (w + 2) + flat % w + 1
 
 
 @njit(cache=True)
-def apply_changes(blk, g, rhs, qkey, off, cost, goal, focus, w, n_cells, cells, values, heap, hs):
+def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values, heap, hs):
     """Set ``blk[cells] = values`` (unpadded flat indices) and queue what became inconsistent:
     a newly blocked cell drops to INF at once (no neighbour reads a blocked cell) and its
     neighbours that looked through it look again; a freed cell looks at its neighbours.
@@ -230,43 +178,59 @@ def apply_changes(blk, g, rhs, qkey, off, cost, goal, focus, w, n_cells, cells, 
         blk[_to_padded(cells[i], w)] = values[i]
     if blk[goal]:
         return GOAL_BLOCKED, 0
-    head, meta = _new_queue()  # unused outside a repair: every key goes to the heap
-    pool = np.empty((0, 2), np.int64)
     touched = 0
-    for i in range(cells.size):
+    for i in range(cells.size):  # newly blocked
         v = _to_padded(cells[i], w)
         if not blk[v] or was[i]:
             continue
         gold = g[v]
-        g[v] = INF
-        rhs[v] = INF
+        g[v] = rhs[v] = INF
         qkey[v] = -1
-        if gold < INF:
-            if not _heap_room(heap, hs, qkey, ROOM):
-                return OVERFLOW, 0
-            _, t = _cut_from(blk, g, rhs, qkey, off, cost, goal, v, gold, focus, -1, heap, hs,
-                             pool, head, meta)  # fmt: skip
-            touched += t
-    for i in range(cells.size):
+        if gold >= INF:
+            continue
+        if not _heap_room(heap, hs, qkey, ROOM):
+            return OVERFLOW, 0
+        for k in range(8):
+            n = v + nb[k, 0]
+            if not blk[n] and n != goal and rhs[n] == gold + nb[k, 1]:
+                rhs[n] = _lookahead(blk, g, nb, n)
+                touched += 1
+                _queue_in_heap(g, rhs, qkey, focus, n, heap, hs)
+    for i in range(cells.size):  # newly freed
         v = _to_padded(cells[i], w)
         if blk[v] or not was[i]:
             continue
-        rhs[v] = 0 if v == goal else _lookahead(blk, g, off, cost, v)
+        rhs[v] = 0 if v == goal else _lookahead(blk, g, nb, v)
         touched += 1
         if not _heap_room(heap, hs, qkey, 1):
             return OVERFLOW, 0
-        _requeue(g, rhs, qkey, v, focus, -1, heap, hs, pool, head, meta)
+        _queue_in_heap(g, rhs, qkey, focus, v, heap, hs)
     return 0, touched
 
 
+# -- the repair ----------------------------------------------------------------------------
+
+
 @njit(cache=True)
-def settle(blk, g, rhs, qkey, off, cost, goal, focus, bounded, heap, hs, pool):
-    """Repair in key order. ``bounded``: until the smallest key exceeds the user's own,
-    ``g(start) + km`` (with ``h(start, start)`` 0); else until nothing is inconsistent.
-    Returns (expansions, rhs rewrites), or (OVERFLOW, 0)."""
-    head, meta = _new_queue(NBR)
-    start = focus[0]
+def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, tie, ts):
+    """Repair in key order until the smallest key exceeds ``bound``: -1 means the user's own
+    key, ``g(start) + km`` (``h(start, start)`` is 0), as it stands; ``INF`` means until
+    nothing is inconsistent.
+    ``nb[k]`` is neighbour k's (padded offset, edge cost, row step, column step); ``focus`` is
+    (start, its row, its column, padded width, km); ``pool`` holds the buckets' entries;
+    ``tie`` (size in ``ts``) orders the cells of one key by ``min(g, rhs)``, as LPA*'s second
+    key does: a cell that gives another its look-ahead is expanded first, so that no cell is
+    lowered on a value about to be raised.
+
+    Returns (expansions, rhs rewrites); (CUT_OVER, 0) past ``budget`` expansions (the field is
+    half repaired: the caller computes it from scratch), or (OVERFLOW, 0).
+    """
+    start, sr, sc, width, km = focus[0], focus[1], focus[2], focus[3], focus[4]
+    head = np.full(NBR, -1, np.int64)  # bucket -> its newest entry in pool
+    free = -1  # entries given back, linked through pool[e, 1]
+    used = 0  # entries ever taken
     pending = 0  # bucket entries, live or stale
+    ts[0] = 0
     pops = touched = 0
     level = 0
     while True:
@@ -274,42 +238,116 @@ def settle(blk, g, rhs, qkey, off, cost, goal, focus, bounded, heap, hs, pool):
             if hs[0] == 0:
                 break
             level = heap[0] >> SHIFT
-        if bounded and level > g[start] + focus[4]:
+        if level > (g[start] + km if bound < 0 else bound):
             break
-        b = level % NBR
-        while True:  # every entry keyed at level, from the heap or the bucket
-            if hs[0] > 0 and heap[0] >> SHIFT <= level:
-                e = _heap_pop(heap, hs)
-                v = e & CELL
-                if qkey[v] != e >> SHIFT:
-                    continue
-            elif head[b] >= 0:
-                v = _pop(pool, head, meta, b)
-                pending -= 1
-                if qkey[v] != level:
-                    continue
-            else:
-                break
-            if pending + ROOM > pool.shape[0] or not _heap_room(heap, hs, qkey, ROOM):
-                return OVERFLOW, 0
-            key = _key(g, rhs, v, focus)
+        # This level's cells, from the heap and from its bucket, into the tie queue.
+        while hs[0] > 0 and heap[0] >> SHIFT <= level:
+            e = _heap_pop(heap, hs)
+            v = e & CELL
+            if qkey[v] != e >> SHIFT:
+                continue  # stale
+            r = v // width
+            dr, dc = abs(r - sr), abs(v - r * width - sc)
+            key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
             if key > level:  # keyed before the user moved: a lower bound; queue it truly
-                qkey[v] = -1
-                pending += _requeue(g, rhs, qkey, v, focus, level, heap, hs, pool, head, meta)
+                qkey[v] = key
+                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
                 continue
+            if ts[0] + 1 > tie.size:
+                return OVERFLOW, 0
+            _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
+        b = level % NBR
+        e = head[b]
+        while e >= 0:
+            v = pool[e, 0]
+            nxt = pool[e, 1]
+            pool[e, 1] = free
+            free = e
+            pending -= 1
+            if qkey[v] == level:
+                if ts[0] + 1 > tie.size:
+                    return OVERFLOW, 0
+                _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
+            e = nxt
+        head[b] = -1
+        while ts[0] > 0:
+            v = _heap_pop(tie, ts) & CELL
+            if qkey[v] != level:
+                continue  # stale
+            if pops >= budget:
+                return CUT_OVER, 0
+            if (
+                pending + ROOM > pool.shape[0]
+                or ts[0] + ROOM > tie.size
+                or not _heap_room(heap, hs, qkey, ROOM)
+            ):
+                return OVERFLOW, 0
             qkey[v] = -1
             pops += 1
-            queued, t = _expand(blk, g, rhs, qkey, off, cost, goal, v, focus, level, heap, hs,
-                                pool, head, meta)  # fmt: skip
-            pending += queued
-            touched += t + 1
+            r = v // width
+            c = v - r * width
+            # Make v consistent: lower it to rhs, or raise it (g = INF) and let the neighbours
+            # whose look-ahead came through it look again.
+            lowering = g[v] > rhs[v]
+            gold = g[v]
+            g[v] = rhs[v] if lowering else INF
+            for k in range(8):
+                n = v + nb[k, 0]
+                if blk[n] or n == goal:
+                    continue
+                if lowering:
+                    d = g[v] + nb[k, 1]
+                    if d >= rhs[n]:
+                        continue
+                    rhs[n] = d
+                else:
+                    if rhs[n] != gold + nb[k, 1]:
+                        continue
+                    best = INF
+                    for j in range(8):
+                        m = n + nb[j, 0]
+                        if not blk[m] and g[m] + nb[j, 1] < best:
+                            best = g[m] + nb[j, 1]
+                    rhs[n] = best
+                touched += 1
+                low = min(g[n], rhs[n])
+                if g[n] == rhs[n]:
+                    qkey[n] = -1
+                    continue
+                dr, dc = abs(r + nb[k, 2] - sr), abs(c + nb[k, 3] - sc)
+                key = low + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                if qkey[n] == key:
+                    continue
+                qkey[n] = key
+                if key == level:
+                    _heap_push(tie, ts, (np.int64(low) << SHIFT) | n)
+                elif level < key < level + NBR:  # a bucket
+                    if free >= 0:
+                        e = free
+                        free = pool[e, 1]
+                    else:
+                        e = used
+                        used += 1
+                    pool[e, 0] = n
+                    pool[e, 1] = head[key % NBR]
+                    head[key % NBR] = e
+                    pending += 1
+                else:
+                    _heap_push(heap, hs, (np.int64(key) << SHIFT) | n)
+            if not lowering and rhs[v] < INF:  # raised: it waits for its new look-ahead
+                dr, dc = abs(r - sr), abs(c - sc)
+                key = rhs[v] + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                qkey[v] = key
+                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
         level += 1
     # What the buckets still hold waits in the heap for the next call.
     for b in range(NBR):
-        while head[b] >= 0:
-            v = _pop(pool, head, meta, b)
+        e = head[b]
+        while e >= 0:
+            v = pool[e, 0]
             if qkey[v] >= 0 and qkey[v] % NBR == b:
                 if not _heap_room(heap, hs, qkey, 1):
                     return OVERFLOW, 0
                 _heap_push(heap, hs, (np.int64(qkey[v]) << SHIFT) | v)
+            e = pool[e, 1]
     return pops, touched
