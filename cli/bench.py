@@ -17,6 +17,9 @@ from cli.options import comma_list
 
 
 def bench(
+    scenario: Annotated[
+        str, typer.Option(help="Scenarios, comma separated: courtyard, explore, building, streets.")
+    ] = "courtyard",
     grid: Annotated[str, typer.Option(help="Grid sides, comma separated (100: 10 cm).")] = (
         "100,200,400"
     ),
@@ -24,7 +27,7 @@ def bench(
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     variant: Annotated[str, typer.Option(help="fast, or paper (its Figure 4 form).")] = "fast",
     planner: Annotated[
-        str, typer.Option("--planner", "--modes", help="Planners to walk with: eds, dss.")
+        str, typer.Option("--planner", "--modes", help="Planners to walk with: eds, dss, astar.")
     ] = "eds,dss",
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     repeats: Annotated[int, typer.Option(min=1, help="Walks per table cell, times pooled.")] = 1,
@@ -35,21 +38,27 @@ def bench(
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Save a Figure 9-like plot.")] = None,
 ) -> None:
-    """Walk the simulated courtyard with EDS and DSS; print Steps, Iter_avg and ms per step."""
+    """Walk the simulated scenarios with each planner; print Steps, Iter_avg and ms per step."""
     from rich import box
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from sim.benchmark import BenchConfig, run_bench, table_rows
+    from sim.benchmark import TABLE1_HEADS, TABLE2_HEADS, BenchConfig, run_bench, table_rows
+    from sim.scenarios import scenario_list
     from sim.walk import MODES
 
     mode_list = [m.strip() for m in planner.split(",") if m.strip()]
     if not mode_list or any(m not in MODES for m in mode_list):
         raise typer.BadParameter(f"{planner!r}: choose from {', '.join(MODES)}", "--planner")
+    try:
+        scenarios = scenario_list(scenario)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--scenario") from exc
     config = BenchConfig(
         grids=comma_list(grid, int),
         unknowns=comma_list(unknown, float),
+        scenarios=scenarios,
         backend=backend,
         variant=variant,
         modes=mode_list,
@@ -58,6 +67,10 @@ def bench(
         fov_deg=fov,
         max_steps=max_steps,
     )
+    try:
+        config.check()
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--grid") from exc
     console = Console()
     columns = (
         TextColumn("[progress.description]{task.description}"),
@@ -77,18 +90,27 @@ def bench(
     table1 = Table(
         title=f"Steps and Iter_avg ({result.rows[0]['backend']}, {variant})", box=box.SIMPLE_HEAD
     )
-    for name in ("grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps", "EDS Iter_avg"):
+    for name in TABLE1_HEADS:
         table1.add_column(name, justify="right")
     table2 = Table(title="ms per replanning step (update or replan + path)", box=box.SIMPLE_HEAD)
-    for name in ("grid", "unknown", "DSS\nmedian", "DSS\np99", "DSS\nmax", "DSS\nwalk",
-                 "EDS\nmedian", "EDS\np99", "EDS\nmax", "EDS\nwalk", "DSS/\nEDS"):  # fmt: skip
-        table2.add_column(name, justify="right", no_wrap=True)
+    for name in TABLE2_HEADS:  # "DSS med" → "DSS\nmed": narrow columns
+        table2.add_column(name.replace(" ", "\n").replace("/", "/\n"), justify="right",
+                          no_wrap=True)  # fmt: skip
     for cells in t1:
         table1.add_row(*cells)
     for cells in t2:
         table2.add_row(*cells)
     console.print(table1)
     console.print(table2)
+    if any(m not in ("eds", "dss") for m in mode_list):  # the paper's tables show only those two
+        from sim.benchmark import PLANNER_HEADS, planner_rows
+
+        table3 = Table(title="ms per replanning step, by planner", box=box.SIMPLE_HEAD)
+        for name in PLANNER_HEADS:
+            table3.add_column(name, justify="right", no_wrap=True)
+        for cells in planner_rows(result.rows):
+            table3.add_row(*cells)
+        console.print(table3)
     console.print(f"device: {result.device}")
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)

@@ -9,6 +9,9 @@ import typer
 
 
 def render(
+    scenario: Annotated[
+        str, typer.Option(help="courtyard, explore, building or streets (see bench).")
+    ] = "courtyard",
     grid: Annotated[int, typer.Option(help="Grid side (100 = 10 cm cells).")] = 100,
     unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
@@ -18,16 +21,19 @@ def render(
     out: Annotated[Path, typer.Option(help="PNG to write.")] = Path("walk.png"),
 ) -> None:
     """Walk one scenario and save a picture of the map, what was seen and the path walked."""
-    from sim.courtyard import make_courtyard
     from sim.render import render_walk
+    from sim.scenarios import make_scenario
     from sim.walk import walk
 
     if mode not in ("eds", "dss"):
         raise typer.BadParameter("choose eds or dss", param_hint="--mode")
-    scenario = make_courtyard(grid=grid, unknown=unknown, seed=seed)
-    result = walk(scenario, backend=backend, mode=mode, fov_deg=fov)
+    try:
+        world = make_scenario(scenario, grid, unknown, seed)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--scenario or --grid") from exc
+    result = walk(world, backend=backend, mode=mode, fov_deg=fov)
     out.parent.mkdir(parents=True, exist_ok=True)
-    render_walk(scenario, result, out)
+    render_walk(world, result, out)
     typer.echo(
         f"{result.reason}: {result.steps} steps, path {result.walked_m:.1f} m; picture in {out}"
     )

@@ -17,7 +17,8 @@ def run(
         typer.Option(help="TOML file; default $GUIDEBELT_CONFIG or /etc/guidebelt/guidebelt.toml"),
     ] = None,
     planner: Annotated[
-        str | None, typer.Option(help="A planner of the registry (eds, dss); overrides the config.")
+        str | None,
+        typer.Option(help="A planner of the registry (eds, dss, astar); overrides the config."),
     ] = None,
 ) -> None:
     """Serve goals, poses and map deltas over zenoh until SIGTERM."""

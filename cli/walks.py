@@ -1,4 +1,4 @@
-"""``guidebelt walks``: courtyard walks by a simulated user who follows the belt.
+"""``guidebelt walks``: walks by a simulated user who follows the belt (courtyard and others).
 
 Only typer and the standard library at the top; numpy, the planner, guidance and matplotlib
 are imported inside the command.
@@ -21,11 +21,16 @@ def walks(
     follow: Annotated[
         str, typer.Option(help="Who walks: belt (the walker that feels the belt).")
     ] = "belt",
-    runs: Annotated[int, typer.Option(min=1, help="Seeded courtyards per grid and density.")] = 100,
+    runs: Annotated[int, typer.Option(min=1, help="Seeded worlds per grid and density.")] = 100,
+    scenario: Annotated[
+        str, typer.Option(help="Scenarios, comma separated: courtyard, explore, building, streets.")
+    ] = "courtyard",
     grid: Annotated[str, typer.Option(help="Grid sides, comma separated.")] = "100,200",
     unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
     backend: Annotated[str, typer.Option(help="Planner: cpu, cuda, auto or reference.")] = "cpu",
-    planner: Annotated[str, typer.Option(help="A planner of the registry: eds, dss.")] = "eds",
+    planner: Annotated[
+        str, typer.Option(help="A planner of the registry: eds, dss, astar.")
+    ] = "eds",
     smooth: Annotated[bool, typer.Option(help="Rubber-band smoothing before guidance.")] = False,
     seed: Annotated[int, typer.Option(help="First seed; run i uses seed + i.")] = 0,
     jobs: Annotated[int, typer.Option(min=1, help="Worker processes.")] = 1,
@@ -47,11 +52,12 @@ def walks(
         typer.Option(help="Also measure smoothing: turning-angle histograms saved here (PNG)."),
     ] = None,
 ) -> None:
-    """Walk seeded courtyards by feel; print success, length ratio, collisions, cues."""
+    """Walk seeded worlds by feel; print success, length ratio, collisions, cues."""
     from rich.console import Console
     from rich.table import Table
 
     from sim.belt_walker import WalkerParams
+    from sim.scenarios import check_grid, scenario_list
     from sim.walks import run_table
 
     if follow != "belt":
@@ -61,6 +67,16 @@ def walks(
         _crossing(console, runs, seed, json_out)
         return
     grids, unknowns = comma_list(grid, int), comma_list(unknown, float)
+    try:
+        scenarios = scenario_list(scenario)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--scenario") from exc
+    try:
+        for name in scenarios:
+            for g in grids:
+                check_grid(name, g)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--grid") from exc
     if table:
         t0 = time.perf_counter()
         with console.status("walking…") as status:
@@ -70,18 +86,22 @@ def walks(
                 params=WalkerParams(
                     step_m=step_m, perception_sd_deg=perception_sd, gait_sd_deg=gait_sd
                 ),
-                on_row=lambda r: status.update(f"done {r['grid']} @ {r['unknown']:.0%}"),
+                on_row=lambda r: status.update(
+                    f"done {r['scenario']} {r['grid']} @ {r['unknown']:.0%}"
+                ),
+                scenarios=scenarios,
             )
         shown = Table(title=f"walks that follow the belt ({runs} runs each, {backend})")
-        for name in ("grid", "unknown", "runs", "success", "length ratio", "max ratio",
+        for name in ("scenario", "grid", "unknown", "runs", "success", "length ratio", "max ratio",
                      "collisions", "cues/walk", "holds"):  # fmt: skip
             shown.add_column(name, justify="right")
         for r in rows:
             shown.add_row(
-                str(r["grid"]), f"{r['unknown']:.0%}", str(r["runs"]), f"{r['success_rate']:.1%}",
-                f"{r['length_ratio']:.3f}", f"{r['length_ratio_max']:.3f}", str(r["collisions"]),
+                r["scenario"], str(r["grid"]), f"{r['unknown']:.0%}", str(r["runs"]),
+                f"{r['success_rate']:.1%}", _ratio(r["length_ratio"]),
+                _ratio(r["length_ratio_max"]), str(r["collisions"]),
                 f"{r['cues_per_walk']:.1f}", str(r["holds"]),
-            )
+            )  # fmt: skip
         console.print(shown)
         took = time.perf_counter() - t0
         console.print(f"{took:.1f} s on {platform.node()} ({platform.machine()})")
@@ -109,6 +129,11 @@ def walks(
             )
         console.print(lengths)
         console.print(f"plot written to {smoothing_plot}")
+
+
+def _ratio(value: float | None) -> str:
+    """A length ratio, or a dash where no walk arrived (the row has None)."""
+    return "-" if value is None else f"{value:.3f}"
 
 
 def _crossing(console, runs: int, seed: int, json_out: Path | None) -> None:

@@ -1,8 +1,9 @@
 """Print the short table of ``scripts/gpu_check.sh``: cuda against cpu, and the targets.
 
-Reads ``bench_cuda.json`` and ``bench_big_cuda.json`` (``guidebelt bench`` rows: the walk
-through the daemon's navigator), ``dss.json`` (``scripts/time_dss.py`` rows) and
-``device.txt`` from the folder given; missing files are skipped. The target is on the median
+Reads ``bench_cuda.json``, ``bench_big_cuda.json``, ``bench_2000_cuda.json`` and
+``bench_scen_cuda.json`` (``guidebelt bench`` rows: the walk through the daemon's navigator),
+``dss.json`` (``scripts/time_dss.py`` rows) and ``device.txt`` from the folder given; missing
+files are skipped. The target is on the median
 replanning step (repair + path to the host).
 
     python3 scripts/gpu_table.py out/gpu_check
@@ -14,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-# (grid, mode) -> the issue's target on an H100, ms per step.
+# (grid, mode) -> the issue's target on an H100, ms per step: the courtyard's walk only.
 TARGETS = {(400, "eds"): 0.1, (400, "dss"): 0.25, (2000, "eds"): 1.0, (2000, "dss"): 2.0}
 
 
@@ -31,16 +32,18 @@ def main() -> None:
     print("\n" + " | ".join(line for line in device if line))
     print("closed-loop walk, ms per replanning step (repair + path); nav = the navigator's step")
     print("(own: the planner's own time for the same calls, without the navigator around them)")
-    print(f"{'grid':>5} {'unk':>4} {'mode':4} {'planner':16} {'steps':>6} {'median':>7} "
-          f"{'p99':>7} {'max':>7} {'walk':>8} {'own med':>7} {'nav med':>7} {'nav p99':>7} "
-          f"{'target':>8}")  # fmt: skip
-    for name in ("bench_cuda", "bench_big_cuda", "bench_2000_cuda"):
+    print(f"{'scenario':9} {'grid':>5} {'unk':>4} {'mode':4} {'planner':16} {'steps':>6} "
+          f"{'median':>7} {'p99':>7} {'max':>7} {'walk':>8} {'own med':>7} {'nav med':>7} "
+          f"{'nav p99':>7} {'target':>8}")  # fmt: skip
+    for name in ("bench_cuda", "bench_big_cuda", "bench_2000_cuda", "bench_scen_cuda"):
         for r in load(out / f"{name}.json"):
-            target = TARGETS.get((r["grid"], r["mode"]))
+            # rows from before the scenario field are the courtyard's
+            scenario = r.get("scenario", "courtyard")
+            target = TARGETS.get((r["grid"], r["mode"])) if scenario == "courtyard" else None
             mark = "" if target is None else ("ok" if r["ms_median"] <= target else "MISS")
             steps = f"{r['steps']}" + ("c" if r.get("capped") else "")
-            print(f"{r['grid']:5} {r['unknown']:4} {r['mode']:4} {r['planner']:16} {steps:>6} "
-                  f"{r['ms_median']:7.3f} {r['ms_p99']:7.3f} {r['ms_max']:7.3f} "
+            print(f"{scenario:9} {r['grid']:5} {r['unknown']:4} {r['mode']:4} {r['planner']:16} "
+                  f"{steps:>6} {r['ms_median']:7.3f} {r['ms_p99']:7.3f} {r['ms_max']:7.3f} "
                   f"{r['walk_ms']:8.1f} {r['plan_ms_median']:7.3f} {r['nav_ms_median']:7.3f} "
                   f"{r['nav_ms_p99']:7.3f} "
                   f"{(f'{target:g} ' + mark) if target else '':>8}")  # fmt: skip

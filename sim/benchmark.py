@@ -1,11 +1,12 @@
-"""The paper's benchmark: closed-loop walks over grids x unknown fractions, EDS against DSS.
+"""The paper's benchmark: closed-loop walks over scenarios x grids x unknown fractions.
 
-For every grid side and unknown fraction one seeded courtyard is walked with each planner
-(``repeats`` times) by the daemon's own ``Navigator`` (``walk.py``); a row per (grid, unknown,
-mode) holds Steps and Iter_avg (the paper's Table 1) and the milliseconds per replanning step
-(its Table 2: repair plus the path from the user's cell, wall clock) with its median, p95, p99,
-max and the whole walk's total — a user feels the slowest step — and the navigator's whole
-step (map, planner, guidance) beside it. The per-step times feed a Figure 9-like plot.
+For every scenario (``scenarios.py``: the paper's courtyard by default), grid side and unknown
+fraction one seeded world is walked with each planner (``repeats`` times) by the daemon's own
+``Navigator`` (``walk.py``); a row per (scenario, grid, unknown, mode) holds Steps and
+Iter_avg (the paper's Table 1) and the milliseconds per replanning step (its Table 2: repair
+plus the path from the user's cell, wall clock) with its median, p95, p99, max and the whole
+walk's total — a user feels the slowest step — and the navigator's whole step (map, planner,
+guidance) beside it. The per-step times feed a Figure 9-like plot.
 
 matplotlib is imported only to plot.
 """
@@ -23,10 +24,11 @@ import numpy as np
 from daemon.planning import resolve_backend
 
 from .courtyard import make_courtyard
-from .walk import walk
+from .scenarios import SCENARIOS, check_grid, make_scenario, scenario_list
+from .walk import MODES, walk
 
 ROW_FIELDS = (
-    "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
+    "scenario", "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
     "ms_median", "ms_mean", "ms_p95", "ms_p99", "ms_max", "walk_ms",
     "nav_ms_median", "nav_ms_p99", "nav_ms_max", "inflate_ms_median", "device",
 )  # fmt: skip
@@ -37,6 +39,8 @@ ROW_FIELDS = (
 class BenchConfig:
     grids: list[int]
     unknowns: list[float]
+    scenarios: list[str] = field(default_factory=lambda: ["courtyard"])
+    """Names of ``sim.scenarios.SCENARIOS``; each is walked at every grid and fraction."""
     backend: str = "cpu"
     variant: str = "fast"
     modes: list[str] = field(default_factory=lambda: ["eds", "dss"])
@@ -47,14 +51,24 @@ class BenchConfig:
     """Stop each walk after this many steps (big grids within a time limit); rows say so."""
 
     def total_walks(self) -> int:
-        return len(self.grids) * len(self.unknowns) * len(self.modes) * self.repeats
+        cells = len(self.scenarios) * len(self.grids) * len(self.unknowns)
+        return cells * len(self.modes) * self.repeats
+
+    def check(self) -> None:
+        """ValueError for a scenario not known or a grid it cannot be drawn at, before any walk."""
+        if not self.scenarios:
+            raise ValueError("no scenario to walk")
+        for name in self.scenarios:
+            for grid in self.grids:
+                check_grid(name, grid)
 
 
 @dataclass
 class BenchResult:
     rows: list[dict]
-    series: dict[tuple[int, float, str], np.ndarray]
-    """Per-step ms along the walk (median over repeats) for each (grid, unknown, mode)."""
+    series: dict[tuple[str, int, float, str], np.ndarray]
+    """Per-step ms along the walk (median over repeats) for each (scenario, grid, unknown,
+    mode)."""
     device: str
 
 
@@ -91,67 +105,73 @@ def run_bench(
     on_walk: Callable[[str], None] | None = None,
     on_start: Callable[[str], None] | None = None,
 ) -> BenchResult:
-    """Walk every (grid, unknown, mode) ``repeats`` times; one row per (grid, unknown, mode)."""
+    """Walk every (scenario, grid, unknown, mode) ``repeats`` times; a row for each."""
+    config.check()
     backend = resolve_backend(config.backend)
     device = device_name(backend)
     if on_start is not None:
         on_start("warming up")
     warm_up(backend, config.variant, config.modes)
     rows: list[dict] = []
-    series: dict[tuple[int, float, str], np.ndarray] = {}
-    for grid in config.grids:
-        for unknown in config.unknowns:
-            scenario = make_courtyard(grid=grid, unknown=unknown, seed=config.seed)
-            walked: dict[str, np.ndarray] = {}
-            for mode in config.modes:
-                label = f"{grid}x{grid} {unknown:.0%} {mode.upper()}"
-                runs = []
-                for _ in range(config.repeats):
-                    if on_start is not None:
-                        on_start(label)
-                    runs.append(walk(scenario, backend=backend, variant=config.variant,
-                                     mode=mode, fov_deg=config.fov_deg,
-                                     max_steps=config.max_steps))
-                    if on_walk is not None:
-                        on_walk(label)
-                first = runs[0]
-                walked[mode] = first.walked
-                step_ms = np.concatenate([r.step_ms for r in runs])
-                series[(grid, unknown, mode)] = np.median(np.stack([r.step_ms for r in runs]),
-                                                          axis=0)
-                rows.append({
-                    "grid": grid,
-                    "unknown": unknown,
-                    "coverage": round(scenario.coverage, 4),
-                    "seed": config.seed,
-                    "backend": backend,
-                    "variant": config.variant,
-                    "mode": mode,
-                    "planner": first.planner,
-                    "steps": first.steps,
-                    "arrived": first.arrived,
-                    "capped": config.max_steps is not None and first.reason == "step limit",
-                    "max_steps": config.max_steps,
-                    "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
-                    "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
-                    "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
-                    **spread("ms", step_ms),
-                    "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
-                    **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
-                    "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
-                    "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
-                    "inflate_ms_median": float(
-                        np.median(np.concatenate([r.inflate_ms for r in runs]))
-                    ),
-                    "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
-                    "init_ms": float(np.median([r.init_ms for r in runs])),
-                    "repeats": config.repeats,
-                    "fov_deg": config.fov_deg,
-                    "device": device,
-                })
-            if len(walked) == 2:
-                same = bool(np.array_equal(walked["eds"], walked["dss"]))
-                for row in rows[-2:]:
+    series: dict[tuple[str, int, float, str], np.ndarray] = {}
+    cells = [(n, g, u) for n in config.scenarios for g in config.grids for u in config.unknowns]
+    for name, grid, unknown in cells:
+        scenario = make_scenario(name, grid, unknown, config.seed)
+        walked: dict[str, np.ndarray] = {}
+        for mode in config.modes:
+            label = f"{name} {grid}x{grid} {unknown:.0%} {mode.upper()}"
+            runs = []
+            for _ in range(config.repeats):
+                if on_start is not None:
+                    on_start(label)
+                runs.append(walk(scenario, backend=backend, variant=config.variant, mode=mode,
+                                 fov_deg=config.fov_deg, max_steps=config.max_steps))  # fmt: skip
+                if on_walk is not None:
+                    on_walk(label)
+            first = runs[0]
+            walked[mode] = first.walked
+            step_ms = np.concatenate([r.step_ms for r in runs])
+            series[(name, grid, unknown, mode)] = np.median(
+                np.stack([r.step_ms for r in runs]), axis=0
+            )
+            rows.append({
+                "scenario": name,
+                "grid": grid,
+                "unknown": unknown,
+                "coverage": round(scenario.coverage, 4),
+                "seed": config.seed,
+                "backend": backend,
+                "variant": config.variant,
+                "mode": mode,
+                "planner": first.planner,
+                "steps": first.steps,
+                "arrived": first.arrived,
+                "capped": config.max_steps is not None and first.reason == "step limit",
+                "max_steps": config.max_steps,
+                "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
+                "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
+                "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
+                **spread("ms", step_ms),
+                "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
+                **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
+                "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
+                "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
+                "inflate_ms_median": float(
+                    np.median(np.concatenate([r.inflate_ms for r in runs]))
+                ),
+                "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
+                "init_ms": float(np.median([r.init_ms for r in runs])),
+                # A*'s open list (issue 22); -1 for a planner that keeps a field.
+                "max_open": int(first.max_open.max(initial=-1)),
+                "max_open_median": float(np.median(first.max_open)) if first.steps else -1.0,
+                "repeats": config.repeats,
+                "fov_deg": config.fov_deg,
+                "device": device,
+            })
+        if "eds" in walked and "dss" in walked:  # the same field: the same cells
+            same = bool(np.array_equal(walked["eds"], walked["dss"]))
+            for row in rows[-len(walked) :]:
+                if row["mode"] in ("eds", "dss"):
                     row["same_walk"] = same
     return BenchResult(rows=rows, series=series, device=device)
 
@@ -169,18 +189,20 @@ def spread(prefix: str, ms: np.ndarray) -> dict[str, float]:
 
 
 def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
-    """The paper's two tables as text cells, one line per (grid, unknown).
+    """The paper's two tables as text cells, one line per (scenario, grid, unknown).
 
     Table 1: Steps and Iter_avg for DSS and EDS. Table 2: ms per replanning step (median,
     p99, max, and the walk's total) for DSS and EDS, and the DSS/EDS ratio of medians.
+    Rows written before scenarios existed are the courtyard's.
     """
-    by_key: dict[tuple[int, float], dict[str, dict]] = {}
+    by_key: dict[tuple[str, int, float], dict[str, dict]] = {}
     for row in rows:
-        by_key.setdefault((row["grid"], row["unknown"]), {})[row["mode"]] = row
+        key = (row.get("scenario", "courtyard"), row["grid"], row["unknown"])
+        by_key.setdefault(key, {})[row["mode"]] = row
     t1: list[list[str]] = []
     t2: list[list[str]] = []
-    for (grid, unknown), modes in by_key.items():
-        head = [f"{grid}", f"{unknown:.0%}"]
+    for (name, grid, unknown), modes in by_key.items():
+        head = [name, f"{grid}", f"{unknown:.0%}"]
         cells1, cells2 = list(head), list(head)
         for mode in ("dss", "eds"):
             r = modes.get(mode)
@@ -203,6 +225,34 @@ def table_rows(rows: list[dict]) -> tuple[list[list[str]], list[list[str]]]:
     return t1, t2
 
 
+TABLE1_HEADS = ("scenario", "grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps",
+                "EDS Iter_avg")  # fmt: skip
+TABLE2_HEADS = ("scenario", "grid", "unknown", "DSS med", "DSS p99", "DSS max", "DSS walk",
+                "EDS med", "EDS p99", "EDS max", "EDS walk", "DSS/EDS")  # fmt: skip
+"""Column heads of ``table_rows``'s two tables, for whoever prints them."""
+
+
+PLANNER_HEADS = ("scenario", "grid", "unknown", "planner", "steps", "Iter_avg", "median",
+                 "p99", "max", "walk", "open max")  # fmt: skip
+
+
+def planner_rows(rows: list[dict]) -> list[list[str]]:
+    """One line per (scenario, grid, unknown, planner), in the rows' order: Steps, Iter_avg and
+    the ms per replanning step (median, p99, max, the walk's total) and the largest open list of a
+    searching planner (A*; ``-`` for a field) — every planner, not only the paper's two
+    (``table_rows``)."""
+    out = []
+    for r in rows:
+        steps = f"{r['steps']}" + ("" if r["arrived"] else " (not arrived)")
+        if r.get("capped"):
+            steps = f"{r['steps']} (capped)"
+        out.append([r.get("scenario", "courtyard"), f"{r['grid']}", f"{r['unknown']:.0%}",
+                    r["mode"], steps, f"{r['iter_avg']:.1f}", *(f"{r[k]:.3f}" for k in
+                    ("ms_median", "ms_p99", "ms_max")), f"{r['walk_ms']:.0f}",
+                    f"{r['max_open']}" if r.get("max_open", -1) >= 0 else "-"])  # fmt: skip
+    return out
+
+
 def plot_steps(result: BenchResult, out: Path | str) -> Path:
     """Time per replanning step along each walk, DSS against EDS (like the paper's Figure 9)."""
     import matplotlib
@@ -210,29 +260,29 @@ def plot_steps(result: BenchResult, out: Path | str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    grids = sorted({k[0] for k in result.series})
-    unknowns = sorted({k[1] for k in result.series})
+    panels = list(dict.fromkeys((k[0], k[1]) for k in result.series))  # (scenario, grid)
+    unknowns = sorted({k[2] for k in result.series})
     fig, axes = plt.subplots(
-        len(grids), len(unknowns), figsize=(4.2 * len(unknowns), 3.0 * len(grids)),
+        len(panels), len(unknowns), figsize=(4.2 * len(unknowns), 3.0 * len(panels)),
         squeeze=False, sharex="row",
-    )
+    )  # fmt: skip
     colours = {"dss": (0.85, 0.3, 0.1), "eds": (0.1, 0.35, 0.9)}
-    for i, grid in enumerate(grids):
+    for i, (name, grid) in enumerate(panels):
         for j, unknown in enumerate(unknowns):
             ax = axes[i][j]
             for mode in ("dss", "eds"):
-                ms = result.series.get((grid, unknown, mode))
+                ms = result.series.get((name, grid, unknown, mode))
                 if ms is not None and ms.size:
                     ax.plot(np.arange(1, ms.size + 1), ms, color=colours[mode], linewidth=0.9,
                             label=f"{mode.upper()} (median {np.median(ms):.3g} ms)")
             ax.set_yscale("log")
-            ax.set_title(f"{grid}x{grid}, {unknown:.0%} unknown", fontsize=9)
+            ax.set_title(f"{name} {grid}x{grid}, {unknown:.0%} unknown", fontsize=9)
             ax.set_xlabel("step")
             ax.set_ylabel("ms per replanning step")
             ax.legend(fontsize=7)
             ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(f"Time per step along the walk — {result.device}", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / fig.get_figheight()))  # room for the title
     out = Path(out)
     fig.savefig(out, dpi=120)
     plt.close(fig)
@@ -242,12 +292,14 @@ def plot_steps(result: BenchResult, out: Path | str) -> Path:
 def format_tables(rows: list[dict]) -> str:
     """Both tables as plain text, for machines without rich."""
     t1, t2 = table_rows(rows)
-    heads1 = ["grid", "unknown", "DSS steps", "DSS Iter_avg", "EDS steps", "EDS Iter_avg"]
-    heads2 = ["grid", "unknown", "DSS med", "DSS p99", "DSS max", "DSS walk", "EDS med",
-              "EDS p99", "EDS max", "EDS walk", "DSS/EDS"]  # fmt: skip
     out = []
-    for title, heads, body in (("Steps and Iter_avg", heads1, t1),
-                               ("ms per replanning step", heads2, t2)):  # fmt: skip
+    tables = [
+        ("Steps and Iter_avg", TABLE1_HEADS, t1),
+        ("ms per replanning step", TABLE2_HEADS, t2),
+    ]
+    if any(row["mode"] not in ("eds", "dss") for row in rows):
+        tables.append(("ms per replanning step, by planner", PLANNER_HEADS, planner_rows(rows)))
+    for title, heads, body in tables:
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(heads)]
         out.append(title)
         for line in (heads, *body):
@@ -265,6 +317,7 @@ def main(argv: list[str] | None = None) -> None:
     import json
 
     p = argparse.ArgumentParser(prog="python -m sim.benchmark", description=main.__doc__)
+    p.add_argument("--scenario", default="courtyard", help=", ".join(SCENARIOS))
     p.add_argument("--grid", default="100,200,400")
     p.add_argument("--unknown", default="0.2,0.4,0.6")
     p.add_argument("--backend", default="cpu")
@@ -278,14 +331,23 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--plot", type=Path)
     a = p.parse_args(argv)
     modes = [m for m in a.modes.split(",") if m]
-    if not modes or any(m not in ("eds", "dss") for m in modes):
-        p.error(f"--modes {a.modes!r}: choose from eds, dss")
+    if not modes or any(m not in MODES for m in modes):
+        p.error(f"--modes {a.modes!r}: choose from {', '.join(MODES)}")
+    try:
+        scenarios = scenario_list(a.scenario)
+    except ValueError as exc:
+        p.error(f"--scenario: {exc}")
     config = BenchConfig(
         grids=[int(x) for x in a.grid.split(",") if x],
         unknowns=[float(x) for x in a.unknown.split(",") if x],
+        scenarios=scenarios,
         backend=a.backend, variant=a.variant, modes=modes, seed=a.seed,
         repeats=max(1, a.repeats), fov_deg=a.fov, max_steps=a.max_steps,
     )  # fmt: skip
+    try:
+        config.check()
+    except ValueError as exc:
+        p.error(str(exc))
     done = [0]
 
     def tick(label: str) -> None:

@@ -47,7 +47,11 @@ BASE_GOAL: Cell = (6, 50)
 
 @dataclass(frozen=True)
 class Scenario:
-    """One courtyard walk: what the user knows, what is really there, where to go."""
+    """One walk: what the user knows, what is really there, where to go.
+
+    Every scenario of ``sim.scenarios`` (the courtyard and the others) is one of these, so
+    the walk, the belt walker and the benchmark take any of them unchanged.
+    """
 
     known: np.ndarray
     """``uint8`` occupancy the walk starts from: known obstacles OCCUPIED, the rest UNKNOWN."""
@@ -63,6 +67,8 @@ class Scenario:
     coverage: float
     """The fraction actually covered (blobs that would cut start from goal are skipped)."""
     seed: int
+    name: str = "courtyard"
+    """Which scenario of ``sim.scenarios`` made it, for rows and pictures."""
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -83,7 +89,7 @@ def base_courtyard() -> np.ndarray:
 
 
 @njit(cache=True)
-def _bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
+def bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
     """Flat cells of some 8-connected path start → goal avoiding blocked; empty if none."""
     h, w = blocked.shape
     flat = blocked.ravel()
@@ -128,7 +134,7 @@ def _bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
 def connected(blocked: np.ndarray, start: Cell, goal: Cell) -> bool:
     """True when an 8-connected path of unblocked cells joins start and goal."""
     w = blocked.shape[1]
-    path = _bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
+    path = bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
                      goal[0] * w + goal[1])
     return path.size > 0
 
@@ -158,7 +164,7 @@ def _place_blobs(
     start = ends[0][0] * w + ends[0][1]
     goal = ends[1][0] * w + ends[1][1]
     on_path = np.zeros(h * w, dtype=bool)
-    on_path[_bfs_path(inflated.blocked, start, goal)] = True
+    on_path[bfs_path(inflated.blocked, start, goal)] = True
     covered = np.zeros(h * w, dtype=bool)
     n_covered = 0
     blobs: list[np.ndarray] = []
@@ -174,7 +180,7 @@ def _place_blobs(
         cells = cells[allowed[cells] & ~covered[cells]]
         flipped, _ = inflated.apply(cells, np.full(cells.size, OCCUPIED))
         if on_path[flipped].any():
-            path = _bfs_path(inflated.blocked, start, goal)
+            path = bfs_path(inflated.blocked, start, goal)
             if path.size == 0:
                 inflated.apply(cells, np.full(cells.size, UNKNOWN))
                 continue
@@ -186,24 +192,87 @@ def _place_blobs(
     return blobs
 
 
-def _resample(base: np.ndarray, grid: int) -> np.ndarray:
-    """The base map at ``grid`` cells per side: repeat (finer) or any-occupied pooling."""
-    if grid % BASE == 0:
-        k = grid // BASE
-        return np.repeat(np.repeat(base, k, axis=0), k, axis=1)
-    m = BASE // grid
-    pooled = base.reshape(grid, m, grid, m)
-    occupied = (pooled == OCCUPIED).any(axis=(1, 3))
-    unknown = (pooled == UNKNOWN).any(axis=(1, 3))
-    return np.where(occupied, OCCUPIED, np.where(unknown, UNKNOWN, FREE)).astype(np.uint8)
+def resample(base: np.ndarray, grid: int) -> np.ndarray:
+    """The square ``base`` map at ``grid`` cells per side, whatever the ratio of the sides.
+
+    Finer: a cell takes the base cell its centre lies in, so every base cell keeps at least
+    one cell (a 10 cm wall stays a wall) and areas keep their size on average (blobs cover
+    the fraction asked); for a multiple of the base side this is repetition. Coarser: a cell
+    takes OCCUPIED when any base cell it overlaps is, else UNKNOWN when any is, else FREE,
+    so an obstacle never thins away (for a divisor, any-pooling). Either way an obstacle of
+    a map is one of a map with more obstacles: known ones stay a subset of true ones.
+    """
+    n = base.shape[0]
+    c = np.arange(grid, dtype=np.int64)
+    if grid >= n:
+        centre = ((2 * c + 1) * n) // (2 * grid)  # as scale_cell
+        return np.ascontiguousarray(base[centre][:, centre])
+    lo = (c * n) // grid  # first base cell the target cell overlaps
+    hi = -(-((c + 1) * n) // grid)  # one past the last (exact integer arithmetic)
+
+    def any_of(mask: np.ndarray) -> np.ndarray:
+        s = np.zeros((n + 1, n + 1), dtype=np.int64)
+        s[1:, 1:] = mask.cumsum(axis=0).cumsum(axis=1)
+        return (s[hi][:, hi] - s[lo][:, hi] - s[hi][:, lo] + s[lo][:, lo]) > 0
+
+    occupied, unknown = any_of(base == OCCUPIED), any_of(base == UNKNOWN)
+    out = np.where(occupied, OCCUPIED, np.where(unknown, UNKNOWN, FREE)).astype(np.uint8)
+    return np.ascontiguousarray(out)  # the fancy indexing leaves it in Fortran order
 
 
-def _scale_cell(cell: Cell, grid: int) -> Cell:
-    if grid % BASE == 0:
-        k = grid // BASE
-        return (cell[0] * k + k // 2, cell[1] * k + k // 2)
-    m = BASE // grid
-    return (cell[0] // m, cell[1] // m)
+def scale_cell(cell: Cell, n: int, grid: int) -> Cell:
+    """The ``grid``-side cell holding the centre of ``cell`` of an ``n``-side map."""
+    return (((2 * cell[0] + 1) * grid) // (2 * n), ((2 * cell[1] + 1) * grid) // (2 * n))
+
+
+def scatter_blobs(
+    layout: np.ndarray,
+    grid: int,
+    ends: tuple[Cell, Cell],
+    unknown: float,
+    rng: np.random.Generator,
+    base_cell_m: float,
+    radius_m: float = USER_RADIUS_M,
+    blob_max: int = BLOB_MAX_CELLS,
+) -> tuple[np.ndarray, float]:
+    """The true map at ``grid``: ``layout``'s obstacles plus unknown blobs; and their coverage.
+
+    ``layout`` is a square base map (``base_cell_m`` cells) whose OCCUPIED cells are the true
+    world's fixed obstacles; ``ends`` (start, goal) are base cells. Every scenario with small
+    unknown obstacles shares this, so each is placed and checked the same way (see the module
+    docstring): at the base cells with one cell of margin on a finer grid, at the grid's own
+    cells on a coarser one, then checked at ``grid`` with the user's inflation, the latest
+    blobs removed first should a discretisation corner still cut start from goal.
+    """
+    n = layout.shape[0]
+    cell_m = base_cell_m * n / grid
+    radius = radius_in_cells(radius_m, cell_m)
+    start, goal = scale_cell(ends[0], n, grid), scale_cell(ends[1], n, grid)
+    fixed = resample(layout, grid)
+    if grid >= n:
+        place, place_ends = layout, ends
+        margin, size = radius_in_cells(radius_m, base_cell_m) + 1, blob_max
+    else:
+        place, place_ends = fixed, (start, goal)
+        margin, size = radius, max(1, round(blob_max * grid / n))
+    blobs = _place_blobs(rng, place, unknown, margin, place_ends, size)
+    while True:
+        placed = np.where(place == OCCUPIED, OCCUPIED, FREE).astype(np.uint8)
+        for cells in blobs:
+            placed.reshape(-1)[cells] = OCCUPIED
+        true = resample(placed, grid) if grid >= n else placed
+        if connected(dilate(true == OCCUPIED, radius), start, goal) or not blobs:
+            break
+        blobs.pop()  # deterministic: the latest blob goes first
+    free = fixed != OCCUPIED
+    coverage = float(np.count_nonzero(free & (true == OCCUPIED)) / max(1, np.count_nonzero(free)))
+    return true, coverage
+
+
+def check_grid(grid: int) -> None:
+    """ValueError unless the courtyard can be drawn at ``grid`` cells per side."""
+    if grid <= 0 or (grid % BASE != 0 and BASE % grid != 0):
+        raise ValueError(f"grid must be a multiple or a divisor of {BASE}, got {grid}")
 
 
 def make_courtyard(
@@ -214,35 +283,17 @@ def make_courtyard(
     sensor_range_m: float = SENSOR_RANGE_M,
 ) -> Scenario:
     """The courtyard at ``grid`` cells per side (a multiple or divisor of 100), seeded."""
-    if grid <= 0 or (grid % BASE != 0 and BASE % grid != 0):
-        raise ValueError(f"grid must be a multiple or a divisor of {BASE}, got {grid}")
+    check_grid(grid)
     if not 0.0 <= unknown < 1.0:
         raise ValueError(f"unknown must be in [0, 1), got {unknown}")
     cell_m = CELL_M * BASE / grid
     radius = radius_in_cells(radius_m, cell_m)
-    known = _resample(base_courtyard(), grid)
-    start, goal = _scale_cell(BASE_START, grid), _scale_cell(BASE_GOAL, grid)
+    known = resample(base_courtyard(), grid)
+    start, goal = scale_cell(BASE_START, BASE, grid), scale_cell(BASE_GOAL, BASE, grid)
     # Each fraction its own layout, not a superset of the smaller one's.
     rng = np.random.default_rng([seed, round(unknown * 1000)])
-    if grid >= BASE:
-        # Placed at 10 cm, with one cell of margin: fine cells near a blob's corner are
-        # inflated a little further than the base cell centres the check sees.
-        place_known, ends = base_courtyard(), (BASE_START, BASE_GOAL)
-        margin, blob_max = radius_in_cells(radius_m, CELL_M) + 1, BLOB_MAX_CELLS
-    else:
-        place_known, ends = known, (start, goal)
-        margin, blob_max = radius, max(1, round(BLOB_MAX_CELLS * grid / BASE))
-    blobs = _place_blobs(rng, place_known, unknown, margin, ends, blob_max)
-    while True:
-        placed = np.where(place_known == OCCUPIED, OCCUPIED, FREE).astype(np.uint8)
-        for cells in blobs:
-            placed.reshape(-1)[cells] = OCCUPIED
-        true = _resample(placed, grid) if grid >= BASE else placed
-        if connected(dilate(true == OCCUPIED, radius), start, goal) or not blobs:
-            break
-        blobs.pop()  # deterministic: the latest blob goes first
-    free = known != OCCUPIED
-    coverage = float(np.count_nonzero(free & (true == OCCUPIED)) / max(1, np.count_nonzero(free)))
+    true, coverage = scatter_blobs(base_courtyard(), grid, (BASE_START, BASE_GOAL), unknown,
+                                   rng, CELL_M, radius_m)  # fmt: skip
     return Scenario(
         known=known,
         true=true,

@@ -85,9 +85,9 @@ def render_walk(scenario: Scenario, result: WalkPicture, out: Path | str, dpi: i
               frameon=False)
     status = "arrived" if result.arrived else result.reason
     ax.set_title(
-        f"{w}x{h} grid ({scenario.cell_m * 100:g} cm), {scenario.unknown:.0%} unknown, "
-        f"seed {scenario.seed}: {result.mode.upper()}, {status} in {result.steps} steps "
-        f"({result.walked_m:.1f} m)",
+        f"{scenario.name} {w}x{h} ({scenario.cell_m * 100:.3g} cm), "
+        f"{scenario.unknown:.0%} unknown, seed {scenario.seed}: {result.mode.upper()}, "
+        f"{status} in {result.steps} steps ({result.walked_m:.1f} m)",
         fontsize=9,
     )
     ax.set_xlabel("x (m)")

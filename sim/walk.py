@@ -10,7 +10,8 @@ cell of the path and faces half a metre ahead along it; arrival is the goal cell
 in the paper.
 
 Both modes compute the same exact field and read the path with the same neighbour order,
-so EDS and DSS walk the same cells; only their cost differs.
+so EDS and DSS walk the same cells; only their cost differs. ``astar`` searches from the
+user's cell at every step: paths of the same cost, not always the same cells.
 """
 
 from __future__ import annotations
@@ -83,6 +84,8 @@ class WalkResult(WalkPicture):
     """Cells whose blocked state flipped at this step."""
     init_ms: float
     """The first full plan on the known map (the walk's first step), before the walk."""
+    max_open: np.ndarray
+    """The largest open list of each step's search (A*); -1 where the planner keeps a field."""
 
 
 def paper_settings(scenario: Scenario, mode: str, backend: str, variant: str) -> NavigatorSettings:
@@ -148,6 +151,9 @@ def walk(
         guide_ms=column([r.guide_ms for r in reports], np.float64),
         nav_ms=column([r.step_ms for r in reports], np.float64),
         changed=column([r.changed for r in reports], np.int64),
+        max_open=column(
+            [-1 if r.plan.max_open is None else r.plan.max_open for r in reports], np.int64
+        ),
         init_ms=done.reports[first].plan.plan_ms if first < len(done.reports) else math.nan,
         known=grid.occupancy.copy(),
         blocked=grid.blocked.copy(),

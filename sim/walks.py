@@ -1,6 +1,7 @@
 """Walks that follow the belt: the daemon's ``Navigator`` guides a ``BeltWalker``.
 
-The paper's courtyard walk, but the user is the ``BeltWalker``: it feels the pattern and steps
+The benchmark's walk (the paper's courtyard, or any scenario of ``scenarios.py``), but the user
+is the ``BeltWalker``: it feels the pattern and steps
 in continuous space with noise; it never sees the path. The loop is ``closed_loop.run_walk``:
 each walker action (``STEP_S`` of simulated time) the sensor's delta and the walker's pose go
 to the navigator, which inflates, repairs its field, reads the path (leading out of the
@@ -29,7 +30,8 @@ from daemon.planning.inflation import radius_in_cells
 
 from .belt_walker import BeltWalker, WalkerParams
 from .closed_loop import STEP_S, run_walk
-from .courtyard import USER_RADIUS_M, Scenario, dilate, make_courtyard
+from .courtyard import USER_RADIUS_M, Scenario, dilate
+from .scenarios import check_grid, make_scenario
 from .world import World
 
 if TYPE_CHECKING:
@@ -137,17 +139,18 @@ def belt_walk(
 
 
 def _one(task: tuple) -> tuple[int, float, bool, float, int, int, int]:
-    grid, unknown, seed, backend, smooth, params, planner = task
-    w = belt_walk(make_courtyard(grid, unknown, seed=seed), seed=seed, backend=backend,
+    name, grid, unknown, seed, backend, smooth, params, planner = task
+    w = belt_walk(make_scenario(name, grid, unknown, seed), seed=seed, backend=backend,
                   smooth=smooth, params=params, planner=planner)
     return grid, unknown, w.arrived, w.length_ratio, w.collisions, w.cues, w.holds
 
 
-def summarise(grid: int, unknown: float, results: list[tuple]) -> dict:
+def summarise(grid: int, unknown: float, results: list[tuple], scenario: str = "courtyard") -> dict:
     """One JSON row from the per-walk tuples of ``_one``."""
     arrived = [r for r in results if r[2]]
     ratios = np.array([r[3] for r in arrived])
     return {
+        "scenario": scenario,
         "grid": grid,
         "unknown": unknown,
         "runs": len(results),
@@ -172,9 +175,15 @@ def run_table(
     params: WalkerParams | None = None,
     planner: str = "eds",
     on_row: Callable[[dict], None] | None = None,
+    scenarios: list[str] | None = None,
 ) -> list[dict]:
-    """``runs`` seeded walks (seed i: the courtyard and the walker's noise) per grid and
-    density; one row each. ``jobs`` > 1 spreads the walks over processes."""
+    """``runs`` seeded walks (seed i: the world and the walker's noise) per scenario
+    (default the courtyard), grid and density; one row each. ``jobs`` > 1 spreads the walks
+    over processes. A bad scenario or grid is refused before the first walk."""
+    scenarios = scenarios or ["courtyard"]
+    for name in scenarios:
+        for grid in grids:
+            check_grid(name, grid)
     rows = []
     pool = None
     if jobs > 1:
@@ -182,16 +191,15 @@ def run_table(
 
         pool = ProcessPoolExecutor(jobs)
     try:
-        for grid in grids:
-            for unknown in unknowns:
-                tasks = [
-                    (grid, unknown, first_seed + i, backend, smooth, params, planner)
-                    for i in range(runs)
-                ]
-                results = list(pool.map(_one, tasks) if pool else map(_one, tasks))
-                rows.append(summarise(grid, unknown, results))
-                if on_row is not None:
-                    on_row(rows[-1])
+        for name, grid, unknown in [(n, g, u) for n in scenarios for g in grids for u in unknowns]:
+            tasks = [
+                (name, grid, unknown, first_seed + i, backend, smooth, params, planner)
+                for i in range(runs)
+            ]
+            results = list(pool.map(_one, tasks) if pool else map(_one, tasks))
+            rows.append(summarise(grid, unknown, results, name))
+            if on_row is not None:
+                on_row(rows[-1])
     finally:
         if pool is not None:
             pool.shutdown()

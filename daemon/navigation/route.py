@@ -39,6 +39,8 @@ class PlanReport:
     """Wall time of every planner call in the step: plan, repair and path read."""
     planned: bool = False
     """The step planned from scratch (a new map or goal, or a move to the CPU)."""
+    max_open: int | None = None
+    """The largest open list of the step's search, from a planner that searches (A*)."""
 
 
 class Route:
@@ -107,9 +109,14 @@ class Route:
             return escape_path(planner, blocked, occupancy, cell, self._escape_reach)
         if self._pending is None:
             path = planner.path(cell)
+            # A planner that searches at every path read (A*) says what that search cost.
+            searched = getattr(planner, "search_stats", None)
+            if searched is not None:
+                self._record(searched)
         else:
             stats, path = planner.update_and_path(*self._take(), cell)
             self._record(stats)
+        self.report.max_open = getattr(planner, "max_open", None)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, (path_cost(path) if len(path) else int(INF))

@@ -36,8 +36,11 @@ def escape_path(
     r0, c0 = cell
     rs, re = max(0, r0 - reach), min(h, r0 + reach + 1)
     cs, ce = max(0, c0 - reach), min(w, c0 + reach + 1)
+    within = getattr(planner, "costs_within", None)  # a searching planner (A*): the window
     costs = getattr(planner, "costs", None)  # an EDS/DSS planner's whole field: one copy
-    if costs is not None:
+    if within is not None:
+        g = within(rs, re, cs, ce).astype(np.int64)
+    elif costs is not None:
         g = costs()[rs:re, cs:ce].astype(np.int64)
     else:
         g = np.array([[planner.cost_at((r, c)) for c in range(cs, ce)] for r in range(rs, re)])

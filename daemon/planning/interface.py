@@ -10,7 +10,8 @@ own) lives on those classes.
 Terms follow Díaz-Toro et al. 2022: ``g`` is the cost-to-goal field. For the EDS and DSS
 planners, after every call ``g`` equals ``dijkstra.dijkstra_field`` cell for cell, and
 ``path(start)`` follows the fixed neighbour order of ``grid.py``, so every backend walks the
-same cells.
+same cells. The ``astar`` planner keeps no field: its paths have the same cost, not always
+the same cells (``cpu/astar.py``).
 """
 
 from __future__ import annotations
@@ -30,9 +31,11 @@ class UpdateStats:
     without them takes nearly twice as long to build.)"""
 
     iterations: int
-    """Relaxation rounds (whole-grid sweeps for ``paper``, queue pops for ``fast``…)."""
+    """Relaxation rounds (whole-grid sweeps for ``paper``, queue pops for ``fast``, cells
+    expanded for ``astar``…)."""
     cells_touched: int
-    """Cells whose g was read and relaxed (or written), a backend-independent effort measure."""
+    """Cells whose g was read and relaxed (or written), a backend-independent effort measure
+    (for ``astar``: cells generated)."""
     ms: float
     """Wall time of the call, including any device synchronisation."""
 

@@ -2,9 +2,10 @@
 
 ``make_planner("eds")`` is what the navigator builds; ``"dss"`` is the same field recomputed
 from scratch at every change, the paper's baseline. The other papers' planners register
-their own factory under their own name (``register``). ``backend="auto"`` means cuda when
-cupy imports and a device answers, else cpu. Heavy imports (numba, cupy) happen only when
-their backend is asked for.
+their own factory under their own name (``register``); ``"astar"`` (Ghoniem et al.'s A*,
+searched from the user's cell at every path read) runs on the CPU whatever the backend.
+``backend="auto"`` means cuda when cupy imports and a device answers, else cpu. Heavy
+imports (numba, cupy) happen only when their backend is asked for.
 """
 
 from __future__ import annotations
@@ -70,7 +71,22 @@ def _field_planner(dss: bool) -> PlannerFactory:
     return factory
 
 
-PLANNERS: dict[str, PlannerFactory] = {"eds": _field_planner(False), "dss": _field_planner(True)}
+def _astar_planner(backend: str, variant: str) -> GlobalPlanner:
+    """A* (``cpu/astar.py``) on the CPU whatever the backend: it has no device form, so
+    ``cuda``, ``auto`` and ``reference`` build the same CPU planner. ``fast`` breaks ties of
+    f only (exact costs); ``paper`` keys the open list as Ghoniem et al. do."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+    from .cpu.astar import AStarPlanner
+
+    return AStarPlanner(tie_break="exact" if variant == "fast" else "paper")
+
+
+PLANNERS: dict[str, PlannerFactory] = {
+    "eds": _field_planner(False),
+    "dss": _field_planner(True),
+    "astar": _astar_planner,
+}
 """The registered planners by name (iterate it for the names; ``register`` adds to it)."""
 
 

@@ -25,6 +25,7 @@ def test_bench_rows_have_the_documented_fields_and_sane_values():
     for row in result.rows:
         assert set(ROW_FIELDS) <= row.keys()
         assert row["backend"] == "cpu" and row["variant"] == "fast" and row["grid"] == 50
+        assert row["scenario"] == "courtyard"  # the default
         assert row["arrived"] and row["steps"] > 20 and row["same_walk"]
         assert row["iter_avg"] > 0
         assert 0 < row["ms_median"] <= row["ms_p95"] and row["ms_mean"] > 0
@@ -35,9 +36,9 @@ def test_bench_rows_have_the_documented_fields_and_sane_values():
         assert eds["steps"] == dss["steps"]
         # DSS recomputes the whole field every step; EDS only what changed
         assert dss["touched_avg"] > eds["touched_avg"]
-        assert result.series[(50, unknown, "eds")].size == eds["steps"]
+        assert result.series[("courtyard", 50, unknown, "eds")].size == eds["steps"]
     t1, t2 = table_rows(result.rows)
-    assert len(t1) == len(t2) == 2 and t1[0][:2] == ["50", "20%"]
+    assert len(t1) == len(t2) == 2 and t1[0][:3] == ["courtyard", "50", "20%"]
 
 
 def test_bench_command_writes_json_and_plot(tmp_path):
@@ -51,6 +52,42 @@ def test_bench_command_writes_json_and_plot(tmp_path):
     rows = json.loads(out.read_text())
     assert [r["mode"] for r in rows] == ["eds", "dss"]
     assert fig.read_bytes().startswith(PNG)
+
+
+def test_bench_walks_each_scenario_asked_and_groups_by_it(tmp_path):
+    out, fig = tmp_path / "rows.json", tmp_path / "fig9.png"
+    res = CliRunner().invoke(
+        app,
+        ["bench", "--scenario", "explore,building", "--grid", "100", "--unknown", "0.2",
+         "--json", str(out), "--plot", str(fig)],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "explore" in res.output and "building" in res.output
+    rows = json.loads(out.read_text())
+    assert [(r["scenario"], r["mode"]) for r in rows] == [
+        ("explore", "eds"), ("explore", "dss"), ("building", "eds"), ("building", "dss"),
+    ]  # fmt: skip
+    assert all(set(ROW_FIELDS) <= r.keys() and r["arrived"] and r["same_walk"] for r in rows)
+    assert fig.read_bytes().startswith(PNG)
+    t1, _ = table_rows(rows)
+    assert [line[0] for line in t1] == ["explore", "building"]
+    # rows written before the field existed are the courtyard's
+    old = [{k: v for k, v in r.items() if k != "scenario"} for r in rows[:2]]
+    assert table_rows(old)[0][0][0] == "courtyard"
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [(["--scenario", "mall"], "unknown scenario 'mall'"),
+     (["--scenario", "building", "--grid", "50"], "building: grid must be at least 100")],
+)  # fmt: skip
+def test_bench_refuses_a_bad_scenario_or_grid_before_walking(args, said):
+    res = CliRunner().invoke(app, ["bench", "--unknown", "0.2", *args])
+    assert res.exit_code != 0
+    assert said in " ".join(res.output.split())  # rich wraps the message
+    with pytest.raises(ValueError, match=said):
+        run_bench(BenchConfig(grids=[50], unknowns=[0.2], scenarios=["courtyard", "mall"]
+                              if "mall" in said else ["building"]))  # fmt: skip
 
 
 def test_max_steps_caps_the_walks_and_the_rows_say_so(tmp_path):
@@ -70,7 +107,7 @@ def test_max_steps_caps_the_walks_and_the_rows_say_so(tmp_path):
 
 
 def test_bench_refuses_an_unknown_mode():
-    res = CliRunner().invoke(app, ["bench", "--grid", "50", "--modes", "eds,astar"])
+    res = CliRunner().invoke(app, ["bench", "--grid", "50", "--modes", "eds,bogus"])
     assert res.exit_code != 0
 
 
@@ -91,6 +128,11 @@ def test_render_command(tmp_path):
     res = CliRunner().invoke(app, ["render", "--grid", "50", "--unknown", "0.2", "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert "arrived" in res.output and out.read_bytes().startswith(PNG)
+    res = CliRunner().invoke(app, ["render", "--scenario", "building", "--unknown", "0.2",
+                                   "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 0 and "arrived" in res.output, res.output
+    res = CliRunner().invoke(app, ["render", "--scenario", "building", "--grid", "50"])
+    assert res.exit_code != 0 and "at least 100" in " ".join(res.output.split())
 
 
 def test_demo_walks_in_process_and_saves_the_picture(tmp_path):
@@ -110,3 +152,19 @@ def test_plain_entry_point_needs_no_typer(tmp_path, capsys):
     assert "Iter_avg" in text and "device:" in text
     (row,) = json.loads(out.read_text())
     assert row["mode"] == "eds" and set(ROW_FIELDS) <= row.keys()
+
+
+def test_plain_entry_point_takes_scenarios(tmp_path, capsys):
+    from sim.benchmark import main
+
+    out = tmp_path / "rows.json"
+    main(["--scenario", "streets", "--grid", "100", "--unknown", "0.2", "--modes", "eds",
+          "--json", str(out)])  # fmt: skip
+    assert "streets" in capsys.readouterr().out
+    (row,) = json.loads(out.read_text())
+    assert row["scenario"] == "streets" and row["arrived"]
+    for bad in (["--scenario", "mall"], ["--scenario", "building", "--grid", "50"]):
+        with pytest.raises(SystemExit):
+            main(bad)
+    err = capsys.readouterr().err
+    assert "unknown scenario 'mall'" in err and "building: grid must be at least 100" in err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import time
 
@@ -93,3 +94,27 @@ def test_the_navigator_gets_the_daemons_radius_not_cells_times_size() -> None:
     for grid in (50, 100, 200):
         scenario = make_courtyard(grid, 0.2, seed=0)
         assert belt_settings(scenario).user_radius_m == USER_RADIUS_M
+
+
+@pytest.mark.timeout(60)
+def test_walks_by_feel_in_each_scenario_asked() -> None:
+    rows = run_table([100], [0.2], 1, scenarios=["explore", "building", "streets"])
+    assert [r["scenario"] for r in rows] == ["explore", "building", "streets"]
+    assert all(r["success_rate"] == 1.0 and r["collisions"] == 0 for r in rows)
+    assert run_table([50], [0.2], 1)[0]["scenario"] == "courtyard"  # the default
+    with pytest.raises(ValueError, match="building: grid must be at least"):
+        run_table([50], [0.2], 1, scenarios=["building"])
+
+
+def test_walks_command_takes_scenarios_and_refuses_a_bad_one(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from cli.app import app
+
+    out = tmp_path / "walks.json"
+    args = ["--scenario", "streets", "--grid", "100", "--unknown", "0.2", "--runs", "1"]
+    res = CliRunner().invoke(app, ["walks", *args, "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    assert [r["scenario"] for r in json.loads(out.read_text())] == ["streets"]
+    res = CliRunner().invoke(app, ["walks", "--scenario", "mall", "--runs", "1"])
+    assert res.exit_code != 0 and "unknown scenario 'mall'" in " ".join(res.output.split())

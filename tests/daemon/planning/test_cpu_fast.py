@@ -49,3 +49,47 @@ def test_a_cut_behind_the_user_waits_until_something_asks_for_it():
     p.settle()
     assert p.pending() == 0
     np.testing.assert_array_equal(p._interior(p._g), ref)  # the stored field, not a query
+
+
+def test_a_repair_past_its_budget_computes_the_field_from_scratch():
+    """A wall across the map, the user behind it: the repair would raise and lower nearly
+    everything, so past its budget of expansions it gives up and computes the field whole (as
+    many expansions as DSS), exactly, with nothing left queued; a small change stays a small
+    repair afterwards."""
+    n = 100
+    truth = np.zeros((n, n), bool)
+    goal, user = (0, 50), (n - 1, 50)
+    eds, dss = FastCpuPlanner(cut_over=0.05), FastCpuPlanner(dss=True)
+    eds.plan(truth, goal)
+    dss.plan(truth, goal)
+    wall = np.arange(10 * n, 10 * n + n - 1)  # row 10, open only at the east edge
+    truth.reshape(-1)[wall] = True
+    full, _ = dss.update_and_path(wall, np.ones(wall.size, bool), user)
+    cut, path = eds.update_and_path(wall, np.ones(wall.size, bool), user)
+    assert cut.iterations == full.iterations and eds.pending() == 0
+    ref = dijkstra_field(truth, goal)
+    np.testing.assert_array_equal(path, reference_path(ref, truth, user))
+    np.testing.assert_array_equal(eds._interior(eds._g), ref)  # the stored field, not a query
+    r, c = path[8]  # something appears on the way, eight cells ahead
+    rows, cols = np.mgrid[r - 2 : r + 3, c - 2 : c + 3]
+    box = (rows * n + cols).ravel()
+    truth.reshape(-1)[box] = True
+    small, path = eds.update_and_path(box, np.ones(box.size, bool), user)
+    assert 0 < small.iterations < full.iterations // 10
+    np.testing.assert_array_equal(path, reference_path(dijkstra_field(truth, goal), truth, user))
+
+
+def test_the_escape_window_is_exact_without_settling_the_whole_field():
+    """``costs_within`` repairs what the window needs: its g equals Dijkstra's while cells
+    elsewhere still wait."""
+    n = 120
+    truth = np.zeros((n, n), bool)
+    goal, user = (0, 60), (40, 60)
+    p = FastCpuPlanner()
+    p.plan(truth, goal)
+    wall = np.arange(20 * n, 20 * n + 50)
+    truth.reshape(-1)[wall] = True
+    p.update_and_path(wall, np.ones(wall.size, bool), user)
+    window = p.costs_within(30, 51, 50, 71)
+    np.testing.assert_array_equal(window, dijkstra_field(truth, goal)[30:51, 50:71])
+    assert p.pending() > 0
