@@ -178,8 +178,8 @@ class FastCpuPlanner(FieldPlanner):
         """Repair until g is exact along every shortest path from padded cell ``target`` (or,
         with ``bound`` >= 0, for every cell whose g plus its distance from ``target`` plus km
         is at most ``bound``); ``target`` -1: everywhere."""
-        if self.dss:
-            return self._no_work
+        if self.dss or not self._heap_size[0]:
+            return self._no_work  # nothing is inconsistent: the stored field is exact
         t0 = time.perf_counter()
         if target >= 0:
             self._aim(target)

@@ -93,3 +93,11 @@ def test_the_escape_window_is_exact_without_settling_the_whole_field():
     window = p.costs_within(30, 51, 50, 71)
     np.testing.assert_array_equal(window, dijkstra_field(truth, goal)[30:51, 50:71])
     assert p.pending() > 0
+
+
+def test_the_planner_state_of_a_2000_square_map_stays_under_100_mb():
+    """Issue 20's memory bound: every array the EDS planner keeps, at 2000 x 2000."""
+    p = FastCpuPlanner()
+    p.plan(np.zeros((2000, 2000), bool), (0, 1000))
+    arrays = [v for v in vars(p).values() if isinstance(v, np.ndarray)]
+    assert sum(a.nbytes for a in arrays) < 100e6
