@@ -124,12 +124,25 @@ def follow_path(blocked, g, off, cost, start, out):
     return count
 
 
-def path_cells(blocked, g, off, cost, start: int, width: int) -> np.ndarray:
+@njit(cache=True)
+def path_of(blocked, g, off, cost, start, width):
     """``follow_path`` from padded cell ``start`` as (row, column) pairs of the unpadded map
-    (``width``: the padded row length). Raises RuntimeError if g is not a consistent field."""
-    out = np.empty(int(g[start]) // 10 + 2, dtype=np.int64)
+    (``width``: the padded row length), ``int32``; None if g is not a consistent field."""
+    out = np.empty(g[start] // 10 + 2, dtype=np.int64)
     n = follow_path(blocked, g, off, cost, start, out)
     if n < 0:
+        return None
+    cells = np.empty((n, 2), dtype=np.int32)
+    for i in range(n):
+        cells[i, 0] = out[i] // width - 1
+        cells[i, 1] = out[i] % width - 1
+    return cells
+
+
+def path_cells(blocked, g, off, cost, start: int, width: int) -> np.ndarray:
+    """``path_of``, raising RuntimeError if g is not a consistent field."""
+    cells = path_of(blocked, g, off, cost, start, width)
+    if cells is None:
         cell = (start // width - 1, start % width - 1)
         raise RuntimeError(f"g is not a consistent cost field on the way from {cell}")
-    return np.stack((out[:n] // width - 1, out[:n] % width - 1), axis=1).astype(np.int32)
+    return cells

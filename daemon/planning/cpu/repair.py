@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from ..grid import DIAGONAL, STRAIGHT
-from .dial import INF, OVERFLOW
+from .dial import INF, OVERFLOW, path_of
 
 SHIFT = 32
 CELL = (1 << SHIFT) - 1
@@ -55,6 +55,8 @@ CUT_OVER = -3
 """Returned by ``settle`` past its budget of expansions: a plan from scratch is cheaper."""
 GOAL_BLOCKED = -4
 """Returned by ``apply_changes`` when the goal became blocked: every cost is INF; recompute."""
+BROKEN = -5
+"""Returned by ``step`` when the path did not descend g to the goal (never, if g is sound)."""
 OCTILE = DIAGONAL - STRAIGHT
 
 
@@ -351,3 +353,30 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                 _heap_push(heap, hs, (np.int64(qkey[v]) << SHIFT) | v)
             e = pool[e, 1]
     return pops, touched
+
+
+@njit(cache=True)
+def step(blk, g, rhs, qkey, nb, off, cost, goal, focus, w, n_cells, cells, values, budget, heap,
+         hs, pool, tie, ts):  # fmt: skip
+    """One replanning step in one call: ``apply_changes``, ``settle`` up to the user's key
+    (``focus`` aimed at the user), the path from the user. Returns (status, expansions, rhs
+    rewrites, path): status 0 with the path (empty when the user's cell is blocked or cut
+    off), or the status of ``apply_changes`` (its index in the second place for -1) or of
+    ``settle``, or ``BROKEN``, with no path."""
+    status, touched = apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells,
+                                    values, heap, hs)  # fmt: skip
+    none = np.empty((0, 2), dtype=np.int32)
+    if status != 0:
+        return status, touched, 0, none
+    start = focus[0]
+    if blk[start]:
+        return 0, 0, touched, none
+    pops, t = settle(blk, g, rhs, qkey, nb, goal, focus, -1, budget, heap, hs, pool, tie, ts)
+    if pops < 0:
+        return pops, 0, 0, none
+    if g[start] >= INF:
+        return 0, pops, touched + t, none
+    path = path_of(blk, g, off, cost, start, focus[3])
+    if path is None:
+        return BROKEN, pops, touched + t, none
+    return 0, pops, touched + t, path
