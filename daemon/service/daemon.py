@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import logging
 import signal
 import threading
@@ -65,6 +66,11 @@ class Daemon:
         if install_signals:
             for sig in (signal.SIGTERM, signal.SIGINT):
                 loop.add_signal_handler(sig, self.stop)
+        # What start-up built (modules, config, compiled kernels) leaves the collector's
+        # generations: a full collection then scans only what serving allocates. Without it a
+        # gen-2 collection paused one walking step for 28 ms (400² walk, dev VM).
+        gc.collect()
+        gc.freeze()
         self.notifier.ready(f"serving, backend {self.config.backend}")
         self.ready.set()
         log.info(

@@ -34,7 +34,7 @@ def make(request) -> Callable[..., FieldPlanner]:
 
     def factory(name: str = "eds") -> FieldPlanner:
         if variant == "fast-repair":  # small test maps would mostly cut over to a full plan
-            return FastCpuPlanner(dss=name == "dss", cut_over=1.0)
+            return FastCpuPlanner(dss=name == "dss", cut_over=1e6)
         planner = make_planner(name, backend, variant)
         assert isinstance(planner, FieldPlanner)
         return planner

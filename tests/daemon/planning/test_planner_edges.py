@@ -120,10 +120,11 @@ def test_stats_are_sane(make):
     assert st.iterations > 0 and st.cells_touched >= n * n // 2 and st.ms >= 0
     rr, cc = np.mgrid[150:153, 60:63]
     box = (rr * n + cc).ravel()
-    st = p.update(box, np.ones(box.size, bool))
+    behind = (n - 1, 61)  # the repair reaches the user's cell below the box
+    st, _ = p.update_and_path(box, np.ones(box.size, bool), behind)
     assert st.iterations > 0 and st.ms >= 0
     assert 0 < st.cells_touched < n * n // 10
     blocked.reshape(-1)[box] = True
     np.testing.assert_array_equal(p.costs(), dijkstra_field(blocked, (0, n // 2)))
-    st = p.update(box, np.zeros(box.size, bool))
+    st, _ = p.update_and_path(box, np.zeros(box.size, bool), behind)
     assert st.iterations > 0 and 0 < st.cells_touched < n * n // 10

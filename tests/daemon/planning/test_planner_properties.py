@@ -153,3 +153,26 @@ def test_walk_eds_and_dss_take_the_same_cells(make, seed):
         steps += 1
     np.testing.assert_array_equal(eds.costs(), dijkstra_field(truth, goal))
     assert here == goal or eds.cost_at(here) >= INF
+
+
+@PROPERTY
+@given(world=worlds(), data=st.data())
+def test_the_path_read_in_a_step_is_the_reference_path_before_anything_settles(make, world, data):
+    """The contract of a replanning step, read before any whole-field query: the path from the
+    user (who walks along it between deltas) is ``reference_path`` of the current map, tie for
+    tie, and its cost is the exact g of the user's cell. Then the whole field is exact too."""
+    truth, goal, start = world
+    eds = make()
+    eds.plan(truth, goal)
+    walls: list[np.ndarray] = []
+    for _ in range(data.draw(st.integers(1, 8), label="n_deltas")):
+        cells, values = draw_delta(data, truth, goal, start, walls)
+        truth.reshape(-1)[cells] = values
+        _, path = eds.update_and_path(cells, values, start)
+        ref = dijkstra_field(truth, goal)
+        np.testing.assert_array_equal(path, reference_path(ref, truth, start))
+        if len(path) > 1:
+            assert path_cost(path) == int(ref[start])
+            ahead = data.draw(st.integers(0, len(path) - 1), label="walk")
+            start = (int(path[ahead][0]), int(path[ahead][1]))
+    np.testing.assert_array_equal(eds.costs(), dijkstra_field(truth, goal))

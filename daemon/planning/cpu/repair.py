@@ -1,0 +1,382 @@
+"""Compiled kernels of the focused EDS repair: ``g``, ``rhs`` and one queue that outlives a call.
+
+Terms are those of LPA* and D* Lite (Koenig and Likhachev 2002), of which the paper's raise and
+lower are one schedule: ``g`` is the cost-to-goal field; ``rhs(v)`` is the one-step look-ahead,
+the least ``g(n) + c(v, n)`` over the free neighbours ``n`` (0 at the goal, INF on a blocked
+cell). A cell is *inconsistent* (the paper's ``incon``) when ``g != rhs``: over-consistent
+(``g > rhs``) when a cheaper way opened, under-consistent (``g < rhs``) when its way was cut.
+Every inconsistent cell waits in the queue, and no other cell does, under the key
+
+    key(v) = min(g(v), rhs(v)) + h(user, v) + km
+
+with ``h`` the octile distance in the planner's 10/14 units and ``km`` the sum of ``h`` over
+the user's moves since the queue was last empty (so that keys queued earlier stay lower bounds).
+
+Why the repair may stop early. Let K be the smallest key in the queue. (1) A consistent cell v
+with ``g(v) + h(v) + km < K`` has a neighbour n with ``g(v) = g(n) + c``, whose key is below K
+too (h is consistent), so n is consistent: a chain of such cells leads down to the goal and g(v)
+is the cost of a real path. (2) Every cell on a shortest path from a cell s with
+``g*(s) + h(s) + km < K`` is consistent — an inconsistent one would have a key below K — so by
+induction from the goal its g is exact. A path read from the user descends g from ``g(user)``,
+and the user's shortest paths, and every neighbour the path's tie-break compares, lie inside
+``g* + h <= g*(user)``. So the repair stops once K exceeds ``g(user) + km``, and the path it
+reads is the one Dijkstra from scratch gives, tie for tie. What lies outside waits in the queue
+until a query reaches it; ``settle`` with ``bounded`` False empties the queue.
+
+The queue. A neighbour's key lies within two edge costs above the key being expanded, so the
+wave of one call runs in 29 circular buckets (Dial's queue, ``dial.py``: O(1) a push). Other
+keys (a raised cell's new look-ahead, the changed cells, what a call leaves) wait in a binary
+heap of ``key << 32 | cell`` that persists between calls. An entry is live only while
+``qkey[cell]`` still holds its key: a cell re-keyed is pushed again and its old entry skipped.
+A full heap is compacted (stale entries dropped); when the live entries still do not fit, or a
+call's expansions pass its budget, a call returns ``OVERFLOW`` or ``CUT_OVER`` and the caller
+computes the field from scratch, which is always a correct answer.
+
+The hot loop of ``settle`` is written out in one function: a numba helper taking the arrays
+costs their reference counting on every call, which measured twice the whole repair.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..grid import DIAGONAL, STRAIGHT
+from .dial import INF, OVERFLOW, path_of
+
+SHIFT = 32
+CELL = (1 << SHIFT) - 1
+NBR = 2 * DIAGONAL + 1
+"""Buckets of one repair: a neighbour's key lies within twice the largest edge cost above the
+key being expanded (one edge, and the heuristic's change along it)."""
+ROOM = 9
+"""Queue entries one expansion may add: its eight neighbours and the cell itself."""
+CUT_OVER = -3
+"""Returned by ``settle`` past its budget of expansions: a plan from scratch is cheaper."""
+GOAL_BLOCKED = -4
+"""Returned by ``apply_changes`` when the goal became blocked: every cost is INF; recompute."""
+BROKEN = -5
+"""Returned by ``step`` when the path did not descend g to the goal (never, if g is sound)."""
+OCTILE = DIAGONAL - STRAIGHT
+
+
+# -- the heap ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _sift_down(heap, size, i, entry):
+    while True:
+        c = 2 * i + 1
+        if c >= size:
+            break
+        if c + 1 < size and heap[c + 1] < heap[c]:
+            c += 1
+        if heap[c] >= entry:
+            break
+        heap[i] = heap[c]
+        i = c
+    heap[i] = entry
+
+
+@njit(cache=True)
+def _heap_push(heap, hs, entry):
+    i = hs[0]
+    hs[0] = i + 1
+    while i > 0:
+        parent = (i - 1) >> 1
+        if heap[parent] <= entry:
+            break
+        heap[i] = heap[parent]
+        i = parent
+    heap[i] = entry
+
+
+@njit(cache=True)
+def _heap_pop(heap, hs):
+    top = heap[0]
+    size = hs[0] - 1
+    hs[0] = size
+    if size > 0:
+        _sift_down(heap, size, 0, heap[size])
+    return top
+
+
+@njit(cache=True)
+def _heap_room(heap, hs, qkey, need):
+    """True when ``need`` more entries fit, after dropping the stale ones if they do not. False
+    also when the live entries fill more than three quarters of the heap: compacting again
+    and again would cost more than a larger heap."""
+    if hs[0] + need <= heap.size:
+        return True
+    live = 0
+    for i in range(hs[0]):
+        e = heap[i]
+        if qkey[e & CELL] == e >> SHIFT:
+            heap[live] = e
+            live += 1
+    hs[0] = live
+    for i in range(live // 2 - 1, -1, -1):
+        _sift_down(heap, live, i, heap[i])
+    return live + need <= heap.size - heap.size // 4
+
+
+def live_entries(qkey: np.ndarray) -> int:
+    """How many cells wait in the queue (inconsistent cells not yet repaired)."""
+    return int(np.count_nonzero(qkey >= 0))
+
+
+# -- outside the hot loop ------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _lookahead(blk, g, nb, v):
+    """rhs(v) from its free neighbours (not for the goal, whose rhs is 0)."""
+    best = INF
+    for k in range(8):
+        n = v + nb[k, 0]
+        if not blk[n]:
+            d = g[n] + nb[k, 1]
+            if d < best:
+                best = d
+    return best
+
+
+@njit(cache=True)
+def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
+    """Queue v in the heap under its key if it is inconsistent; forget it if not."""
+    if g[v] == rhs[v]:
+        qkey[v] = -1
+        return
+    r = v // focus[3]
+    dr, dc = abs(r - focus[1]), abs(v - r * focus[3] - focus[2])
+    key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + focus[4]
+    if qkey[v] != key:
+        qkey[v] = key
+        _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+
+
+@njit(cache=True)
+def _to_padded(flat, w):
+    return (flat // w + 1) * (w + 2) + flat % w + 1
+
+
+@njit(cache=True)
+def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values, heap, hs):
+    """Set ``blk[cells] = values`` (unpadded flat indices) and queue what became inconsistent:
+    a newly blocked cell drops to INF at once (no neighbour reads a blocked cell) and its
+    neighbours that looked through it look again; a freed cell looks at its neighbours.
+
+    Returns (0, cells whose rhs was rewritten); (-1, i) when ``cells[i]`` lies outside the map
+    (nothing changed); ``GOAL_BLOCKED`` or ``OVERFLOW`` (the map is updated, the field is not:
+    the caller recomputes it).
+    """
+    for i in range(cells.size):
+        if cells[i] < 0 or cells[i] >= n_cells:
+            return -1, i
+    was = np.empty(cells.size, np.uint8)
+    for i in range(cells.size):
+        was[i] = blk[_to_padded(cells[i], w)]
+    for i in range(cells.size):
+        blk[_to_padded(cells[i], w)] = values[i]
+    if blk[goal]:
+        return GOAL_BLOCKED, 0
+    touched = 0
+    for i in range(cells.size):  # newly blocked
+        v = _to_padded(cells[i], w)
+        if not blk[v] or was[i]:
+            continue
+        gold = g[v]
+        g[v] = rhs[v] = INF
+        qkey[v] = -1
+        if gold >= INF:
+            continue
+        if not _heap_room(heap, hs, qkey, ROOM):
+            return OVERFLOW, 0
+        for k in range(8):
+            n = v + nb[k, 0]
+            if not blk[n] and n != goal and rhs[n] == gold + nb[k, 1]:
+                rhs[n] = _lookahead(blk, g, nb, n)
+                touched += 1
+                _queue_in_heap(g, rhs, qkey, focus, n, heap, hs)
+    for i in range(cells.size):  # newly freed
+        v = _to_padded(cells[i], w)
+        if blk[v] or not was[i]:
+            continue
+        rhs[v] = 0 if v == goal else _lookahead(blk, g, nb, v)
+        touched += 1
+        if not _heap_room(heap, hs, qkey, 1):
+            return OVERFLOW, 0
+        _queue_in_heap(g, rhs, qkey, focus, v, heap, hs)
+    return 0, touched
+
+
+# -- the repair ----------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, tie, ts):
+    """Repair in key order until the smallest key exceeds ``bound``: -1 means the user's own
+    key, ``g(start) + km`` (``h(start, start)`` is 0), as it stands; ``INF`` means until
+    nothing is inconsistent.
+    ``nb[k]`` is neighbour k's (padded offset, edge cost, row step, column step); ``focus`` is
+    (start, its row, its column, padded width, km); ``pool`` holds the buckets' entries;
+    ``tie`` (size in ``ts``) orders the cells of one key by ``min(g, rhs)``, as LPA*'s second
+    key does: a cell that gives another its look-ahead is expanded first, so that no cell is
+    lowered on a value about to be raised.
+
+    Returns (expansions, rhs rewrites); (CUT_OVER, 0) past ``budget`` expansions (the field is
+    half repaired: the caller computes it from scratch), or (OVERFLOW, 0).
+    """
+    start, sr, sc, width, km = focus[0], focus[1], focus[2], focus[3], focus[4]
+    head = np.full(NBR, -1, np.int64)  # bucket -> its newest entry in pool
+    free = -1  # entries given back, linked through pool[e, 1]
+    used = 0  # entries ever taken
+    pending = 0  # bucket entries, live or stale
+    ts[0] = 0
+    pops = touched = 0
+    level = 0
+    while True:
+        if pending == 0:
+            if hs[0] == 0:
+                break
+            level = heap[0] >> SHIFT
+        if level > (g[start] + km if bound < 0 else bound):
+            break
+        # This level's cells, from the heap and from its bucket, into the tie queue.
+        while hs[0] > 0 and heap[0] >> SHIFT <= level:
+            e = _heap_pop(heap, hs)
+            v = e & CELL
+            if qkey[v] != e >> SHIFT:
+                continue  # stale
+            r = v // width
+            dr, dc = abs(r - sr), abs(v - r * width - sc)
+            key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+            if key > level:  # keyed before the user moved: a lower bound; queue it truly
+                qkey[v] = key
+                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+                continue
+            if ts[0] + 1 > tie.size:
+                return OVERFLOW, 0
+            _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
+        b = level % NBR
+        e = head[b]
+        while e >= 0:
+            v = pool[e, 0]
+            nxt = pool[e, 1]
+            pool[e, 1] = free
+            free = e
+            pending -= 1
+            if qkey[v] == level:
+                if ts[0] + 1 > tie.size:
+                    return OVERFLOW, 0
+                _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
+            e = nxt
+        head[b] = -1
+        while ts[0] > 0:
+            v = _heap_pop(tie, ts) & CELL
+            if qkey[v] != level:
+                continue  # stale
+            if pops >= budget:
+                return CUT_OVER, 0
+            if (
+                pending + ROOM > pool.shape[0]
+                or ts[0] + ROOM > tie.size
+                or not _heap_room(heap, hs, qkey, ROOM)
+            ):
+                return OVERFLOW, 0
+            qkey[v] = -1
+            pops += 1
+            r = v // width
+            c = v - r * width
+            # Make v consistent: lower it to rhs, or raise it (g = INF) and let the neighbours
+            # whose look-ahead came through it look again.
+            lowering = g[v] > rhs[v]
+            gold = g[v]
+            g[v] = rhs[v] if lowering else INF
+            for k in range(8):
+                n = v + nb[k, 0]
+                if blk[n] or n == goal:
+                    continue
+                if lowering:
+                    d = g[v] + nb[k, 1]
+                    if d >= rhs[n]:
+                        continue
+                    rhs[n] = d
+                else:
+                    if rhs[n] != gold + nb[k, 1]:
+                        continue
+                    best = INF
+                    for j in range(8):
+                        m = n + nb[j, 0]
+                        if not blk[m] and g[m] + nb[j, 1] < best:
+                            best = g[m] + nb[j, 1]
+                    rhs[n] = best
+                touched += 1
+                low = min(g[n], rhs[n])
+                if g[n] == rhs[n]:
+                    qkey[n] = -1
+                    continue
+                dr, dc = abs(r + nb[k, 2] - sr), abs(c + nb[k, 3] - sc)
+                key = low + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                if qkey[n] == key:
+                    continue
+                qkey[n] = key
+                if key == level:
+                    _heap_push(tie, ts, (np.int64(low) << SHIFT) | n)
+                elif level < key < level + NBR:  # a bucket
+                    if free >= 0:
+                        e = free
+                        free = pool[e, 1]
+                    else:
+                        e = used
+                        used += 1
+                    pool[e, 0] = n
+                    pool[e, 1] = head[key % NBR]
+                    head[key % NBR] = e
+                    pending += 1
+                else:
+                    _heap_push(heap, hs, (np.int64(key) << SHIFT) | n)
+            if not lowering and rhs[v] < INF:  # raised: it waits for its new look-ahead
+                dr, dc = abs(r - sr), abs(c - sc)
+                key = rhs[v] + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                qkey[v] = key
+                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+        level += 1
+    # What the buckets still hold waits in the heap for the next call.
+    for b in range(NBR):
+        e = head[b]
+        while e >= 0:
+            v = pool[e, 0]
+            if qkey[v] >= 0 and qkey[v] % NBR == b:
+                if not _heap_room(heap, hs, qkey, 1):
+                    return OVERFLOW, 0
+                _heap_push(heap, hs, (np.int64(qkey[v]) << SHIFT) | v)
+            e = pool[e, 1]
+    return pops, touched
+
+
+@njit(cache=True)
+def step(blk, g, rhs, qkey, nb, off, cost, goal, focus, w, n_cells, cells, values, budget, heap,
+         hs, pool, tie, ts):  # fmt: skip
+    """One replanning step in one call: ``apply_changes``, ``settle`` up to the user's key
+    (``focus`` aimed at the user), the path from the user. Returns (status, expansions, rhs
+    rewrites, path): status 0 with the path (empty when the user's cell is blocked or cut
+    off), or the status of ``apply_changes`` (its index in the second place for -1) or of
+    ``settle``, or ``BROKEN``, with no path."""
+    status, touched = apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells,
+                                    values, heap, hs)  # fmt: skip
+    none = np.empty((0, 2), dtype=np.int32)
+    if status != 0:
+        return status, touched, 0, none
+    start = focus[0]
+    if blk[start]:
+        return 0, 0, touched, none
+    pops, t = settle(blk, g, rhs, qkey, nb, goal, focus, -1, budget, heap, hs, pool, tie, ts)
+    if pops < 0:
+        return pops, 0, 0, none
+    if g[start] >= INF:
+        return 0, pops, touched + t, none
+    path = path_of(blk, g, off, cost, start, focus[3])
+    if path is None:
+        return BROKEN, pops, touched + t, none
+    return 0, pops, touched + t, path
