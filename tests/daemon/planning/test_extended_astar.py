@@ -225,3 +225,19 @@ def test_the_bench_walks_with_it():
     # At 50 cells the inflated courtyard leaves the start no neighbour 1 cell clear of an
     # obstacle: the memory criterion answers no path where A* walks to the goal.
     assert not rows["extended-astar"]["arrived"] and rows["extended-astar"]["steps"] == 0
+
+
+def test_the_study_counts_and_its_setups_are_well_formed():
+    from sim.extended_astar_study import SETUP_GOAL, SETUP_SHAPE, SETUP_START, optimality, setup_map
+
+    table = optimality([0.0, 0.2], 16, 4, 20, 0, "boxes")
+    assert table.count("skip open only") == 2
+    empty = [ln for ln in table.splitlines() if ln.strip().startswith("0.00")]
+    assert all("0 (  0.0%)" in ln for ln in empty)  # an empty map: nothing missed, none longer
+    sizes = []
+    for name in "ABC":
+        m = setup_map(name, 0)
+        assert m.shape == SETUP_SHAPE and not m[SETUP_START] and not m[SETUP_GOAL]
+        sizes.append(int(m.sum()))
+        assert int(dijkstra_field(m, SETUP_GOAL)[SETUP_START]) < INF
+    assert sizes[0] == 0 < sizes[1] < sizes[2]
