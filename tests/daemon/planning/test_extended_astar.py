@@ -241,3 +241,33 @@ def test_the_study_counts_and_its_setups_are_well_formed():
         sizes.append(int(m.sum()))
         assert int(dijkstra_field(m, SETUP_GOAL)[SETUP_START]) < INF
     assert sizes[0] == 0 < sizes[1] < sizes[2]
+
+
+class _Refusing(AStarPlanner):
+    """An exact planner that answers no path from some cells, as extended A* may."""
+
+    def __init__(self, refuse: set[tuple[int, int]]) -> None:
+        super().__init__()
+        self.refuse = refuse
+
+    def path(self, start):  # type: ignore[override]
+        return np.empty((0, 2), np.int32) if tuple(start) in self.refuse else super().path(start)
+
+
+def test_the_escape_passes_over_an_exit_without_a_path():
+    from daemon.planning.escape import escape_path
+    from daemon.planning.grid import FREE
+
+    blocked = np.zeros((15, 15), bool)
+    blocked[7, 7] = True  # the user stands in the margin
+    occupancy = np.full(blocked.shape, FREE, np.uint8)
+    p = _Refusing(set())
+    p.plan(blocked, (0, 7))
+    path, cost = escape_path(p, blocked, occupancy, (7, 7), 3)
+    assert tuple(path[1]) == (6, 7) and cost == 10 + 60
+    p.refuse = {(6, 7)}
+    path, cost = escape_path(p, blocked, occupancy, (7, 7), 3)
+    assert tuple(path[1]) != (6, 7) and cost == path_cost(path) and cost < INF
+    p.refuse = {(r, c) for r in range(15) for c in range(15)}
+    path, cost = escape_path(p, blocked, occupancy, (7, 7), 3)
+    assert path.shape == (0, 2) and cost == INF
