@@ -27,7 +27,10 @@ def bench(
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     variant: Annotated[str, typer.Option(help="fast, or paper (its Figure 4 form).")] = "fast",
     planner: Annotated[
-        str, typer.Option("--planner", "--modes", help="Planners to walk with: eds, dss, astar.")
+        str,
+        typer.Option(
+            "--planner", "--modes", help="Planners to walk with: eds, dss, astar, extended-astar."
+        ),
     ] = "eds,dss",
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     repeats: Annotated[int, typer.Option(min=1, help="Walks per table cell, times pooled.")] = 1,

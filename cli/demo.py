@@ -71,7 +71,10 @@ def demo(
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
-        str, typer.Option("--planner", "--mode", help="A planner of the registry: eds, dss, astar.")
+        str,
+        typer.Option(
+            "--planner", "--mode", help="Registry planner: eds, dss, astar, extended-astar."
+        ),
     ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),
     belt: Annotated[

@@ -18,7 +18,9 @@ def run(
     ] = None,
     planner: Annotated[
         str | None,
-        typer.Option(help="A planner of the registry (eds, dss, astar); overrides the config."),
+        typer.Option(
+            help="A registry planner (eds, dss, astar, extended-astar); overrides the config."
+        ),
     ] = None,
 ) -> None:
     """Serve goals, poses and map deltas over zenoh until SIGTERM."""

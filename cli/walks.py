@@ -29,7 +29,7 @@ def walks(
     unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
     backend: Annotated[str, typer.Option(help="Planner: cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
-        str, typer.Option(help="A planner of the registry: eds, dss, astar.")
+        str, typer.Option(help="A planner of the registry: eds, dss, astar, extended-astar.")
     ] = "eds",
     smooth: Annotated[bool, typer.Option(help="Rubber-band smoothing before guidance.")] = False,
     seed: Annotated[int, typer.Option(help="First seed; run i uses seed + i.")] = 0,

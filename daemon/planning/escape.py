@@ -5,6 +5,8 @@ path into the margin; the planner has no path from a blocked cell. The way out l
 straight line to the *nearest* free cell that has a path (ties: the lowest total cost) and
 whose line crosses no occupied cell, then follows the planner's path from there. No such
 cell within reach means no path: the user is told so rather than led through an obstacle.
+An exit from which the planner gives no path (extended A*, which ranks exits by the exact
+field but may miss a path) is passed over; the cost is the lead's plus the path's own.
 
 Nearest, not cheapest overall: the cheapest exit can lie across the obstacle, and a straight
 lead there walks the user into it (a walker that feels the belt bumped thousands of times
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell
+from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell, path_cost
 from .interface import GlobalPlanner
 
 
@@ -57,5 +59,8 @@ def escape_path(
         lead = _line(cell, exit_cell)
         if np.any(occupancy[lead[:, 0], lead[:, 1]] == OCCUPIED):
             continue  # the straight way there runs through an obstacle
-        return np.vstack([lead, planner.path(exit_cell)]), int(total.flat[k])
+        tail = planner.path(exit_cell)
+        if len(tail) == 0:
+            continue  # a planner that may miss a path (extended A*) has none from there
+        return np.vstack([lead, tail]), int(out_cost.flat[k]) + path_cost(tail)
     return np.empty((0, 2), np.int32), int(INF)

@@ -82,10 +82,22 @@ def _astar_planner(backend: str, variant: str) -> GlobalPlanner:
     return AStarPlanner(tie_break="exact" if variant == "fast" else "paper")
 
 
+def _extended_astar_planner(backend: str, variant: str) -> GlobalPlanner:
+    """Rettkowski et al.'s extended A* (``cpu/extended_astar.py``), CPU whatever the backend,
+    as ``astar``; the variant picks the same key. Not optimal and may miss a path that exists:
+    for study and comparison, not a default."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+    from .cpu.extended_astar import ExtendedAStarPlanner
+
+    return ExtendedAStarPlanner(tie_break="exact" if variant == "fast" else "paper")
+
+
 PLANNERS: dict[str, PlannerFactory] = {
     "eds": _field_planner(False),
     "dss": _field_planner(True),
     "astar": _astar_planner,
+    "extended-astar": _extended_astar_planner,
 }
 """The registered planners by name (iterate it for the names; ``register`` adds to it)."""
 

@@ -100,6 +100,10 @@ class AStarPlanner(GlobalPlanner):
         self.variant = {"exact": "fast", "paper": "paper", "none": "plain"}[tie_break]
         self.name = f"astar-cpu-{heuristic}" + ("" if tie_break == "exact" else f"-{tie_break}")
         self._kind = k.HEURISTICS.index(heuristic)
+        # Extended A*'s switches (``extended_astar.py``); off, this is classic A*.
+        self._clear_d = 0
+        self._skip_open = False
+        self._goal_on_generation = False
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
         self._epoch = 0
@@ -214,7 +218,8 @@ class AStarPlanner(GlobalPlanner):
             found = k.search(
                 self._blk, self._g, self._stamp, self._pos, self._par, self._hkey, self._hcell,
                 self._off, self._cost, self._width, s, goal, self._next_epoch(), self._kind,
-                self._kg, self._kh, self._stats,
+                self._kg, self._kh, self._stats, self._clear_d, self._skip_open,
+                self._goal_on_generation,
             )  # fmt: skip
             cost = int(found)
             if cost < INF:

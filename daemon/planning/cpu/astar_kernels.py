@@ -16,6 +16,12 @@ Key: ``kg * g + kh * h`` (int64). With ``kh = kg + 1`` it is ``kg * (g + (1 + 1/
 the f of Ghoniem et al.'s tie-break, ``Break = 1 + 1/(length + width)``, with ``kg`` in the
 place of ``length + width`` (see ``astar.py`` for which ``kg`` the planner uses and what
 holds then).
+
+Extended A* (Rettkowski et al. 2016, ``extended_astar.py``) runs the same ``search`` with three
+switches, all off for classic A*: ``clear_d`` (the memory criterion: a neighbour with a
+blocked map cell within ``clear_d`` cells, Chebyshev, is not opened), ``skip_open`` (a
+neighbour already in the open list is skipped, never re-evaluated) and ``goal_on_generation``
+(the search stops when the goal is generated, their listing's line 9, not when it is popped).
 """
 
 from __future__ import annotations
@@ -120,9 +126,15 @@ def _pop(hkey, hcell, pos, size):
 @njit(cache=True)
 def search(
     blocked, g, stamp, pos, par, hkey, hcell, off, cost, width,
-    start, goal, epoch, kind, kg, kh, stats,
+    start, goal, epoch, kind, kg, kh, stats, clear_d=0, skip_open=False,
+    goal_on_generation=False,
 ):  # fmt: skip
     """A* from padded cell ``start`` to ``goal`` (both free), without reopening closed cells.
+
+    The switches (module docstring) are extended A*'s; with their defaults this is A*. A cell
+    turned away by the memory criterion is marked closed with g INF (so it is tested once,
+    never opened and never counted as generated). Every cell enters the open list at most
+    once and leaves it at most once, so a search ends after at most n expansions.
 
     ``g[v]`` is the cost from ``start`` and ``par[v]`` the neighbour index k of the step
     ``v - off[k] -> v`` that reached v, for every cell with ``stamp[v] == epoch``. ``goal`` -1
@@ -156,20 +168,50 @@ def search(
                 stamp[v] = epoch
                 g[v] = nd
                 par[v] = k
+                if goal_on_generation and v == goal:
+                    found = nd
+                    generated += 1
+                    break
+                if clear_d > 0 and v != goal and near_blocked(blocked, v, clear_d, width):
+                    g[v] = INF
+                    pos[v] = CLOSED
+                    continue
                 key = kg * nd + kh * heuristic(kind, v, goal_r, goal_c, width)
                 size = _push(hkey, hcell, pos, size, v, key)
                 generated += 1
-            elif pos[v] != CLOSED and nd < g[v]:
+            elif pos[v] != CLOSED and nd < g[v] and not skip_open:
                 g[v] = nd
                 par[v] = k
                 hkey[pos[v]] = kg * nd + kh * heuristic(kind, v, goal_r, goal_c, width)
                 _sift_up(hkey, hcell, pos, pos[v])
         if size > max_open:
             max_open = size
+        if found < INF:
+            break
     stats[EXPANDED] = expanded
     stats[GENERATED] = generated
     stats[MAX_OPEN] = max_open
     return found
+
+
+@njit(cache=True)
+def near_blocked(blocked, v, d, width):
+    """True when a blocked cell of the map lies within ``d`` cells (Chebyshev: ``d`` steps of
+    the 8-connected grid) of padded cell ``v``. The window is clipped to the map: the padding
+    ring is not an obstacle, the map's edge is not a wall."""
+    rows = blocked.size // width
+    r = v // width
+    c = v - r * width
+    r0 = max(1, r - d)
+    r1 = min(rows - 2, r + d)
+    c0 = max(1, c - d)
+    c1 = min(width - 2, c + d)
+    for rr in range(r0, r1 + 1):
+        base = rr * width
+        for cc in range(c0, c1 + 1):
+            if blocked[base + cc]:
+                return True
+    return False
 
 
 @njit(cache=True)
