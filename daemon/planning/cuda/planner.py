@@ -54,7 +54,7 @@ PATH_THREADS = 128
 CUT_OVER = 1.0
 """How many cells an EDS repair (``fast``) may raise per row and column of the map (the limit
 is ``CUT_OVER * (h + w)`` cells) before the call computes the field from scratch instead. Not
-a share of the cells as on the CPU (``cpu.fast.CUT_OVER``, 0.5 %): a plan from scratch on the
+a share of the cells as in the CPU's cut-over of 09bf2a1 (0.5 %): a plan from scratch on the
 device costs about as many tile visits in a row as the map is tiles across (a wave front's
 tiles run in parallel), a raise about as many as the cells it raises, so the break-even grows
 with the side. Measured (H100, the four scenario walks, 40 %): at 400² the CPU's 0.5 % (800
