@@ -175,10 +175,13 @@ class VoiceWalker:
             self.walking = False
         return "step"
 
-    def longest_silence_s(self, start: float, end: float) -> float:
-        """The longest time without a cue between ``start`` and ``end`` (the walk's ends)."""
-        times = [start, *self.heard_at, end]
-        return max(b - a for a, b in itertools.pairwise(times))
+    def longest_silence_s(self, start: float = 0.0, end: float | None = None) -> float:
+        """The longest time between two cues heard, ``start`` counting as one; with ``end``,
+        the wait from the last cue to it too (an arrival, which ends the walk before the
+        walker hears "arrived"). A walk that never arrives leaves ``end`` out: it would
+        otherwise report its stall until the time limit, not a gap between cues."""
+        times = [start, *self.heard_at, *([] if end is None else [end])]
+        return max((b - a for a, b in itertools.pairwise(times)), default=0.0)
 
     def _noise(self, sd_deg: float) -> float:
         return math.radians(self.rng.normal(0.0, sd_deg)) if sd_deg > 0 else 0.0

@@ -60,8 +60,9 @@ class BeltWalk:
     steps: int = 0
     """Steps the walker took (turns, bumps and standing not counted)."""
     longest_silence_s: float | None = None
-    """Voice walks: the longest time between two cues (the walk's start and end count as
-    cues); None for the belt, which speaks every step."""
+    """Voice walks: the longest time between two cues heard (the walk's start and its
+    "arrived" count as cues; the stall after the last cue of a walk that never arrives does
+    not); None for belt walks, which the belt guides every step."""
 
     @property
     def length_ratio(self) -> float:
@@ -149,6 +150,10 @@ def belt_walk(
     # A walker with no path stands and waits (stop_on_no_path=False): it may find one again.
     done = run_walk(World(scenario, walker), navigator, max_actions=limit, step_s=STEP_S,
                     stop_on_no_path=False)  # fmt: skip
+    silence = None
+    if isinstance(walker, VoiceWalker):
+        end = (len(done.track) - 1) * STEP_S if done.arrived else None
+        silence = walker.longest_silence_s(0.0, end=end)
     return BeltWalk(
         arrived=done.arrived,
         reason=done.reason,
@@ -160,11 +165,7 @@ def belt_walk(
         actions=len(done.track) - 1,
         track=np.array(done.track, dtype=np.float64),
         steps=walker.steps,
-        longest_silence_s=(
-            walker.longest_silence_s(0.0, (len(done.track) - 1) * STEP_S)
-            if isinstance(walker, VoiceWalker)
-            else None
-        ),
+        longest_silence_s=silence,
     )
 
 

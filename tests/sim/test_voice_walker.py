@@ -56,7 +56,8 @@ def test_turns_to_the_hour_walks_on_and_stops_when_told() -> None:
     w.hear("turn around", 4.0)
     assert w.heading == pytest.approx(5 * math.pi / 6)
     assert w.heard_at == [0.0, 2.4, 3.0, 4.0] and w.cues_heard == 4
-    assert w.longest_silence_s(0.0, 10.0) == pytest.approx(6.0)
+    assert w.longest_silence_s() == pytest.approx(2.4)
+    assert w.longest_silence_s(0.0, end=10.0) == pytest.approx(6.0)
 
 
 def test_heeding_the_distance_stops_after_it() -> None:
