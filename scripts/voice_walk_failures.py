@@ -64,8 +64,9 @@ def main() -> None:
     ap.add_argument("--unknown", type=float, default=0.4)
     ap.add_argument("--runs", type=int, default=50)
     ap.add_argument("--turn-sd", type=float, default=20.0)
+    ap.add_argument("--gait-sd", type=float, default=4.0)
     args = ap.parse_args()
-    params = replace(VoiceWalkerParams(), turn_sd_deg=args.turn_sd)
+    params = replace(VoiceWalkerParams(), turn_sd_deg=args.turn_sd, gait_sd_deg=args.gait_sd)
     walks.VoiceWalker = Traced  # type: ignore[misc]  # the class belt_walk builds
     bumps: Counter[str] = Counter()
     ends: Counter[str] = Counter()
@@ -82,7 +83,8 @@ def main() -> None:
             ends[f"still walking on {_kind(walker.last_text)!r}"] += 1
         else:
             ends[f"standing, stopped by {walker.stopped_by or 'nothing (no cue)'}"] += 1
-    print(f"{args.grid}² at {args.unknown:.0%}, {args.runs} walks, turn σ {args.turn_sd}°: "
+    print(f"{args.grid}² at {args.unknown:.0%}, {args.runs} walks, turn σ {args.turn_sd}°, "
+          f"gait σ {args.gait_sd}°: "
           f"{arrived} arrived")  # fmt: skip
     print("collisions:", dict(bumps))
     print("walks that did not arrive, as time ran out:")
