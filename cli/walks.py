@@ -1,4 +1,5 @@
-"""``guidebelt walks``: walks by a simulated user who follows the belt (courtyard and others).
+"""``guidebelt walks``: walks by a simulated user who follows the belt or the voice cues
+(courtyard and others).
 
 Only typer and the standard library at the top; numpy, the planner, guidance and matplotlib
 are imported inside the command.
@@ -19,7 +20,11 @@ from cli.options import comma_list
 
 def walks(
     follow: Annotated[
-        str, typer.Option(help="Who walks: belt (the walker that feels the belt).")
+        str,
+        typer.Option(
+            help="Who walks: belt (the walker that feels the belt) or voice (the walker that "
+            "hears the cues and never feels the belt)."
+        ),
     ] = "belt",
     runs: Annotated[int, typer.Option(min=1, help="Seeded worlds per grid and density.")] = 100,
     scenario: Annotated[
@@ -39,6 +44,13 @@ def walks(
     ] = 8.0,
     gait_sd: Annotated[float, typer.Option(help="Walker's veer per step, degrees (σ).")] = 4.0,
     step_m: Annotated[float, typer.Option(help="Walker's mean step length, metres.")] = 0.5,
+    turn_sd: Annotated[
+        float, typer.Option(help="Voice walker's error turning to a clock hour, degrees (σ).")
+    ] = 20.0,
+    heed_distance: Annotated[
+        bool,
+        typer.Option(help="Voice walker stops after the distance a cue said (else walks on)."),
+    ] = False,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
     table: Annotated[
         bool, typer.Option(help="Run the walks table (--no-table: only the smoothing study).")
@@ -52,16 +64,21 @@ def walks(
         typer.Option(help="Also measure smoothing: turning-angle histograms saved here (PNG)."),
     ] = None,
 ) -> None:
-    """Walk seeded worlds by feel; print success, length ratio, collisions, cues."""
+    """Walk seeded worlds by feel or by ear; print success, length ratio, collisions, cues."""
     from rich.console import Console
     from rich.table import Table
 
     from sim.belt_walker import WalkerParams
     from sim.scenarios import check_grid, scenario_list
-    from sim.walks import run_table
+    from sim.voice_walker import VoiceWalkerParams
+    from sim.walks import FOLLOW, run_table
 
-    if follow != "belt":
-        raise typer.BadParameter(f"{follow!r}: only 'belt' is a walker here", param_hint="--follow")
+    if follow not in FOLLOW:
+        raise typer.BadParameter(
+            f"{follow!r}: choose one of {', '.join(FOLLOW)}", param_hint="--follow"
+        )
+    if crossing and follow != "belt":
+        raise typer.BadParameter("--crossing walks the belt walker only", param_hint="--follow")
     console = Console()
     if crossing:
         _crossing(console, runs, seed, json_out)
@@ -90,18 +107,29 @@ def walks(
                     f"done {r['scenario']} {r['grid']} @ {r['unknown']:.0%}"
                 ),
                 scenarios=scenarios,
-            )
-        shown = Table(title=f"walks that follow the belt ({runs} runs each, {backend})")
+                follow=follow,
+                voice_params=VoiceWalkerParams(
+                    step_m=step_m, gait_sd_deg=gait_sd, turn_sd_deg=turn_sd,
+                    heed_distance=heed_distance,
+                ),
+            )  # fmt: skip
+        voice = follow == "voice"
+        shown = Table(title=f"walks that follow the {follow} ({runs} runs each, {backend})")
         for name in ("scenario", "grid", "unknown", "runs", "success", "length ratio", "max ratio",
-                     "collisions", "cues/walk", "holds"):  # fmt: skip
+                     "collisions", "steps/walk", "cues/walk", "holds"):  # fmt: skip
             shown.add_column(name, justify="right")
+        if voice:
+            shown.add_column("silence s, mean/max", justify="right")
         for r in rows:
-            shown.add_row(
+            cells = [
                 r["scenario"], str(r["grid"]), f"{r['unknown']:.0%}", str(r["runs"]),
                 f"{r['success_rate']:.1%}", _ratio(r["length_ratio"]),
                 _ratio(r["length_ratio_max"]), str(r["collisions"]),
-                f"{r['cues_per_walk']:.1f}", str(r["holds"]),
-            )  # fmt: skip
+                f"{r['steps_per_walk']:.1f}", f"{r['cues_per_walk']:.1f}", str(r["holds"]),
+            ]  # fmt: skip
+            if voice:
+                cells.append(f"{r['longest_silence_s']:.1f} / {r['longest_silence_max_s']:.1f}")
+            shown.add_row(*cells)
         console.print(shown)
         took = time.perf_counter() - t0
         console.print(f"{took:.1f} s on {platform.node()} ({platform.machine()})")

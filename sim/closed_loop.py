@@ -100,7 +100,7 @@ def run_walk(
         if navigator.state == NavState.ARRIVED:
             walk.arrived, walk.reason = True, "arrived"
             break
-        action = world.act(out.path_cells, belt, now)
+        action = world.act(out.path_cells, belt, now, tuple(out.voice))
         walk.actions[action] = walk.actions.get(action, 0) + 1
         walk.track.append((world.walker.x, world.walker.y))
         if action == "step":

@@ -1,4 +1,4 @@
-"""Walks that follow the belt: the daemon's ``Navigator`` guides a ``BeltWalker``.
+"""Walks that follow the belt (or the voice): the daemon's ``Navigator`` guides a walker.
 
 The benchmark's walk (the paper's courtyard, or any scenario of ``scenarios.py``), but the user
 is the ``BeltWalker``: it feels the pattern and steps
@@ -9,7 +9,10 @@ inflation margin itself when a newly seen obstacle grew over the walker) and mak
 and the cue; the walker reacts. So these figures are the daemon's navigator, not a copy of it.
 
 Measured per walk: arrived or not, walked metres against the optimal path on the fully known
-map (8-connected, the planner's own metric), collisions, cues spoken, holds.
+map (8-connected, the planner's own metric), collisions, cues spoken, holds, steps. With
+``follow="voice"`` the walker is the ``VoiceWalker`` (``voice_walker.py``), which hears the
+navigator's cues and never feels the belt; its walks also give the longest silence between
+cues, the gap a listener walks through on the last thing it was told.
 
 Guidance lives in ``daemon.guidance`` (pydantic models), imported inside the functions so this
 module still imports with numpy and numba only.
@@ -32,7 +35,11 @@ from .belt_walker import BeltWalker, WalkerParams
 from .closed_loop import STEP_S, run_walk
 from .courtyard import USER_RADIUS_M, Scenario, dilate
 from .scenarios import check_grid, make_scenario
+from .voice_walker import VoiceWalker, VoiceWalkerParams
 from .world import World
+
+FOLLOW = ("belt", "voice")
+"""Who walks in ``walks``: the walker that feels the belt, or the one that hears the cues."""
 
 if TYPE_CHECKING:
     from daemon.guidance.guide import Guidance
@@ -50,6 +57,12 @@ class BeltWalk:
     actions: int
     track: np.ndarray
     """``(n, 2)`` walker positions in metres (x, y), start first."""
+    steps: int = 0
+    """Steps the walker took (turns, bumps and standing not counted)."""
+    longest_silence_s: float | None = None
+    """Voice walks: the longest time between two cues heard (the walk's start and its
+    "arrived" count as cues; the stall after the last cue of a walk that never arrives does
+    not); None for belt walks, which the belt guides every step."""
 
     @property
     def length_ratio(self) -> float:
@@ -99,12 +112,17 @@ def belt_walk(
     max_actions: int | None = None,
     guidance: Guidance | None = None,
     planner: str = "eds",
+    follow: str = "belt",
+    voice_params: VoiceWalkerParams | None = None,
 ) -> BeltWalk:
-    """One walk of ``scenario`` by a belt walker with noise seeded by ``seed``.
+    """One walk of ``scenario`` by a belt walker (or, ``follow="voice"``, a voice walker with
+    ``voice_params``) with noise seeded by ``seed``.
 
     ``guidance`` replaces the navigator's own (a hold policy, say); ``smooth`` asks for the
     rubber band in the navigator's default guidance.
     """
+    if follow not in FOLLOW:
+        raise ValueError(f"follow {follow!r}: choose one of {', '.join(FOLLOW)}")
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
 
@@ -116,15 +134,26 @@ def belt_walk(
         )  # fmt: skip
     navigator = Navigator("walker", settings, guidance=guidance)
     x, y = cell_to_xy(scenario.shape, scenario.start, scenario.cell_m)
-    walker = BeltWalker(
-        x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m,
-        params=params or WalkerParams(), rng=np.random.default_rng(seed),
-    )  # fmt: skip
+    walker: BeltWalker | VoiceWalker
+    if follow == "voice":
+        walker = VoiceWalker(
+            x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m,
+            params=voice_params or VoiceWalkerParams(), rng=np.random.default_rng(seed),
+        )  # fmt: skip
+    else:
+        walker = BeltWalker(
+            x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m,
+            params=params or WalkerParams(), rng=np.random.default_rng(seed),
+        )  # fmt: skip
     best = optimal_m(scenario)
     limit = max_actions or int(6 * best / walker.params.step_m) + 100
     # A walker with no path stands and waits (stop_on_no_path=False): it may find one again.
     done = run_walk(World(scenario, walker), navigator, max_actions=limit, step_s=STEP_S,
                     stop_on_no_path=False)  # fmt: skip
+    silence = None
+    if isinstance(walker, VoiceWalker):
+        end = (len(done.track) - 1) * STEP_S if done.arrived else None
+        silence = walker.longest_silence_s(0.0, end=end)
     return BeltWalk(
         arrived=done.arrived,
         reason=done.reason,
@@ -135,14 +164,20 @@ def belt_walk(
         holds=navigator.guidance.hold.holds,
         actions=len(done.track) - 1,
         track=np.array(done.track, dtype=np.float64),
+        steps=walker.steps,
+        longest_silence_s=silence,
     )
 
 
-def _one(task: tuple) -> tuple[int, float, bool, float, int, int, int]:
-    name, grid, unknown, seed, backend, smooth, params, planner = task
+def _one(task: tuple) -> tuple:
+    """One walk as ``(grid, unknown, arrived, ratio, collisions, cues, holds, steps,
+    longest silence)``: a plain tuple, so it crosses process boundaries cheaply."""
+    name, grid, unknown, seed, backend, smooth, params, planner, follow, voice_params = task
     w = belt_walk(make_scenario(name, grid, unknown, seed), seed=seed, backend=backend,
-                  smooth=smooth, params=params, planner=planner)
-    return grid, unknown, w.arrived, w.length_ratio, w.collisions, w.cues, w.holds
+                  smooth=smooth, params=params, planner=planner, follow=follow,
+                  voice_params=voice_params)  # fmt: skip
+    return (grid, unknown, w.arrived, w.length_ratio, w.collisions, w.cues, w.holds, w.steps,
+            w.longest_silence_s)  # fmt: skip
 
 
 def summarise(grid: int, unknown: float, results: list[tuple], scenario: str = "courtyard") -> dict:
@@ -160,6 +195,19 @@ def summarise(grid: int, unknown: float, results: list[tuple], scenario: str = "
         "collisions": int(sum(r[4] for r in results)),
         "cues_per_walk": round(float(np.mean([r[5] for r in results])), 2),
         "holds": int(sum(r[6] for r in results)),
+        "steps_per_walk": round(float(np.mean([r[7] for r in results])), 1),
+        **_silences([r[8] for r in results]),
+    }
+
+
+def _silences(longest: list[float | None]) -> dict:
+    """Mean and worst of the walks' longest silences (voice rows only: a belt row has none)."""
+    values = [s for s in longest if s is not None]
+    if not values:
+        return {}
+    return {
+        "longest_silence_s": round(float(np.mean(values)), 1),
+        "longest_silence_max_s": round(float(max(values)), 1),
     }
 
 
@@ -176,10 +224,14 @@ def run_table(
     planner: str = "eds",
     on_row: Callable[[dict], None] | None = None,
     scenarios: list[str] | None = None,
+    follow: str = "belt",
+    voice_params: VoiceWalkerParams | None = None,
 ) -> list[dict]:
     """``runs`` seeded walks (seed i: the world and the walker's noise) per scenario
     (default the courtyard), grid and density; one row each. ``jobs`` > 1 spreads the walks
-    over processes. A bad scenario or grid is refused before the first walk."""
+    over processes. A bad scenario, grid or ``follow`` is refused before the first walk."""
+    if follow not in FOLLOW:
+        raise ValueError(f"follow {follow!r}: choose one of {', '.join(FOLLOW)}")
     scenarios = scenarios or ["courtyard"]
     for name in scenarios:
         for grid in grids:
@@ -193,11 +245,12 @@ def run_table(
     try:
         for name, grid, unknown in [(n, g, u) for n in scenarios for g in grids for u in unknowns]:
             tasks = [
-                (name, grid, unknown, first_seed + i, backend, smooth, params, planner)
+                (name, grid, unknown, first_seed + i, backend, smooth, params, planner,
+                 follow, voice_params)
                 for i in range(runs)
             ]
             results = list(pool.map(_one, tasks) if pool else map(_one, tasks))
-            rows.append(summarise(grid, unknown, results, name))
+            rows.append({**summarise(grid, unknown, results, name), "follow": follow})
             if on_row is not None:
                 on_row(rows[-1])
     finally:

@@ -19,7 +19,14 @@ from typing import Protocol
 import numpy as np
 
 from daemon.planning.grid import OCCUPIED, Cell, cell_to_xy, xy_to_cell
-from protocol.messages import MAX_DELTA_CELLS, BeltPattern, MapDelta, MapSnapshot, Pose
+from protocol.messages import (
+    MAX_DELTA_CELLS,
+    BeltPattern,
+    MapDelta,
+    MapSnapshot,
+    Pose,
+    VoiceCue,
+)
 
 from .belt_walker import belt_walker_for, step_hits
 from .courtyard import Scenario
@@ -41,6 +48,9 @@ class WalkerView:
     """The world's occupancy, to find out the hard way what a step runs into."""
     now: float
     """The world's clock (simulated or wall), for patterns that expire."""
+    voice: tuple[VoiceCue, ...] = ()
+    """The cues spoken during this step (usually none): a listener hears each once, when it is
+    said, and never again; walkers that feel the belt ignore them."""
 
 
 class Walker(Protocol):
@@ -155,8 +165,14 @@ class World:
     def pose(self, stamp: float) -> Pose:
         return Pose(x=self.walker.x, y=self.walker.y, heading=self.walker.heading, stamp=stamp)
 
-    def act(self, path: np.ndarray | None, belt: BeltPattern | None, now: float) -> str:
-        return self.walker.act(WalkerView(path, belt, self.true, now))
+    def act(
+        self,
+        path: np.ndarray | None,
+        belt: BeltPattern | None,
+        now: float,
+        voice: tuple[VoiceCue, ...] = (),
+    ) -> str:
+        return self.walker.act(WalkerView(path, belt, self.true, now, voice))
 
     def _deltas(
         self, cells: np.ndarray, values: np.ndarray, stamp: float, at_least_one: bool = False
