@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from cli.options import comma_list
+from cli.options import PLANNER_NAMES, comma_list
 
 
 def bench(
@@ -29,7 +29,7 @@ def bench(
     planner: Annotated[
         str,
         typer.Option(
-            "--planner", "--modes", help="Planners to walk with: eds, dss, astar, extended-astar."
+            "--planner", "--modes", help=f"Planners to walk with: {PLANNER_NAMES}."
         ),
     ] = "eds,dss",
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,

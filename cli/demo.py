@@ -12,6 +12,8 @@ from typing import Annotated
 
 import typer
 
+from cli.options import PLANNER_NAMES
+
 
 def run_in_process(
     grid: int, unknown: float, seed: int, backend: str, mode: str, out: Path
@@ -73,7 +75,7 @@ def demo(
     planner: Annotated[
         str,
         typer.Option(
-            "--planner", "--mode", help="Registry planner: eds, dss, astar, extended-astar."
+            "--planner", "--mode", help=f"Registry planner: {PLANNER_NAMES}."
         ),
     ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import typer
 
+PLANNER_NAMES = "eds, dss, astar, extended-astar"
+"""The registry's planners (``daemon.planning.registry.PLANNERS``), for help texts: a
+command module does not import the registry at the top (``cli/app.py``);
+``tests/cli`` checks the two agree."""
+
 
 def comma_list(text: str, kind: type) -> list:
     """``"100,200"`` → ``[100, 200]``; a bad item is the user's error, said as such."""

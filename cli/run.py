@@ -10,6 +10,8 @@ from typing import Annotated
 
 import typer
 
+from cli.options import PLANNER_NAMES
+
 
 def run(
     config: Annotated[
@@ -19,7 +21,7 @@ def run(
     planner: Annotated[
         str | None,
         typer.Option(
-            help="A registry planner (eds, dss, astar, extended-astar); overrides the config."
+            help=f"A registry planner ({PLANNER_NAMES}); overrides the config."
         ),
     ] = None,
 ) -> None:

@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from cli.options import comma_list
+from cli.options import PLANNER_NAMES, comma_list
 
 
 def walks(
@@ -34,7 +34,7 @@ def walks(
     unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
     backend: Annotated[str, typer.Option(help="Planner: cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
-        str, typer.Option(help="A planner of the registry: eds, dss, astar, extended-astar.")
+        str, typer.Option(help=f"A planner of the registry: {PLANNER_NAMES}.")
     ] = "eds",
     smooth: Annotated[bool, typer.Option(help="Rubber-band smoothing before guidance.")] = False,
     seed: Annotated[int, typer.Option(help="First seed; run i uses seed + i.")] = 0,
