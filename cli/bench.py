@@ -28,9 +28,7 @@ def bench(
     variant: Annotated[str, typer.Option(help="fast, or paper (its Figure 4 form).")] = "fast",
     planner: Annotated[
         str,
-        typer.Option(
-            "--planner", "--modes", help=f"Planners to walk with: {PLANNER_NAMES}."
-        ),
+        typer.Option("--planner", "--modes", help=f"Planners to walk with: {PLANNER_NAMES}."),
     ] = "eds,dss",
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     repeats: Annotated[int, typer.Option(min=1, help="Walks per table cell, times pooled.")] = 1,

@@ -74,15 +74,15 @@ def demo(
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
         str,
-        typer.Option(
-            "--planner", "--mode", help=f"Registry planner: {PLANNER_NAMES}."
-        ),
+        typer.Option("--planner", "--mode", help=f"Registry planner: {PLANNER_NAMES}."),
     ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),
     belt: Annotated[
         str,
-        typer.Option(help="With the daemon, the belt in the loop: simavr (the firmware on a "
-                     "simulated Nano), mock (Python mock firmware) or none."),
+        typer.Option(
+            help="With the daemon, the belt in the loop: simavr (the firmware on a "
+            "simulated Nano), mock (Python mock firmware) or none."
+        ),
     ] = "none",
 ) -> None:
     """Guide a simulated pedestrian across the courtyard and save a picture of the walk."""

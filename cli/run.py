@@ -20,9 +20,7 @@ def run(
     ] = None,
     planner: Annotated[
         str | None,
-        typer.Option(
-            help=f"A registry planner ({PLANNER_NAMES}); overrides the config."
-        ),
+        typer.Option(help=f"A registry planner ({PLANNER_NAMES}); overrides the config."),
     ] = None,
 ) -> None:
     """Serve goals, poses and map deltas over zenoh until SIGTERM."""

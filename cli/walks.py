@@ -174,16 +174,18 @@ def _crossing(console, runs: int, seed: int, json_out: Path | None) -> None:
     rows = []
     for hold in (True, False):
         done = [crossing_walk(hold=hold, seed=seed + i) for i in range(runs)]
-        rows.append({
-            "hold": hold,
-            "runs": runs,
-            "arrived": sum(w.arrived for w in done),
-            "walked_m": round(float(np.mean([w.walked_m for w in done])), 2),
-            "time_s": round(float(np.mean([w.time_s for w in done])), 1),
-            "backtrack_m": round(float(np.mean([w.backtrack_m for w in done])), 2),
-            "collisions": sum(w.collisions for w in done),
-            "holds": sum(w.holds for w in done),
-        })
+        rows.append(
+            {
+                "hold": hold,
+                "runs": runs,
+                "arrived": sum(w.arrived for w in done),
+                "walked_m": round(float(np.mean([w.walked_m for w in done])), 2),
+                "time_s": round(float(np.mean([w.time_s for w in done])), 1),
+                "backtrack_m": round(float(np.mean([w.backtrack_m for w in done])), 2),
+                "collisions": sum(w.collisions for w in done),
+                "holds": sum(w.holds for w in done),
+            }
+        )
     table = Table(title=f"a person stands in the doorway ahead ({runs} walks each)")
     for name in rows[0]:
         table.add_column(name, justify="right")
