@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from daemon.navigation.warm import warm_up as warm_navigator
 from daemon.planning import resolve_backend
 
 from .courtyard import make_courtyard
@@ -103,9 +104,11 @@ def settle_heap() -> None:
 
 
 def warm_up(backend: str, variant: str, modes: list[str]) -> None:
-    """Compile kernels and JIT code on a tiny walk so no timed step pays for it."""
+    """Compile kernels and JIT code so no timed step pays for it: the daemon's own warm-up
+    (every planner and guidance entry point), then a tiny walk for the simulator's side."""
     scenario = make_courtyard(grid=50, unknown=0.2, seed=0)
     for mode in modes:
+        warm_navigator(mode, backend, variant)
         walk(scenario, backend=backend, variant=variant, mode=mode, max_steps=3)
 
 

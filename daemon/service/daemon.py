@@ -19,6 +19,8 @@ import time
 import zenoh
 
 from daemon.navigation import Navigator
+from daemon.navigation.warm import warm_up
+from daemon.planning import resolve_backend
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
@@ -60,6 +62,7 @@ class Daemon:
     async def run(self, install_signals: bool = True) -> None:
         loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
+        self._warm_up()
         self._zenoh = open_session(self.config.zenoh)
         self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
         self._bridge.start()
@@ -86,6 +89,21 @@ class Daemon:
             if install_signals:
                 for sig in (signal.SIGTERM, signal.SIGINT):
                     loop.remove_signal_handler(sig)
+
+    def _warm_up(self) -> None:
+        """Compile (or load) the configured planner's code before READY, so the first user's
+        first steps do not pay for it (``navigation/warm.py``). Best effort: a failure here is
+        logged in one line and the users' planners meet it, and fall back, as they would."""
+        try:
+            backend = resolve_backend(self.config.backend)
+            ms = warm_up(self.config.planner, backend, self.config.variant)
+        except Exception as exc:  # a device that fails now fails for users too: said there
+            log.warning("warm-up failed: %s: %s", type(exc).__name__, exc)
+            return
+        log.info(
+            "warmed up",
+            extra={"fields": {"planner": self.config.planner, "backend": backend, "ms": ms}},
+        )
 
     async def _shutdown(self) -> None:
         t0 = time.perf_counter()
