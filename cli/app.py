@@ -21,6 +21,7 @@ app = typer.Typer(
 # Each module defines ``register(app: typer.Typer) -> None``.
 COMMAND_MODULES = [
     "cli.bench",
+    "cli.compare",
     "cli.render",
     "cli.demo",
     "cli.walks",
