@@ -84,13 +84,14 @@ def _astar_planner(backend: str, variant: str) -> GlobalPlanner:
 
 def _extended_astar_planner(backend: str, variant: str) -> GlobalPlanner:
     """Rettkowski et al.'s extended A* (``cpu/extended_astar.py``), CPU whatever the backend,
-    as ``astar``; the variant picks the same key. Not optimal and may miss a path that exists:
-    for study and comparison, not a default."""
+    as ``astar``; the variant picks the same key. Not optimal: for study and comparison, not a
+    default. With its fallback on (a search the memory criterion leaves pathless runs again
+    without it), so a walk never stops for a door the criterion closed."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
     from .cpu.extended_astar import ExtendedAStarPlanner
 
-    return ExtendedAStarPlanner(tie_break="exact" if variant == "fast" else "paper")
+    return ExtendedAStarPlanner(tie_break="exact" if variant == "fast" else "paper", fallback=True)
 
 
 PLANNERS: dict[str, PlannerFactory] = {

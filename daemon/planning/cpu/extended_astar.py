@@ -33,6 +33,13 @@ rates are measured by ``sim/extended_astar_study.py``, see ``docs/notes/extended
   n expansions; bad input (goal outside, goal blocked, start outside or blocked, empty map)
   answers as ``astar`` and EDS do.
 
+**Fallback** (``fallback=True``; not in the paper, on for the planner users get by name,
+``registry.py``): when the memory criterion leaves no path, the same search runs again with
+``d = 0``. A door the criterion closes is then still found (the courtyard's gaps are: the
+paper's form answers no path on the 100² courtyard walk), a path is found exactly when one
+exists, and the cost of a miss is one more search — counted in the statistics, and in
+``fallbacks``. Off by default in the class, so the study measures the paper's form.
+
 ``costs()`` and ``costs_within()`` are inherited: they are the exact field (what the escape
 from the margin reads to rank exits), not this planner's costs; ``escape.py`` skips an exit
 from which this planner has no path.
@@ -43,6 +50,10 @@ generated (opened), ``max_open`` the largest open-list size of the last search.
 
 from __future__ import annotations
 
+import numpy as np
+
+from ..grid import INF, Cell, in_bounds
+from ..interface import UpdateStats
 from .astar import HEURISTICS, TIE_BREAKS, AStarPlanner
 
 DEFAULT_CLEARANCE = 1
@@ -60,6 +71,7 @@ class ExtendedAStarPlanner(AStarPlanner):
         goal_on_generation: bool = True,
         heuristic: str = "octile",
         tie_break: str = "exact",
+        fallback: bool = False,
     ) -> None:
         if heuristic not in HEURISTICS:
             raise ValueError(f"unknown heuristic {heuristic!r}; choose one of {HEURISTICS}")
@@ -72,6 +84,40 @@ class ExtendedAStarPlanner(AStarPlanner):
         self._clear_d = self.clearance
         self._skip_open = bool(skip_open)
         self._goal_on_generation = bool(goal_on_generation)
-        self.name = f"extended-astar-cpu-d{self.clearance}" + (
-            "" if tie_break == "exact" else f"-{tie_break}"
+        self.fallback = bool(fallback)
+        self.fallbacks = 0
+        """Searches that found no path with the criterion and ran again with d = 0."""
+        self._fell_back_for: object = None
+        self.name = (
+            f"extended-astar-cpu-d{self.clearance}"
+            + ("" if tie_break == "exact" else f"-{tie_break}")
+            + ("-fallback" if self.fallback else "")
         )
+
+    def _search(self, start: Cell) -> tuple[np.ndarray, int]:
+        path, cost = super()._search(start)
+        key = ((int(start[0]), int(start[1])), self._version)
+        if cost < INF or not self.fallback or self.clearance == 0 or self._fell_back_for == key:
+            return path, cost
+        if not in_bounds(self._shape, key[0]) or self._blk[self._padded(key[0])]:
+            return path, cost  # no start: no search ran, none to repeat
+        if self._blk[self._padded(self._goal)]:
+            return path, cost
+        first, first_open = self.search_stats, self.max_open
+        self._cached = None  # the miss is cached under the same key
+        self._clear_d = 0
+        try:
+            path, cost = super()._search(start)
+        finally:
+            self._clear_d = self.clearance
+        self.fallbacks += 1
+        self._fell_back_for = key
+        second = self.search_stats
+        if first is not None and second is not None:
+            self.search_stats = UpdateStats(
+                first.iterations + second.iterations,
+                first.cells_touched + second.cells_touched,
+                first.ms + second.ms,
+            )
+        self.max_open = max(first_open, self.max_open)
+        return path, cost
