@@ -30,10 +30,13 @@ THREADS = TILE * TILE
 BORDER = 4 * TILE - 4
 """Cells on a tile's perimeter: the path's exits kept per tile."""
 
-# params: [ndelta, mode, start, goal, seq, unused x 3], then the delta (cell * 2 + blocked).
+# params: [ndelta, mode, start, goal, seq, (the mailbox's MB_STOP, MB_POST, MB_COUNT), focus,
+# unused x 3], then the delta (cell * 2 + blocked). focus: the cell an EDS repair is focused on
+# (the user's; -1: settle everything).
 PARAM_NDELTA, PARAM_MODE, PARAM_START, PARAM_GOAL, PARAM_SEQ = range(5)
-PARAM_USED = 5
-PARAMS = 8
+PARAM_FOCUS = 8
+PARAM_USED = 9
+PARAMS = 12
 """Words before the delta (a whole number of 16-byte chunks: the loop reads the mailbox so)."""
 MODE_DSS, MODE_EDS = 0, 1
 
@@ -70,6 +73,10 @@ C_LONGEST = 13
 """The relaxation's longest chain of tile visits."""
 C_BASE = 14
 """The barrier count the last loop ended with (the next one starts there)."""
+C_STAMP = 16
+"""Nine words: the global timer (ns, low 32 bits) at the call's phase boundaries, written by
+block 0 (``STAMP_PHASES`` in ``cuda/phases.py``), then when the loop saw the call's post: the
+phases' device time per call."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 P_SEG = 40
@@ -100,11 +107,13 @@ is not a consistent field."""
 
 _WORDS = (
     "TILE", "THREADS", "BORDER",
-    "PARAM_NDELTA", "PARAM_MODE", "PARAM_START", "PARAM_GOAL", "PARAM_SEQ", "PARAM_USED", "PARAMS",
+    "PARAM_NDELTA", "PARAM_MODE", "PARAM_START", "PARAM_GOAL", "PARAM_SEQ", "PARAM_FOCUS",
+    "PARAM_USED", "PARAMS",
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO", "C_CMD",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
+    "C_CMD",
     "CTRL_READ", "PATH_CTRL",
     "IO_REJECT", "REJECT_RANGE", "REJECT_ORDER", "IO_DONE", "IO_PATH",
     "PATH_DONE", "PATH_MORE", "PATH_NONE", "PATH_BROKEN",

@@ -18,9 +18,11 @@ from . import abi, device, resident
 
 # Compiled once: struct's module functions parse the format string at every call, and these
 # run at every step.
-PARAMS_WORDS = struct.Struct(f"{abi.PARAM_USED}i")
+PARAMS_WORDS = struct.Struct("5i")
 _ORDER = (abi.PARAM_NDELTA, abi.PARAM_MODE, abi.PARAM_START, abi.PARAM_GOAL, abi.PARAM_SEQ)
-assert tuple(range(abi.PARAM_USED)) == _ORDER, "the order _pack_params packs the words in"
+assert tuple(range(5)) == _ORDER, "the order _pack_params packs the words in"
+FOCUS_WORD = struct.Struct("i")
+"""PARAM_FOCUS, after the mailbox's words (which the post writes, last)."""
 RESULT_WORDS = struct.Struct(
     f"<{abi.CTRL_READ}I{4 * (abi.IO_REJECT - abi.CTRL_READ)}x"
     f"I{4 * (abi.IO_PATH - abi.IO_REJECT - 1)}x2i"
@@ -57,6 +59,7 @@ class FastCall:
     raised_cells: int
     cut_cells: int
     cut_over: int
+    _unsettled: bool
     tiles: int
     exit_tiles: int
 
@@ -70,12 +73,14 @@ class FastCall:
         blocked: np.ndarray | None,
         start: int = -1,
         again: bool = False,
+        focus: int = -1,
     ) -> None:
         """One fast call (lock held), the delta ``cells`` / ``blocked`` (none: ``cells`` is
         None), the path from the flat cell ``start`` if >= 0; the result words end in
-        ``_result``. Every step of a walk runs this, so it does its staging itself and handles
-        its rare cases at the end (a cold Python call or numpy access costs ~1 µs right after
-        the walk's other work). The loop checks the delta: a cell outside the map is an
+        ``_result``; ``focus`` >= 0 (a flat cell, EDS): the repair is focused on it and may
+        defer tiles (fast.cu). Every step of a walk runs this, so it does its staging itself
+        and handles its rare cases at the end (a cold Python call or numpy access costs ~1 µs
+        right after the walk's other work). The loop checks the delta: a cell outside the map is an
         IndexError (nothing applied); cells out of order (a cell twice, say) are sorted here,
         each keeping its last value, and posted ``again``."""
         n = 0
@@ -101,7 +106,9 @@ class FastCall:
         loop = self._loop  # after staging: a stage that had to grow stopped the loop
         if loop is None:
             loop = self._loop = self._new_loop()
-        seq = self._pack_params(eds, n, start)
+        if focus >= 0 and eds:
+            self._unsettled = True
+        seq = self._pack_params(eds, n, start, focus)
         loop.post(seq, n)
         io = self._io_host.view
         loop.wait(io, seq)
@@ -115,14 +122,15 @@ class FastCall:
         if again or cells is None or blocked is None:
             raise RuntimeError("the resident loop refused a sorted delta")
         cells, blocked = device.unique_last(cells, blocked)
-        self._call_fast(eds, cells, blocked, start, again=True)
+        self._call_fast(eds, cells, blocked, start, again=True, focus=focus)
 
-    def _pack_params(self, eds: bool, n_delta: int, start: int) -> int:
+    def _pack_params(self, eds: bool, n_delta: int, start: int, focus: int = -1) -> int:
         """The params words into the stage, for the next call's new seq, which it returns."""
         self._seq = seq = self._seq % 0x7FFFFFFF + 1
         goal = self._goal[0] * self._shape[1] + self._goal[1]
         mode = abi.MODE_EDS if eds else abi.MODE_DSS
         PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, mode, start, goal, seq)
+        FOCUS_WORD.pack_into(self._stage.view, 4 * abi.PARAM_FOCUS, focus)
         return seq
 
     def _read_fast_stats(self) -> tuple[int, int]:

@@ -24,6 +24,14 @@ wall across the route raises the whole shadow behind it) and the same call compu
 from scratch, as DSS does: the device decides at the end of a raise round, with no host round
 trip (``fast.cu``); ``cut_cells`` tells whether the last call did.
 
+``fast``'s EDS repair is focused on the user (LPA*'s and D* Lite's keys g + h(user, ·), per
+32 x 32 tile, ``fast.cu``'s header): a walking step settles the tiles between the user and the
+goal whose key can still improve the user's path and defers the rest to later calls. The
+contract is the CPU's (``cpu/repair.py``): the path read in a step (``update_and_path``,
+``path``) is ``reference_path`` of the current map, tie for tie, and its cost the user's exact
+g; ``costs()`` and ``cost_at`` are exact after ``settle()``, which they run themselves. DSS is
+never focused.
+
 ``path`` runs on the device with the rule of ``dijkstra.reference_path`` (``path_exits.cuh``:
 tile-to-tile jumps, segments walked in parallel); only the path's cells come back.
 
@@ -61,6 +69,10 @@ with the side. Measured (H100, the four scenario walks, 40 %): at 400² the CPU'
 cells, the limit here too) beat 0.2 % (320) on p99 and walk; at 1000² 0.2 % (2,000, the limit
 here) beat 0.5 % (5,000) on p99 by 4-17 % in every scenario, walk time the same. Read when a
 planner is made, so a benchmark can try another."""
+FOCUSED = True
+"""Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
+settles the whole field, as before the focused repair. Read when a planner is made, so a
+benchmark can compare the two."""
 
 
 class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
@@ -71,19 +83,26 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
     ``cut_over`` (``fast``): the cells an EDS repair may raise per row and column of the map
     before the call computes the field from scratch instead (default ``CUT_OVER``;
-    ``math.inf``: never).
+    ``math.inf``: never). ``focused`` (``fast`` EDS, default ``FOCUSED``): a walking step's
+    repair settles only what the user's path needs and defers the rest (``settle``).
     """
 
     backend = "cuda"
 
     def __init__(
-        self, variant: str = "fast", *, dss: bool = False, cut_over: float | None = None
+        self,
+        variant: str = "fast",
+        *,
+        dss: bool = False,
+        cut_over: float | None = None,
+        focused: bool | None = None,
     ) -> None:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         self.variant = variant
         super().__init__(dss)
         self._cut_over_rate = CUT_OVER if cut_over is None else cut_over
+        self.focused = (FOCUSED if focused is None else focused) and not dss
         self.cut_over = 1  # in cells, set with the map's size
         self._loop: resident.ResidentLoop | None = None
         self._shape: tuple[int, int] = (0, 0)
@@ -109,6 +128,11 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         # tiles whose path exits were recomputed (update_and_path; the rest were reused), and
         # the cells raised when the repair gave up for a plan from scratch (0: it did not).
         self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = self.cut_cells = 0
+        # The cell the last EDS path was read from (a step with no path read stays focused on
+        # it; -1: none), and whether a focused call may have deferred tiles since the last
+        # settle.
+        self._focus = -1
+        self._unsettled = False
 
     # -- test hook ----------------------------------------------------------------------------
 
@@ -151,9 +175,11 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._path_blocks = int(min(tiles, device.resident_blocks(k, PATH_THREADS), 8 * sms))
         if self.variant == "fast":
             self._raised = cp.zeros(n, dtype=np.uint8)
-            # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth.
-            self._flags = cp.zeros(5 * tiles, dtype=np.uint32)
+            # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth,
+            # deferred by a focused repair, and the deferred tiles' bounds (INF: none).
+            self._flags = cp.zeros(7 * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
+            self._flags[6 * tiles :] = INF
             # The loop's grid: all of its blocks must be resident at once.
             self._blocks = int(min(tiles, device.resident_blocks(self._k_loop())))
         else:
@@ -204,6 +230,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._goal = goal
             self._blocked_d.set(np.ascontiguousarray(blocked, dtype=np.uint8).ravel())
             device.synchronize()  # a resident loop runs on its own stream: the map is there first
+            self._focus, self._unsettled = -1, False  # a plan from scratch defers nothing
             return self._run(False, t0)
 
     def _repair(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
@@ -227,7 +254,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         blocked: np.ndarray | None = None,
     ) -> UpdateStats:
         if self.variant == "fast":
-            self._call_fast(eds, cells, blocked)
+            self._call_fast(eds, cells, blocked, focus=self._focus if eds else -1)
             iterations, touched = self._read_fast_stats()
         else:
             n = 0 if cells is None else self._stage_delta(cells, blocked)
@@ -256,8 +283,11 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._require_plan()
         y, x = int(start[0]), int(start[1])
         inside = 0 <= y < h and 0 <= x < w
+        cell = y * w + x if inside else -1
+        if inside and self.focused:
+            self._focus = cell
         with device.DEVICE_LOCK:
-            self._call_fast(not self.dss, cells, blocked, y * w + x if inside else -1)
+            self._call_fast(not self.dss, cells, blocked, cell, focus=self._focus)
             if inside:
                 path = self._path_locked((y, x), fused=True)
             else:
@@ -269,8 +299,35 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
 
     # -- queries --------------------------------------------------------------------------------
 
+    def settle(self) -> UpdateStats:
+        """Finish a focused repair everywhere (``fast``: one call with no change and no
+        focus); afterwards the stored field is exact. No call when nothing can be pending."""
+        t0 = time.perf_counter()
+        self._check_fault()
+        self._require_plan()
+        if self.variant != "fast" or not self._unsettled:
+            return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
+        with device.DEVICE_LOCK:
+            self._call_fast(True, None, None)
+            self._unsettled = False
+            # The last step's statistics (raised_cells, cut_cells, tiles, ...) stay: a query
+            # that settles is no step.
+            st = self._result
+            iterations, touched = st[abi.C_ROUNDS], st[abi.C_RAISED] + st[abi.C_CHANGED]
+        return UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
+
+    def deferred_tiles(self) -> int:
+        """Tiles a focused repair (``fast``) left for later calls (0 after ``settle``)."""
+        self._check_fault()
+        if self.variant != "fast" or self._shape == (0, 0):
+            return 0
+        tiles = self._flags.size // 7
+        return int(cp.count_nonzero(self._flags[5 * tiles : 6 * tiles]))
+
     def costs(self) -> np.ndarray:
         self._check_fault()
+        if self._unsettled:
+            self.settle()
         return self._g.get().reshape(self._shape)
 
     def blocked(self) -> np.ndarray:
@@ -281,6 +338,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._check_fault()
         if not in_bounds(self._shape, cell):
             return int(INF)
+        if self._unsettled:
+            self.settle()
         return int(self._g[int(cell[0]) * self._shape[1] + int(cell[1])].get())
 
     def path(self, start: Cell) -> np.ndarray:
@@ -291,7 +350,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         with device.DEVICE_LOCK:
             if self.variant == "fast":
                 # A call with no change: the loop extracts the path, no launch.
-                self._call_fast(True, None, None, start[0] * self._shape[1] + start[1])
+                cell = start[0] * self._shape[1] + start[1]
+                self._call_fast(True, None, None, cell, focus=cell if self.focused else -1)
                 return self._path_locked(start, fused=True)
             return self._path_locked(start)
 

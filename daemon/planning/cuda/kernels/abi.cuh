@@ -13,8 +13,9 @@
 #define PARAM_START 2
 #define PARAM_GOAL 3
 #define PARAM_SEQ 4
-#define PARAM_USED 5
-#define PARAMS 8
+#define PARAM_FOCUS 8
+#define PARAM_USED 9
+#define PARAMS 12
 #define MODE_DSS 0
 #define MODE_EDS 1
 #define MB_BOX 4
@@ -32,6 +33,7 @@
 #define C_CHANGED 12
 #define C_LONGEST 13
 #define C_BASE 14
+#define C_STAMP 16
 #define C_RELEASE 32
 #define P_SEG 40
 #define P_NSEGS 42

@@ -23,6 +23,25 @@
 // the round's flag count, which every block reads after the round's barrier anyway, so the
 // decision is the same in every block and costs no extra barrier or host round trip.
 //
+// Focused repair (focus >= 0, the user's cell; LPA*'s and D* Lite's keys, Koenig and Likhachev
+// 2002, per tile). A visit that lowers cells on edge/corner k of its tile bounds every value the
+// tile n across k can take from that change below by emin (their least new g), so no cell of n
+// can come out cheaper than key(n) = emin + h(focus, n), h the octile distance from the focus
+// to n's nearest cell. If key(n) > g(focus), n cannot lie on any of the focus's shortest paths
+// (nor can any neighbour the path's tie-break compares): instead of flagging n for a visit,
+// the visit defers it (deferred[n], its bound lb[n] = the least emin since it was last
+// visited). The relaxation thus settles the ellipse g* + h <= g*(focus) between the focus and
+// the goal and leaves the rest. Why the path read is then the reference path, tie for tie: an
+// inconsistent cell u on a shortest path from the focus has a neighbour w that is exact, and
+// whichever visit last lowered w flagged or deferred u's tile with a bound <= g(w), so its key
+// is <= g(w) + h(u) <= g*(focus) <= g(focus): it was visited. The next call's reset round
+// takes the deferred tiles back into the relaxation whose key lb + h(new focus) is no more
+// than g(focus) after the raise (INF if raised: all of them), and keeps the others deferred;
+// a call with focus < 0 (settle: costs(), cost_at()) takes them all back. Cells of deferred
+// tiles hold upper bounds (costs of real paths) that can exceed a neighbour's g + c: the raise
+// counts such a neighbour as a support (raise_tile), so no cost is ever under its true value.
+// A plan from scratch (DSS, or the cut-over) clears every deferral; DSS is never focused.
+//
 // With start >= 0 the call then extracts the path from `start` (path_exits.cuh), reusing
 // the exits of every tile whose g and halo did not change since the last extraction.
 //
@@ -51,6 +70,19 @@
 // In a raise round's flag count: the cells raised so far passed the limit (flag counts never
 // come near it).
 #define CUT_PENDING 0x80000000u
+
+// h(focus, tile n): the octile distance from the focus (fy, fx) to n's nearest cell.
+__device__ __forceinline__ int tile_h(const Grid& G, int n, int fy, int fx) {
+    int oy = (n / G.tiles_x) * TILE, ox = (n % G.tiles_x) * TILE;
+    int dy = max(0, max(oy - fy, fy - min(oy + TILE, G.h) + 1));
+    int dx = max(0, max(ox - fx, fx - min(ox + TILE, G.w) + 1));
+    return STRAIGHT * max(dy, dx) + (DIAGONAL - STRAIGHT) * min(dy, dx);
+}
+
+// Block 0's thread 0 stamps phase boundary i (ctrl[C_STAMP + i], cuda/phases.py).
+__device__ __forceinline__ void stamp(unsigned* ctrl, int i) {
+    if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
+}
 
 // Count n newly raised cells; past `limit` in all, set CUT_PENDING in *cnt, the count of the
 // round that every block reads after its barrier.
@@ -89,11 +121,14 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 // tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
 // count, 0 when no tile is flagged for the next round, the same in every block; a raise that
 // passed `limit` raised cells in all sets CUT_PENDING in it.
+// The reset round also takes back the deferred tiles whose key lb + h(focus) is no more than
+// `g_focus`, the focus's g after the reset (INF: every one; fy < 0: no focus).
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
                               unsigned* stale, unsigned* ctrl, int r, int* g,
                               const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
                               unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
-                              int* s_n, unsigned* bar, unsigned limit) {
+                              int* s_n, unsigned* bar, unsigned limit, unsigned* deferred = nullptr,
+                              int* lb = nullptr, int g_focus = INF, int fy = -1, int fx = 0) {
     unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
     if (blockIdx.x == 0 && threadIdx.x == 0) {
         ctrl[C_CNT + (r + 2) % 3] = 0;
@@ -120,6 +155,16 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
             __syncthreads();  // shared tile buffers are reused by the next tile
         }
     }
+    if (deferred) {
+        for (int t = blockIdx.x * THREADS + threadIdx.x; t < G.ntiles; t += gridDim.x * THREADS) {
+            if (!__ldcg(deferred + t)) continue;
+            int bound = __ldcg(lb + t);
+            if (fy >= 0 && bound + tile_h(G, t, fy, fx) > g_focus) continue;  // stays deferred
+            deferred[t] = 0u;
+            lb[t] = INF;
+            flag_tile(next, cnt_next, t);
+        }
+    }
     grid_barrier(ctrl, bar);
     return *((volatile unsigned*)cnt_next);
 }
@@ -132,7 +177,8 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
 // count moves to ctrl[C_CUT]: the call is then a plan from scratch, its statistics too.
 __device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, unsigned* left,
                                unsigned* dirty, unsigned* cnt, unsigned* seeds,
-                               unsigned* stale, unsigned* ctrl, unsigned* bar) {
+                               unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
+                               unsigned* bar) {
     int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
     for (int i = tid; i < G.h * G.w; i += stride) {
         g[i] = INF;
@@ -142,6 +188,8 @@ __device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, uns
         left[i] = 0u;
         seeds[i] = 0u;
         stale[i] = 1u;
+        deferred[i] = 0u;
+        lb[i] = INF;
     }
     if (tid == 0) {
         ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
@@ -158,12 +206,17 @@ __device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, uns
 // by a visit under way (a block uncounts what it took after its visits have flagged their
 // neighbours); the phase ends when it reaches 0, which is final, since only a visit sets a flag.
 // depth[t]: the longest chain of visits that flagged t (a statistic: the rounds it replaces).
+// focus >= 0 (fy, fx): a neighbour whose key exceeds g(focus) is deferred, not flagged (see
+// the header); the focus's g is read at each visit's start: a value read early is higher than
+// the final one, so a deferral against it holds against the final one too.
 __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
                             unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
-                            int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n) {
+                            int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n,
+                            int focus, int fy, int fx, unsigned* deferred, int* lb) {
     // The block's statistics are summed here and added to ctrl once, at the end: atomics per
     // visit would share a cache line with the work count that every block polls.
     __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
+    __shared__ int s_emin[8];
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (blockIdx.x >= G.ntiles) return;
     if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
@@ -180,10 +233,14 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 // The depth statistic is loaded by the threads that use it, and used only after
                 // the relaxation: a load that a barrier waits for would delay every visit.
                 unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
-                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats);
+                int g_focus = k < 8 && focus >= 0 ? __ldcg(g + focus) : INF;
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats, s_emin);
                 if (k < 8 && (bits & (1u << k))) {
                     int n = tile_across(G, tile, k);
-                    if (n >= 0) {
+                    if (n >= 0 && focus >= 0 && s_emin[k] + tile_h(G, n, fy, fx) > g_focus) {
+                        atomicMin(lb + n, s_emin[k]);  // read by the next call, after barriers
+                        deferred[n] = 1u;
+                    } else if (n >= 0) {
                         atomicMax(depth + n, d);
                         flag_tile(dirty, work, n, true);  // after the tile's g and the depth
                     }
@@ -227,11 +284,12 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
 //   Past `limit` raised cells: as MODE_DSS from there on (give_up_repair).
+//   focus >= 0 (EDS): the relaxation is focused on that cell (see the header).
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
 // params: device memory, the PARAM_* words; delta[i] = cell * 2 + new_blocked,
 // in device memory, read with ld.cv (the resident loop rewrites it between calls: never an
 // L1 copy from an earlier call).
-// flags: 5 * ntiles (ping, pong, seeds, stale, depth). *bar: thread 0's barrier target.
+// flags: 7 * ntiles (ping, pong, seeds, stale, depth, deferred, lb). *bar: thread 0's barrier target.
 // Not inlined: inside the resident loop the inlined body spilled 160 bytes a thread (ptxas -v)
 // and the relaxation ran 20 % slower.
 __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
@@ -255,14 +313,20 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     unsigned* seeds = flags + 2 * G.ntiles;
     unsigned* stale = flags + 3 * G.ntiles;
     unsigned* depth = flags + 4 * G.ntiles;
+    unsigned* deferred = flags + 5 * G.ntiles;
+    int* lb = (int*)(flags + 6 * G.ntiles);
     int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
     if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
     __syncthreads();
     const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
     const int start = s_params[PARAM_START], goal = s_params[PARAM_GOAL];
+    // DSS is never focused: its field is exact after every call.
+    const int focus = mode == MODE_DSS ? -1 : s_params[PARAM_FOCUS];
+    const int fy = focus >= 0 ? focus / w : -1, fx = focus >= 0 ? focus % w : 0;
     int* out = io + IO_PATH;
     G.goal = goal;
     unsigned bar = *bar_ptr;
+    stamp(ctrl, 0);
 
     // Round 0: the delta, the seeds of the first phase. (The counters and depth were zeroed
     // by the last call's last block, or at allocation: no barrier needed first.)
@@ -273,49 +337,85 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             blocked[code >> 1] = code & 1;
         }
         for (int i = tid; i < h * w; i += stride) g[i] = INF;
-        for (int i = tid; i < G.ntiles; i += stride) stale[i] = 1u;
+        for (int i = tid; i < G.ntiles; i += stride) {
+            stale[i] = 1u;
+            deferred[i] = 0u;
+            lb[i] = INF;
+        }
         if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
-        unsigned mine = 0;  // newly blocked cells: raised, counted towards the limit
-        for (int i = tid; i < ndelta; i += stride) {
-            int code = __ldcv(delta + i);
-            int cell = code >> 1;
-            unsigned char now = code & 1;
-            if (__ldcg(blocked + cell) == now) continue;
-            blocked[cell] = now;
-            int cy = cell / w, cx = cell % w;
-            if (now) {
-                // Its children may lie in the tiles around: each of those looks at it.
-                raised[cell] = 1;
-                ++mine;
-                for (int dy = -1; dy <= 1; ++dy) {
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        int ny = cy + dy, nx = cx + dx;
-                        if (ny < 0 || nx < 0 || ny >= h || nx >= w) continue;
-                        flag_tile(pong, cnt1, (ny / TILE) * G.tiles_x + nx / TILE);
+        // Warp by warp, so that the flags are set once per distinct tile: a delta of 30,000
+        // cells (a 3 m sweep at 2000²) flagged 9 tiles a cell, two atomics each, most of them
+        // on one count, and spent ~200 µs here (cuda/phases.py); a warp's cells lie mostly in
+        // one tile.
+        unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
+        const int lane = threadIdx.x & 31;
+        for (int base = tid - lane; base < ndelta; base += stride) {
+            int i = base + lane;
+            int near[4] = {-1, -1, -1, -1};  // the tiles of a newly blocked cell's 3 x 3
+            int seed = -1;
+            if (i < ndelta) {
+                int code = __ldcv(delta + i);
+                int cell = code >> 1;
+                unsigned char now = code & 1;
+                if (__ldcg(blocked + cell) != now) {
+                    blocked[cell] = now;
+                    int cy = cell / w, cx = cell % w;
+                    seed = (cy / TILE) * G.tiles_x + cx / TILE;
+                    if (now) {
+                        // Its children may lie in the tiles around: each of those looks at it.
+                        raised[cell] = 1;
+                        ++mine;
+                        int y0 = max(cy - 1, 0) / TILE, y1 = min(cy + 1, h - 1) / TILE;
+                        int x0 = max(cx - 1, 0) / TILE, x1 = min(cx + 1, w - 1) / TILE;
+                        near[0] = y0 * G.tiles_x + x0;
+                        if (x1 != x0) near[1] = y0 * G.tiles_x + x1;
+                        if (y1 != y0) near[2] = y1 * G.tiles_x + x0;
+                        if (y1 != y0 && x1 != x0) near[3] = y1 * G.tiles_x + x1;
                     }
                 }
             }
-            atomicExch(seeds + (cy / TILE) * G.tiles_x + cx / TILE, 1u);
+            // One flag per distinct tile of the warp (the raise round reads only whether a
+            // tile is flagged, and the count only whether it is 0).
+#pragma unroll
+            for (int k = 0; k < 4; ++k) {
+                unsigned same = __match_any_sync(FULL, near[k]);
+                if (near[k] >= 0 && lane == __ffs(same) - 1) {
+                    atomicAdd(pong + near[k], 1u);
+                    ++flagged;
+                }
+            }
+            unsigned same = __match_any_sync(FULL, seed);
+            if (seed >= 0 && lane == __ffs(same) - 1 && !__ldcg(seeds + seed)) seeds[seed] = 1u;
         }
         mine = __reduce_add_sync(FULL, mine);
-        if (mine && (threadIdx.x & 31) == 0) count_raised(ctrl, mine, limit, cnt1);
+        flagged = __reduce_add_sync(FULL, flagged);
+        if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
+        if (lane == 0 && mine) count_raised(ctrl, mine, limit, cnt1);
     }
     grid_barrier(ctrl, &bar);
+    stamp(ctrl, 1);
     unsigned pending = *((volatile unsigned*)cnt1);
     int r = 1;
+    if (mode == MODE_DSS) stamp(ctrl, 2);
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
                                 ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
             ++r;
         }
+        stamp(ctrl, 2);
         if (pending & CUT_PENDING) {
             give_up_repair(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
-                           ctrl + C_CNT + (r + 1) % 3, seeds, stale, ctrl, &bar);
+                           ctrl + C_CNT + (r + 1) % 3, seeds, stale, deferred, lb, ctrl, &bar);
         } else {
+            // The focus's g after the reset: the raise is over (its last barrier) and the
+            // reset round lowers nothing.
+            int g_focus = INF;
+            if (focus >= 0 && !__ldcg(raised + focus)) g_focus = __ldcg(g + focus);
             pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
-                                g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
+                                g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                deferred, lb, g_focus, fy, fx);
         }
         ++r;
     }
@@ -323,9 +423,11 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     // Every block enters, even with nothing pending: a block that is late to read `pending`
     // may find the count already changed by the others' visits.
     (void)pending;
+    stamp(ctrl, 3);
     relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
-                bs, s_list, &s_n);
+                bs, s_list, &s_n, focus, fy, fx, deferred, lb);
     grid_barrier(ctrl, &bar);
+    stamp(ctrl, 4);
     if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
     if (start >= 0) {
         // The path: exits of the stale tiles and of the start's, the hops, the segments.
@@ -346,14 +448,21 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             if (count && threadIdx.x == 0) atomicAdd(ctrl + C_EXITS, (unsigned)count);
         }
         grid_barrier(ctrl, &bar);
-            if (tid == 0) hop_segments(g, w, start, exits, segs, out, cap, ctrl);
+        stamp(ctrl, 5);
+        if (tid == 0) hop_segments(g, w, start, exits, segs, out, cap, ctrl);
         grid_barrier(ctrl, &bar);
-            walk_segments(g, h, w, segs, out, ctrl, gs, code);
-        }
+        stamp(ctrl, 6);
+        walk_segments(g, h, w, segs, out, ctrl, gs, code);
+    } else {
+        stamp(ctrl, 5);
+        stamp(ctrl, 6);
+    }
     // The result to the host: the last block in copies the ctrl words (statistics, stamps),
     // zeroes the counters and depth for the next call and, after everything it and every
     // other block wrote, sets the done word.
     if (grid_arrive_last(ctrl, &bar)) {
+        if (threadIdx.x == 0) ctrl[C_STAMP + 7] = (unsigned)global_ns();
+        __syncthreads();
         if (threadIdx.x < IO_DONE) io[threadIdx.x] = (int)__ldcg(ctrl + threadIdx.x);
         __syncthreads();  // every word is copied before it is zeroed
         if (threadIdx.x == 0) {

@@ -91,6 +91,7 @@ __device__ __noinline__ int take_command(const int* mail, int* params, unsigned*
                 int4 box = load_acquire_sys(mail + MB_BOX);
                 if (box.y) break;
                 if (box.z != *served) {
+                    ctrl[C_STAMP + 8] = (unsigned)global_ns();  // the post seen (phases.py)
                     *served = box.z;
                     s_count = box.w;
                     cmd = CMD_RUN;

@@ -96,14 +96,17 @@ __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*g
 
 // Relax the tile held in gs (its g and halo; bs: 1 for blocked cells and cells outside the
 // map, the caller's barrier after filling both) until it settles, then store the cells that
-// changed into g. Returns the edge bits of cells that changed, and CHANGED_ANY if any did.
+// changed into g. Returns the edge bits of cells that changed, and CHANGED_ANY if any did;
+// emin[k] (shared) is the least new g on edge/corner k, INF where none changed: every value
+// the tile across k can take from this change is above it (the focused repair's bound, fast.cu).
 __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*gs)[HT],
-                                unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+                                unsigned char (*bs)[TILE + 1], unsigned* sweeps, int* emin) {
     __shared__ unsigned s_bits;
     const int y = c.y, x = c.x;
     const bool blk = bs[y][x] != 0;
     const bool is_goal = c.inside && c.idx == G.goal;
     if (threadIdx.x == 0) s_bits = 0;
+    if (threadIdx.x < 8) emin[threadIdx.x] = INF;
     int before = gs[y + 1][x + 1];
     if (is_goal && !blk) gs[y + 1][x + 1] = 0;
     __syncthreads();
@@ -146,7 +149,9 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
         // Made visible to other blocks by the fence of whichever thread flags a neighbour
         // after the barrier below (fences are cumulative over the block's barrier).
         __stcg(g + c.idx, after);
-        atomicOr(&s_bits, edge_bits(y, x) | CHANGED_ANY);
+        unsigned e = edge_bits(y, x);
+        atomicOr(&s_bits, e | CHANGED_ANY);
+        for (; e; e &= e - 1) atomicMin(emin + __ffs(e) - 1, after);
     }
     unsigned total = __syncthreads_count(changed);
     if (threadIdx.x == 0) {
@@ -158,19 +163,22 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
 
 // Load tile t and its halo into gs and bs, and settle it (settle_tile).
 __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
-                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps) {
+                               int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps,
+                               int* emin) {
     const TileCell c = tile_cell(G, t);
     bool blk = !c.inside || __ldcg(blocked + c.idx) != 0;
     load_tile_g(G, g, c.oy, c.ox, gs);
     bs[c.y][c.x] = blk ? 1 : 0;
     __syncthreads();
-    return settle_tile(G, c, g, gs, bs, sweeps);
+    return settle_tile(G, c, g, gs, bs, sweeps, emin);
 }
 
-// EDS step 1, one tile: a cell is raised when every neighbour that supports its g (a tight
-// neighbour, g[n] + c == g[v] in the unchanged old field) is raised or newly blocked. That
-// is exactly the set of cells whose cost must rise (the CPU's rule), smaller than the whole
-// pred subtree. Returns the edge bits of newly raised cells; *any_raised tells whether the
+// EDS step 1, one tile: a cell is raised when every neighbour that supports its g (g[n] + c
+// <= g[v] in the unchanged old field) is raised or newly blocked. In a settled field the
+// supports are the tight neighbours (==) and the raised cells exactly those whose cost must
+// rise (the CPU's rule), fewer than the whole pred subtree. Where a focused repair left tiles
+// unsettled (fast.cu), a cell may hold more than a lowered neighbour's g + c: that neighbour
+// still proves its g an upper bound (the cost of a real path), so it counts as a support. Returns the edge bits of newly raised cells; *any_raised tells whether the
 // tile holds one, *fresh how many it raised in this visit.
 __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
                                int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
@@ -195,7 +203,7 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
     if (inside && gv > 0 && gv < INF) {
 #pragma unroll
         for (int k = 0; k < 8; ++k)
-            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] == gv) tight |= 1u << k;
+            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] <= gv) tight |= 1u << k;
     }
     bool was = rs[y + 1][x + 1] != 0;
     unsigned n = 0;

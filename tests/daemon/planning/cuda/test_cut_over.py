@@ -65,7 +65,7 @@ def test_a_big_raise_cuts_over_and_a_small_change_stays_a_repair():
     change(block, True)
     assert eds.cut_cells >= block.size and eds.raised_cells == 0
 
-    tiles = eds._flags.size // 5
+    tiles = eds._flags.size // 7
     assert not eds._raised.get().any() and not eds._flags.get()[: 3 * tiles].any()
     change(box, False)  # freed cells: a repair that lowers, no raise
     assert eds.cut_cells == 0 and eds.raised_cells == 0

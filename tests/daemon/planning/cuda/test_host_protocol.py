@@ -126,19 +126,27 @@ def test_steps_return_the_models_field_path_and_statistics(cuda, dss):
         stats, path = planner.update_and_path(cells, values, start)
         g = dijkstra_field(truth, goal)
         assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
-        assert np.array_equal(planner.costs(), g)
         mode = abi.MODE_DSS if dss else abi.MODE_EDS
-        assert model.last_params == (cells.size, mode, start[0] * 50 + start[1],
-                                     goal[0] * 50 + goal[1], planner._seq)  # fmt: skip
+        here = start[0] * 50 + start[1]
+        assert model.last_params[:5] == (cells.size, mode, here, goal[0] * 50 + goal[1],
+                                         planner._seq)  # fmt: skip
+        # EDS is focused on the user's cell; DSS never is.
+        assert model.last_params[abi.PARAM_FOCUS] == (-1 if dss else here)
         assert stats.iterations == model.ROUNDS + mode
         assert stats.cells_touched == model.RAISED + cells.size
         assert (planner.tiles, planner.sweeps, planner.exit_tiles) == (
             model.TILES, model.SWEEPS, model.EXITS)  # fmt: skip
+        # EDS: costs() first settles what the focused repair deferred, in a call of its own
+        # with no change and no focus.
+        assert np.array_equal(planner.costs(), g)
+        if not dss:
+            assert model.last_params[abi.PARAM_NDELTA] == 0
+            assert model.last_params[abi.PARAM_FOCUS] == -1
     assert np.array_equal(planner.blocked(), truth)
-    assert model.served == 31 and model.refused == 0 and model.loops == 1
+    assert model.served == (31 if dss else 61) and model.refused == 0 and model.loops == 1
     # A call with no change, served by the loop.
     assert np.array_equal(planner.path((39, 49)), reference_path(g, truth, (39, 49)))
-    assert model.served == 32 and model.last_params[0] == 0
+    assert model.served == (32 if dss else 62) and model.last_params[0] == 0
 
 
 @pytest.mark.timeout(60)

@@ -65,9 +65,9 @@ def walk(p, blocked, goal, steps, between=None):
         if between is not None:
             between(i)
         truth.reshape(-1)[cells] = values
+        g = dijkstra_field(truth, goal)  # before the step: costs() settles right after it
         p.dss = i % 3 == 2
         _, path = p.update_and_path(cells, values, start)
-        g = dijkstra_field(truth, goal)
         assert np.array_equal(p.costs(), g), f"step {i}"
         assert np.array_equal(path, reference_path(g, truth, start)), f"step {i}"
     return truth

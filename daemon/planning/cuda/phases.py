@@ -1,0 +1,188 @@
+"""Where a ``fast`` call's time goes, step by step of a walk: the device's phase stamps.
+
+``fast.cu`` stamps the global timer at each phase boundary of a call (``abi.C_STAMP``, block
+0 after the grid barrier that ends the phase; the last block at the end). This module walks
+scenarios as the benchmark does (``sim.walk``), records every ``update_and_path`` call's
+phases, statistics and own time, and prints, per walk, the median and p99 call and what the
+calls at or above the p99 spent in each phase: the answer to "which steps make the tail".
+
+    python3 -m daemon.planning.cuda.phases --grid 400,1000 --scenario courtyard,explore \\
+        [--modes eds,dss] [--max-steps N] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import abi, planner
+
+STAMP_PHASES = ("take", "delta", "raise", "reset", "relax", "exits", "hops", "walk")
+"""The phases between stamps 8, 0, 1, ..., 7: the loop's block 0 takes the posted delta from
+host memory and publishes the call, the delta applied (round 0), the raise rounds, the reset
+round (or the cut-over's clearing), the relaxation, the path's tile exits, the hops, the
+segments walked and the result copied. A call without a path stamps ``exits`` and ``hops``
+as empty. The host's share is the call's own time less these."""
+
+
+@dataclass
+class CallLog:
+    """Per call of one walk: own time (ms), phase times (µs), statistics."""
+
+    ms: list[float] = field(default_factory=list)
+    phases_us: list[np.ndarray] = field(default_factory=list)
+    cut: list[int] = field(default_factory=list)
+    cells: list[int] = field(default_factory=list)
+    launches: list[int] = field(default_factory=list)
+    raised: list[int] = field(default_factory=list)
+    rounds: list[int] = field(default_factory=list)
+    tiles: list[int] = field(default_factory=list)
+    exit_tiles: list[int] = field(default_factory=list)
+
+    def add(self, planner, ms: float, cells: int, launched: int) -> None:
+        stamps = planner._io_host.array[abi.C_STAMP : abi.C_STAMP + 9].view(np.uint32)
+        stamps = np.concatenate([stamps[8:], stamps[:8]])
+        # differences of the low 32 bits of a ns timer: exact across a wrap
+        self.phases_us.append(np.diff(stamps).astype(np.uint32).astype(np.float64) / 1e3)
+        self.ms.append(ms)
+        self.cells.append(cells)
+        self.launches.append(launched)
+        self.cut.append(int(planner.cut_cells > 0))
+        self.raised.append(int(planner.raised_cells or planner.cut_cells))
+        self.rounds.append(int(planner._result[abi.C_ROUNDS]))
+        self.tiles.append(int(planner.tiles))
+        self.exit_tiles.append(int(planner.exit_tiles))
+
+    def summary(self) -> dict:
+        """Median, p99, max of the own time; mean phases, host share and statistics of all
+        calls and of the calls at or above the p99."""
+        ms = np.asarray(self.ms)
+        ph = np.stack(self.phases_us)
+        p99 = float(np.percentile(ms, 99))
+        out: dict = {
+            "calls": int(ms.size),
+            "median": float(np.median(ms)),
+            "p99": p99,
+            "max": float(ms.max()),
+            "walk": float(ms.sum()),
+        }
+        for name, sel in (("all", np.ones(ms.size, bool)), ("tail", ms >= p99)):
+            device_us = ph[sel].sum(axis=1)
+            out[name] = {
+                "calls": int(sel.sum()),
+                "ms": float(ms[sel].mean()),
+                "host_us": float((ms[sel] * 1e3 - device_us).mean()),
+                **{f"{p}_us": float(ph[sel, i].mean()) for i, p in enumerate(STAMP_PHASES)},
+                **{
+                    k: float(np.asarray(getattr(self, k))[sel].mean())
+                    for k in ("cut", "cells", "launches", "raised", "rounds", "tiles", "exit_tiles")
+                },
+            }
+        return out
+
+
+def recording(log: CallLog) -> Callable[[], None]:
+    """Record every ``CudaPlanner.update_and_path`` into ``log``; returns the undo."""
+    CudaPlanner = planner.CudaPlanner
+    original = CudaPlanner.update_and_path
+
+    def update_and_path(self, cells, blocked, start):
+        before = self._loop.launches if self._loop is not None else 0
+        stats, path = original(self, cells, blocked, start)
+        if self.variant == "fast":
+            launched = self._loop.launches - before if self._loop is not None else 0
+            log.add(self, stats.ms, int(np.size(cells)), launched)
+        return stats, path
+
+    CudaPlanner.update_and_path = update_and_path  # type: ignore[method-assign]
+
+    def undo() -> None:
+        CudaPlanner.update_and_path = original  # type: ignore[method-assign]
+
+    return undo
+
+
+def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
+    """One walk's calls. ``mode``: ``eds``, ``eds-unfocused`` (every call settles the whole
+    field) or ``dss``, with ``:RATE`` for another cut-over rate (``planner.CUT_OVER``)."""
+    from sim.benchmark import settle_heap
+    from sim.walk import walk
+
+    name, _, rate = mode.partition(":")
+    log = CallLog()
+    undo = recording(log)
+    focused, cut_over = planner.FOCUSED, planner.CUT_OVER
+    planner.FOCUSED = name != "eds-unfocused"
+    planner.CUT_OVER = float(rate) if rate else cut_over
+    try:
+        settle_heap()
+        walk(scenario, backend="cuda", mode=name.split("-")[0], max_steps=max_steps)
+    finally:
+        undo()
+        planner.FOCUSED, planner.CUT_OVER = focused, cut_over
+    return log
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sim.benchmark import warm_up
+    from sim.scenarios import make_scenario
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--grid", default="400")
+    ap.add_argument("--scenario", default="courtyard")
+    ap.add_argument("--unknown", default="0.4")
+    ap.add_argument("--modes", default="eds,dss", help="eds, eds-unfocused, dss; :RATE cut-over")
+    ap.add_argument("--max-steps", type=int, default=None)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    modes = args.modes.split(",")
+    warm_up("cuda", "fast", sorted({m.split("-")[0].split(":")[0] for m in modes}))
+    rows = []
+    cols = ("median", "p99", "max", "walk")
+    tail = (
+        "ms",
+        "host_us",
+        *(f"{p}_us" for p in STAMP_PHASES),
+        "cut",
+        "cells",
+        "launches",
+        "raised",
+        "rounds",
+        "tiles",
+        "exit_tiles",
+    )
+    names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
+    print(f"{'walk':30} {'calls':>5} " + " ".join(f"{c:>7}" for c in cols) + f" | {names}")
+    for name in args.scenario.split(","):
+        for grid in (int(v) for v in args.grid.split(",")):
+            for unknown in (float(v) for v in args.unknown.split(",")):
+                scenario = make_scenario(name, grid, unknown, 0)
+                for mode in modes:
+                    log = walk_logged(scenario, mode, args.max_steps)
+                    s = {
+                        "scenario": name,
+                        "grid": grid,
+                        "unknown": unknown,
+                        "mode": mode,
+                        **log.summary(),
+                    }
+                    rows.append(s)
+                    head = " ".join(f"{s[c]:7.3f}" for c in cols)
+                    for part, label in (
+                        ("all", f"{name} {grid} {unknown:g} {mode}"),
+                        ("tail", "  calls >= p99"),
+                    ):
+                        lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 37
+                        row = " ".join(f"{s[part][c]:7.{3 if c == 'ms' else 1}f}" for c in tail)
+                        print(f"{label:30} {lead} | {row}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
