@@ -59,16 +59,22 @@ from .path import PathReader
 VARIANTS = ("fast", "paper")
 PATH_THREADS = 128
 """Threads of a path_tiles block (its __launch_bounds__)."""
-CUT_OVER = 1.0
-"""How many cells an EDS repair (``fast``) may raise per row and column of the map (the limit
-is ``CUT_OVER * (h + w)`` cells) before the call computes the field from scratch instead. Not
-a share of the cells as in the CPU's cut-over of 09bf2a1 (0.5 %): a plan from scratch on the
-device costs about as many tile visits in a row as the map is tiles across (a wave front's
-tiles run in parallel), a raise about as many as the cells it raises, so the break-even grows
-with the side. Measured (H100, the four scenario walks, 40 %): at 400² the CPU's 0.5 % (800
-cells, the limit here too) beat 0.2 % (320) on p99 and walk; at 1000² 0.2 % (2,000, the limit
-here) beat 0.5 % (5,000) on p99 by 4-17 % in every scenario, walk time the same. Read when a
+CUT_OVER = 0.5
+"""How many cells an EDS repair (``fast``) may raise per row and column of the map before the
+call computes the field from scratch instead: the limit is ``CUT_OVER * (h + w)`` cells, or
+``CUT_OVER_AREA`` of the cells where that is more. f8e1984 measured the side rule (a plan from
+scratch costs about as many tile visits in a row as the map is tiles across, a raise about as
+many as the cells it raises) at 1.0, before the repair was focused. With the focused repair
+both sides of the trade shrink (a repair relaxes only the ellipse between user and goal, and
+so does the plan from scratch it gives up for), and the planner's own time per call, measured
+with cuda/phases.py on one H100 (docs/notes/gpu-focused-repair.md), put the best limit lower
+at 400² and 1000² but not at 2000²: 0.5 cut p99 by 3-13 % at 400² and 1000² in every scenario
+(courtyard, explore, building, streets) with median and walk time within noise, while at 2000²
+it made half the steps plans from scratch (median 0.28 -> 0.70 ms, walk +16 %). Read when a
 planner is made, so a benchmark can try another."""
+CUT_OVER_AREA = 0.001
+"""The least limit of an EDS repair's raise, as a share of the map's cells (see ``CUT_OVER``):
+4,000 cells at 2000², the limit measured best there; below ``CUT_OVER * (h + w)`` up to 1000²."""
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
 settles the whole field, as before the focused repair. Read when a planner is made, so a
@@ -152,7 +158,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         h, w = shape
         n = h * w
         self._shape = shape
-        self.cut_over = int(min(n, max(1.0, self._cut_over_rate * (h + w))))
+        limit = max(1.0, self._cut_over_rate * (h + w), CUT_OVER_AREA * n)
+        self.cut_over = int(min(n, limit))
         self._blocked_d = cp.zeros(n, dtype=np.uint8)
         self._g = cp.full(n, INF, dtype=np.int32)
         self._path_cap = int(min(n, 4 * (h + w) + 1024))

@@ -31,7 +31,7 @@ def test_a_big_raise_cuts_over_and_a_small_change_stays_a_repair():
     n = 200
     truth = np.zeros((n, n), bool)
     goal = (0, 100)
-    eds, never = CudaPlanner("fast"), CudaPlanner("fast", cut_over=math.inf)
+    eds, never = CudaPlanner("fast", cut_over=1.0), CudaPlanner("fast", cut_over=math.inf)
     cpu = make_planner("eds", "cpu", "fast")
     for p in (eds, never, cpu):
         p.plan(truth, goal)
