@@ -4,7 +4,8 @@ Reads ``bench_cuda.json``, ``bench_big_cuda.json``, ``bench_2000_cuda.json`` and
 ``bench_scen_cuda.json`` (``guidebelt bench`` rows: the walk through the daemon's navigator),
 ``dss.json`` (``scripts/time_dss.py`` rows) and ``device.txt`` from the folder given; missing
 files are skipped. The target is on the median
-replanning step (repair + path to the host).
+replanning step (repair + path to the host); a second table gives issue 20's checks on the
+worst step: EDS p99 against ``P99_TARGETS`` and DSS's p99, EDS walk time against DSS's.
 
     python3 scripts/gpu_table.py out/gpu_check
 """
@@ -17,6 +18,36 @@ from pathlib import Path
 
 # (grid, mode) -> the issue's target on an H100, ms per step: the courtyard's walk only.
 TARGETS = {(400, "eds"): 0.1, (400, "dss"): 0.25, (2000, "eds"): 1.0, (2000, "dss"): 2.0}
+# grid -> issue 20's target for the EDS step's p99 on an H100, ms, in every scenario; and
+# everywhere EDS p99 <= DSS p99 and EDS walk <= WALK_SHARE x DSS walk.
+P99_TARGETS = {400: 0.2, 1000: 0.4, 2000: 1.0}
+WALK_SHARE = 0.5
+
+
+def worst_step_lines(rows: list[dict]) -> list[str]:
+    """Issue 20's checks, one line per walk that has both an EDS and a DSS row."""
+    by_walk: dict[tuple, dict[str, dict]] = {}
+    for r in rows:
+        key = (r.get("scenario", "courtyard"), r["grid"], r["unknown"])
+        by_walk.setdefault(key, {})[r["mode"]] = r
+    lines = []
+    for (scenario, grid, unknown), modes in by_walk.items():
+        if "eds" not in modes or "dss" not in modes:
+            continue
+        eds, dss = modes["eds"], modes["dss"]
+        target = P99_TARGETS.get(grid)
+        share = eds["walk_ms"] / dss["walk_ms"] if dss["walk_ms"] else float("nan")
+        checks = [
+            "" if target is None else ("ok" if eds["ms_p99"] <= target else "MISS"),
+            "ok" if eds["ms_p99"] <= dss["ms_p99"] else "MISS",
+            "ok" if share <= WALK_SHARE else "MISS",
+        ]
+        lines.append(
+            f"{scenario:9} {grid:5} {unknown:4} {eds['ms_p99']:7.3f} "
+            f"{'' if target is None else f'{target:g}':>6} {checks[0]:>4} {dss['ms_p99']:7.3f} "
+            f"{checks[1]:>4} {share:6.2f} {checks[2]:>4}"
+        )
+    return lines
 
 
 def load(path: Path) -> list[dict]:
@@ -47,6 +78,14 @@ def main() -> None:
                   f"{r['walk_ms']:8.1f} {r['plan_ms_median']:7.3f} {r['nav_ms_median']:7.3f} "
                   f"{r['nav_ms_p99']:7.3f} "
                   f"{(f'{target:g} ' + mark) if target else '':>8}")  # fmt: skip
+    # per file: the courtyard at 400 is walked by bench_cuda and by bench_scen_cuda
+    names = ("bench_cuda", "bench_big_cuda", "bench_2000_cuda", "bench_scen_cuda")
+    lines = [line for name in names for line in worst_step_lines(load(out / f"{name}.json"))]
+    if lines:
+        print("\nissue 20, the worst step: EDS p99 against its target and DSS's, EDS walk / DSS")
+        print(f"{'scenario':9} {'grid':>5} {'unk':>4} {'EDS p99':>7} {'target':>6} {'':>4} "
+              f"{'DSS p99':>7} {'':>4} {'walk':>6} {'<=0.5':>4}")  # fmt: skip
+        print("\n".join(lines))
     dss = load(out / "dss.json")
     if dss:
         print("\nDSS from scratch + path on the whole map (fused: one update_and_path call)")
