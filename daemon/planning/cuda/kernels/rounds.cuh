@@ -1,0 +1,143 @@
+// The grid-wide rounds of the fast planner's EDS step (included by fast.cu): the raise rounds,
+// the reset round (which also takes back deferred tiles of the focused repair), and the
+// cut-over that gives the repair up; with the helpers they share with the relaxation (taking a
+// block's flagged tiles, the focus's tile heuristic, the phase stamps).
+#pragma once
+#include "tile_relax.cuh"
+#include "path_exits.cuh"
+
+// phases (ops) of a round
+#define OP_RAISE 1
+#define OP_RESET 2
+// In a raise round's flag count: the cells raised so far passed the limit (flag counts never
+// come near it).
+#define CUT_PENDING 0x80000000u
+
+// h(focus, tile n): the octile distance from the focus (fy, fx) to n's nearest cell.
+__device__ __forceinline__ int tile_h(const Grid& G, int n, int fy, int fx) {
+    int oy = (n / G.tiles_x) * TILE, ox = (n % G.tiles_x) * TILE;
+    int dy = max(0, max(oy - fy, fy - min(oy + TILE, G.h) + 1));
+    int dx = max(0, max(ox - fx, fx - min(ox + TILE, G.w) + 1));
+    return STRAIGHT * max(dy, dx) + (DIAGONAL - STRAIGHT) * min(dy, dx);
+}
+
+// Block 0's thread 0 stamps phase boundary i (ctrl[C_STAMP + i], cuda/phases.py).
+__device__ __forceinline__ void stamp(unsigned* ctrl, int i) {
+    if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
+}
+
+// Count n newly raised cells; past `limit` in all, set CUT_PENDING in *cnt, the count of the
+// round that every block reads after its barrier.
+__device__ __forceinline__ void count_raised(unsigned* ctrl, unsigned n, unsigned limit,
+                                             unsigned* cnt) {
+    unsigned before = atomicAdd(ctrl + C_RAISED, n);
+    if (before + n > limit) atomicOr(cnt, CUT_PENDING);
+}
+
+// Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
+// s_list (take_flag: one atomic each; a read first would cost a second round trip on the
+// wave's critical path). With `watch`, the block's last thread reads *watch into *s_watch in
+// the same pass; with `s_sum`, the flags' counts are summed there. Returns how many tiles,
+// the same in every thread of the block.
+__device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, int* s_n,
+                            const unsigned* watch = nullptr, unsigned* s_watch = nullptr,
+                            unsigned* s_sum = nullptr) {
+    __syncthreads();  // every thread has read the previous count
+    if (threadIdx.x == 0) {
+        *s_n = 0;
+        if (s_sum) *s_sum = 0;
+    }
+    __syncthreads();
+    int t = base + threadIdx.x * gridDim.x;
+    unsigned count = t < ntiles ? take_flag(flags, t) : 0u;
+    if (count) {
+        s_list[atomicAdd(s_n, 1)] = t;
+        if (s_sum) atomicAdd(s_sum, count);
+    }
+    if (watch && threadIdx.x == THREADS - 1) *s_watch = *((volatile const unsigned*)watch);
+    __syncthreads();
+    return *s_n;
+}
+
+// One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
+// tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
+// count, 0 when no tile is flagged for the next round, the same in every block; a raise that
+// passed `limit` raised cells in all sets CUT_PENDING in it.
+// The reset round also takes back the deferred tiles whose key lb + h(focus) is no more than
+// `g_focus`, the focus's g after the reset (INF: every one; fy < 0: no focus).
+__device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
+                              unsigned* stale, unsigned* ctrl, int r, int* g,
+                              const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
+                              unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
+                              int* s_n, unsigned* bar, unsigned limit, unsigned* deferred = nullptr,
+                              int* lb = nullptr, int g_focus = INF, int fy = -1, int fx = 0) {
+    unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
+    if (blockIdx.x == 0 && threadIdx.x == 0) {
+        ctrl[C_CNT + (r + 2) % 3] = 0;
+        ctrl[C_ROUNDS] += 1;
+    }
+    for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+        int count = take_flagged(in, G.ntiles, base, s_list, s_n);
+        for (int i = 0; i < count; ++i) {
+            int tile = s_list[i];
+            if (op == OP_RAISE) {
+                bool any = false;
+                unsigned fresh = 0;
+                unsigned bits =
+                    raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any, &fresh);
+                flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
+                if (any && threadIdx.x == 8) atomicExch(seeds + tile, 1u);
+                if (fresh && threadIdx.x == 9) count_raised(ctrl, fresh, limit, cnt_next);
+            } else {
+                unsigned bits = reset_tile(G, tile, g, raised);
+                if (threadIdx.x == 0) flag_tile(next, cnt_next, tile);
+                mark_exits_stale(G, tile, bits, (int)threadIdx.x - 32, stale);
+            }
+            if (threadIdx.x == 0) atomicAdd(ctrl + C_TILES, 1u);
+            __syncthreads();  // shared tile buffers are reused by the next tile
+        }
+    }
+    if (deferred) {
+        for (int t = blockIdx.x * THREADS + threadIdx.x; t < G.ntiles; t += gridDim.x * THREADS) {
+            if (!__ldcg(deferred + t)) continue;
+            int bound = __ldcg(lb + t);
+            if (fy >= 0 && bound + tile_h(G, t, fy, fx) > g_focus) continue;  // stays deferred
+            deferred[t] = 0u;
+            lb[t] = INF;
+            flag_tile(next, cnt_next, t);
+        }
+    }
+    grid_barrier(ctrl, bar);
+    return *((volatile unsigned*)cnt_next);
+}
+
+// EDS: the raise passed the limit (CUT_PENDING) in the round before round r. Give the repair
+// up for a plan from scratch, as MODE_DSS: g = INF and no cell raised anywhere, the flags that
+// round left for a next one (`left`) and the seeds dropped, every tile's exits stale, and the
+// goal flagged for the relaxation where the reset round would have flagged its tiles (`dirty`,
+// the flags that round took, all zero now, and its count `cnt`, which it zeroed). The raised
+// count moves to ctrl[C_CUT]: the call is then a plan from scratch, its statistics too.
+__device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, unsigned* left,
+                               unsigned* dirty, unsigned* cnt, unsigned* seeds,
+                               unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
+                               unsigned* bar) {
+    int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    for (int i = tid; i < G.h * G.w; i += stride) {
+        g[i] = INF;
+        raised[i] = 0;
+    }
+    for (int i = tid; i < G.ntiles; i += stride) {
+        left[i] = 0u;
+        seeds[i] = 0u;
+        stale[i] = 1u;
+        deferred[i] = 0u;
+        lb[i] = INF;
+    }
+    if (tid == 0) {
+        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
+        ctrl[C_RAISED] = 0u;
+        ctrl[C_ROUNDS] += 1;
+        if (G.goal >= 0) flag_tile(dirty, cnt, tile_of(G.goal, G.w, G.tiles_x));
+    }
+    grid_barrier(ctrl, bar);
+}
