@@ -67,7 +67,12 @@ def test_sigterm_stops_the_belt_publishes_a_final_status_and_exits_fast(tmp_path
         peer = open_peer(port)
         belt = BeltRecorder(peer, "term")
         status: Recorder[NavStatus] = Recorder(peer, T.STATUS, "term")
-        time.sleep(0.2)
+        # The daemon declares its subscribers before its liveliness token: once the token is
+        # seen here, a put reaches them (a put sent earlier could be dropped: 1 run in ~8).
+        deadline = time.monotonic() + 10.0
+        while not wire.alive(peer, T.ALIVE, timeout=0.5) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)  # the recorders' own subscriptions, declared just now, to the daemon
         walls = np.flatnonzero(np.pad(np.zeros((18, 18), bool), 1, constant_values=True))
         delta = MapDelta.from_arrays(0, (20, 20), walls, np.ones(walls.size), time.time())
         goal = Goal(target=GoalCell(row=6, col=10), stamp=1)
