@@ -82,7 +82,8 @@ class Route:
         """The path from ``cell`` to ``goal`` and its cost (empty and INF if none).
 
         From inside the inflation margin (a newly seen obstacle grew over the user, or the user
-        drifted into it) the path first leads straight out to the nearest usable free cell.
+        drifted into it), or from a free pocket the margin encloses, the path first leads
+        straight out to the nearest usable free cell.
         """
         t0 = time.perf_counter()
         self.report = PlanReport()
@@ -117,6 +118,11 @@ class Route:
             stats, path = planner.update_and_path(*self._take(), cell)
             self._record(stats)
         self.report.max_open = getattr(planner, "max_open", None)
+        if len(path) == 0:
+            # A free pocket the margin closes in (a user who stepped between obstacles the
+            # sensor saw late): the way out is the same as from inside the margin, searched
+            # twice as far (the pocket itself can be that wide).
+            return escape_path(planner, blocked, occupancy, cell, 2 * self._escape_reach)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, (path_cost(path) if len(path) else int(INF))
