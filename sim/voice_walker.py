@@ -39,6 +39,7 @@ _TURN = re.compile(r"(?:turn to|gira a las) (\d{1,2})\b")
 _AHEAD = re.compile(r"^(?:straight ahead|sigue recto)\b")
 _METRES = re.compile(r"(\d+) (?:metres|metre|metros|metro)\b")
 _HALF = re.compile(r"\b(?:half a metre|medio metro)\b")
+_WAIT_AFTER = re.compile(r"\b(?:and wait|y espera)$")
 _AROUND = ("turn around", "da la vuelta")
 _HALT = (
     "stop", "alto", "wait", "espera", "path blocked, rerouting",
@@ -70,7 +71,7 @@ class Heard:
     """What one cue means to the listener."""
 
     action: str
-    """``turn`` (with ``turn_rad``), ``around`` or ``halt``."""
+    """``turn`` (with ``turn_rad``), ``turn_wait`` (turn, then stand), ``around`` or ``halt``."""
     turn_rad: float = 0.0
     """Counter-clockwise turn (the walker's frame): 3 o'clock is −π/2."""
     metres: float | None = None
@@ -93,7 +94,8 @@ def understand(text: str) -> Heard | None:
             return None
         # Hours 1..6 are to the right (clockwise, negative here), 7..11 to the left.
         degrees = -30.0 * hour if hour <= 6 else 30.0 * (12 - hour)
-        return Heard("turn", math.radians(degrees), metres)
+        action = "turn_wait" if _WAIT_AFTER.search(t) else "turn"
+        return Heard(action, math.radians(degrees), metres)
     if _AHEAD.search(t):
         return Heard("turn", 0.0, metres)
     return None
@@ -145,7 +147,7 @@ class VoiceWalker:
             turn += self._noise(p.turn_sd_deg)
         self.heading = _wrap(self.heading + turn)
         self._turn_pending = abs(turn) > math.radians(p.turn_in_place_deg)
-        self.walking = True
+        self.walking = meaning.action != "turn_wait"
         self.left_m = math.inf
         if p.heed_distance and meaning.metres is not None:
             self.left_m = max(0.1, meaning.metres * (1.0 + self.rng.normal(0.0, p.distance_sd)))

@@ -87,7 +87,11 @@ def user_radius_m(scenario: Scenario) -> float:
 
 
 def belt_settings(
-    scenario: Scenario, backend: str = "cpu", lang: str = "en", planner: str = "eds"
+    scenario: Scenario,
+    backend: str = "cpu",
+    lang: str = "en",
+    planner: str = "eds",
+    voice: str = "companion",
 ) -> NavigatorSettings:
     """The navigator as the daemon runs it, at the scenario's cell size and user radius."""
     from daemon.navigation import NavigatorSettings
@@ -98,6 +102,7 @@ def belt_settings(
         cell_m=scenario.cell_m,
         user_radius_m=user_radius_m(scenario),
         lang=lang,
+        voice=voice,  # type: ignore[arg-type]
     )
 
 
@@ -126,7 +131,9 @@ def belt_walk(
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
 
-    settings = belt_settings(scenario, backend, lang, planner)
+    # A walker who only hears is guided by a voice that guides alone, as its user would set.
+    voice = "sole" if follow == "voice" else "companion"
+    settings = belt_settings(scenario, backend, lang, planner, voice)
     if guidance is None and smooth:
         guidance = Guidance(
             cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,

@@ -19,6 +19,7 @@ Lang = Literal["en", "es"]
 PHRASES: dict[str, dict[str, str]] = {
     "en": {
         "turn": "turn to {hour} o'clock, then {dist}",
+        "turn_wait": "turn to {hour} o'clock and wait",
         "ahead": "straight ahead, {dist}",
         "metres": "{n} metres",
         "metre": "1 metre",
@@ -32,6 +33,7 @@ PHRASES: dict[str, dict[str, str]] = {
     },
     "es": {
         "turn": "gira a las {hour}, luego {dist}",
+        "turn_wait": "gira a las {hour} y espera",
         "ahead": "sigue recto, {dist}",
         "metres": "{n} metros",
         "metre": "1 metro",
@@ -72,8 +74,12 @@ def say_distance(metres: float, lang: Lang) -> str:
     return p["metre"] if n == 1 else p["metres"].format(n=n)
 
 
-def direction_text(rel: float, metres: float, lang: Lang) -> str:
+def direction_text(rel: float, metres: float, lang: Lang, wait: bool = False) -> str:
+    """The way in words; ``wait``: turn on the spot and stand (a turn near an obstacle, kept
+    apart from the walking that follows it)."""
     hour = clock_hour(rel)
+    if wait and hour != 12:
+        return PHRASES[lang]["turn_wait"].format(hour=hour)
     dist = say_distance(metres, lang)
     if hour == 12:
         return PHRASES[lang]["ahead"].format(dist=dist)
@@ -136,8 +142,10 @@ class CueMaker:
         self.lang: Lang = lang
         self.limiter = limiter or CueLimiter()
 
-    def direction(self, rel: float, metres: float, now: float) -> VoiceCue | None:
-        text = direction_text(rel, metres, self.lang)
+    def direction(
+        self, rel: float, metres: float, now: float, wait: bool = False
+    ) -> VoiceCue | None:
+        text = direction_text(rel, metres, self.lang, wait)
         if not self.limiter.allow(text, CuePriority.ROUTINE, now):
             return None
         return VoiceCue(

@@ -20,10 +20,11 @@ import numpy as np
 
 from protocol.messages import BeltPattern, PatternKind, Pose, VoiceCue
 
-from .cues import CueLimiter, CueMaker, clock_hour
+from .cues import SAFETY_KINDS, CueLimiter, CueMaker, clock_hour
 from .hold import HoldPolicy
 from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
 from .smoothing import rubber_band
+from .sole_voice import SoleVoice, SoleVoiceSettings, sole_limiter
 from .turning_points import (
     bearing,
     is_core,
@@ -64,7 +65,11 @@ class Guidance:
         smooth: bool = False,
         hold: HoldPolicy | None = None,
         limiter: CueLimiter | None = None,
+        voice: Literal["companion", "sole"] = "companion",
+        sole: SoleVoiceSettings | None = None,
     ) -> None:
+        """``voice="sole"``: the voice is the user's only guide (no belt worn, or the user's
+        choice): ``sole_voice.py`` decides when to speak, and says "stop" before contact."""
         self.cell_m = float(cell_m)
         self.arrive_m = arrive_m
         self.reach_m = reach_m
@@ -76,7 +81,17 @@ class Guidance:
         self.smooth = smooth
         self.hold = hold if hold is not None else HoldPolicy()
         self.patterns = PatternMaker()
+        if voice not in ("companion", "sole"):
+            raise ValueError(f"voice must be companion or sole, got {voice!r}")
+        self.voice = voice
+        if voice == "sole" and limiter is None:
+            limiter = sole_limiter(sole)
         self.cues = CueMaker(lang, limiter)
+        self.sole = SoleVoice(self.cues, sole) if voice == "sole" else None
+        if self.sole is not None:
+            # A listener turns by ear to ±tens of degrees: a line that shaves the margin
+            # leaves it no room; lines to the target stay wholly outside it.
+            self.shave_cells = 0
         self.hysteresis = DirectionHysteresis()
         self._announced: tuple[np.ndarray, int] | None = None
 
@@ -90,6 +105,8 @@ class Guidance:
         self.hold.reset()
         self.cues.limiter.reset()
         self._announced = None
+        if self.sole is not None:
+            self.sole.reset()
 
     def event(self, kind: PatternKind, now: float, reason: str = "") -> GuidanceOutput:
         """A fixed pattern and its cue: STOP, ARRIVED, REROUTE, NO_PATH, WAIT, OFF.
@@ -102,6 +119,8 @@ class Guidance:
             raise ValueError(f"{kind} comes from guide(), which knows the direction")
         if kind is not PatternKind.ARRIVED:
             self._announced = None  # after any event, the next direction is worth saying
+        if self.sole is not None and kind in SAFETY_KINDS:
+            self.sole.after_safety()
         return GuidanceOutput(self.patterns.event(kind, now), self.cues.event(kind, now))
 
     def guide(
@@ -111,8 +130,10 @@ class Guidance:
         shape: tuple[int, int],
         now: float,
         blocked: np.ndarray | None = None,
+        occupancy: np.ndarray | None = None,
     ) -> GuidanceOutput:
-        """Guide along ``path`` ((k, 2) cells from the user's cell to the goal)."""
+        """Guide along ``path`` ((k, 2) cells from the user's cell to the goal). ``occupancy``
+        (the known map, not inflated) lets a sole voice stop the user before contact."""
         path = np.asarray(path)
         if path.ndim != 2 or len(path) == 0:
             return self.event(PatternKind.NO_PATH, now)
@@ -139,11 +160,25 @@ class Guidance:
             pattern = self.patterns.turn_around(cw, now)
             cue = self.cues.event(PatternKind.TURN_AROUND, now)
             self._announced = None
+            if self.sole is not None:
+                self.sole.after_safety()
             return GuidanceOutput(pattern, cue, target_xy)
+        if self.sole is not None:
+            danger, stop = self.sole.stop_before_contact(
+                occupancy, blocked, user, pose.heading, self.cell_m, now
+            )
+            if danger:  # said now, or less than a second ago: either way no step that way
+                return GuidanceOutput(self.patterns.event(PatternKind.STOP, now), stop, target_xy)
         felt = self.hysteresis(cw)
         clearance = forward_clearance_m(blocked, user, pose.heading, self.cell_m)
         pattern = self.patterns.guide(felt, clearance, now)
-        return GuidanceOutput(pattern, self._direction_cue(target, rel, metres, now), target_xy)
+        if self.sole is not None:
+            cue = self.sole.way(
+                target, user, rel, metres, self.cell_m, now, occupancy, pose.heading
+            )
+        else:
+            cue = self._direction_cue(target, rel, metres, now)
+        return GuidanceOutput(pattern, cue, target_xy)
 
     def _points(self, path: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
         # Only the next leg or two matter to the user (the target and its distance): a leg is

@@ -17,6 +17,7 @@ import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -62,6 +63,8 @@ class NavigatorSettings:
     lang: str = "en"
     stale_pose_s: float = 1.0
     arrive_m: float = 0.3
+    voice: Literal["companion", "sole"] = "companion"
+    """``sole``: the voice guides alone (no belt); it speaks more and stops before contact."""
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
 
@@ -102,7 +105,7 @@ class Navigator:
         # Guidance may shave the inflation margin; it must know the real radius.
         self.guidance = guidance or Guidance(
             cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
-            arrive_m=settings.arrive_m,
+            arrive_m=settings.arrive_m, voice=settings.voice,
         )  # fmt: skip
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None
@@ -265,7 +268,9 @@ class Navigator:
             return
         self._distance_m = cost / 10 * self.settings.cell_m
         t0 = time.perf_counter()
-        g = self.guidance.guide(path, self.pose, grid.shape, now, blocked=grid.blocked)
+        g = self.guidance.guide(
+            path, self.pose, grid.shape, now, blocked=grid.blocked, occupancy=grid.occupancy
+        )
         self.last.guide_ms = (time.perf_counter() - t0) * 1e3
         out.belt.append(g.pattern)
         if g.cue is not None:

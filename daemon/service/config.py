@@ -42,6 +42,10 @@ class DaemonConfig(BaseSettings):
     cell_m: float = Field(default=0.10, gt=0)
     user_radius_m: float = Field(default=0.3, ge=0, description="obstacles grow by this")
     lang: Literal["en", "es"] = "en"
+    voice: Literal["companion", "sole"] = Field(
+        default="companion",
+        description="companion: the voice speaks beside the belt; sole: it guides alone",
+    )
     stale_pose_s: float = Field(default=1.0, gt=0, description="older poses are refused")
     max_users: int = Field(default=16, ge=1)
     user_idle_s: float = Field(default=600.0, gt=0, description="forget a silent, idle user")
@@ -69,6 +73,7 @@ class DaemonConfig(BaseSettings):
             cell_m=self.cell_m,
             user_radius_m=self.user_radius_m,
             lang=self.lang,
+            voice=self.voice,
             stale_pose_s=self.stale_pose_s,
             landmarks=dict(self.landmarks),
         )

@@ -26,7 +26,7 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
     # A phrase added to cues.py that the listener cannot parse would silently stall walks.
     for lang, table in PHRASES.items():
         for key, text in table.items():
-            if key in ("turn", "ahead", "metres", "metre", "half"):
+            if key in ("turn", "turn_wait", "ahead", "metres", "metre", "half"):
                 continue  # templates: checked through direction_text below
             assert understand(text) is not None, (lang, text)
         for hour in range(1, 13):
@@ -36,6 +36,10 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
             assert math.isclose(math.remainder(heard.turn_rad - rel, 2 * math.pi), 0.0,
                                 abs_tol=1e-9)  # fmt: skip
         assert understand(direction_text(0.0, 0.4, lang)).metres == 0.5  # type: ignore[arg-type,union-attr]
+        # "turn to 2 o'clock and wait": the same turn, then stand for the way.
+        wait = understand(direction_text(-math.radians(60), 3.0, lang, wait=True))  # type: ignore[arg-type]
+        assert wait is not None and wait.action == "turn_wait"
+        assert math.isclose(wait.turn_rad, -math.radians(60)) and wait.metres is None
     assert understand("sing a song") is None
 
 
