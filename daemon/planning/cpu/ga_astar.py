@@ -58,7 +58,8 @@ class GaAStarPlanner(AStarPlanner):
         self._segments = Segments()
         self._route: np.ndarray = _EMPTY
         self._route_goal: Cell | None = None
-        self._answers: dict[tuple[Cell, int], tuple[np.ndarray, int]] = {}
+        self._answers: dict[tuple[Cell, int, int], tuple[np.ndarray, int]] = {}
+        self._route_id = 0
         self.ga_runs = 0
         self.last: GaResult | None = None
         """The last GA run's result (None before one)."""
@@ -87,16 +88,31 @@ class GaAStarPlanner(AStarPlanner):
         """Whether each cell of ``cells`` ((k, 2), inside the map) is blocked now."""
         return self._blk[(cells[:, 0] + 1) * self._width + cells[:, 1] + 1].astype(bool)
 
+    def _carried(self, start: Cell) -> list[Cell] | None:
+        """The kept route's cells spread evenly from the one nearest ``start`` to the goal."""
+        route = self._route
+        if not self.keep_route or len(route) < 2 or self._route_goal != self._goal:
+            return None
+        near = int(np.argmax(-np.abs(route - np.asarray(start)).max(axis=1)))
+        ahead = route[near:-1]
+        if len(ahead) == 0:
+            return None
+        m = self.params.waypoints
+        at = np.linspace(0, len(ahead) - 1, m + 2)[1:-1].round().astype(int)
+        return [(int(ahead[i, 0]), int(ahead[i, 1])) for i in at]
+
     def _evolve(self, start: Cell) -> tuple[np.ndarray, int]:
-        """The GA's answer from ``start`` on the current map (remembered per map version)."""
-        key = (start, self._version)
+        """The GA's answer from ``start`` on the current map (remembered per map version and
+        kept route)."""
+        key = (start, self._version, self._route_id if self.keep_route else 0)
         hit = self._answers.get(key)
         if hit is not None:
             self.search_stats = UpdateStats(0, 0, 0.0)
             return hit
         if len(self._answers) > 64:  # answers of older maps are never asked for again
             self._answers.clear()
-        result = evolve(self.blocked(), start, self._goal, self.params, self._segments)
+        carried = self._carried(start)
+        result = evolve(self.blocked(), start, self._goal, self.params, self._segments, carried)
         self.ga_runs += 1
         self.last = result
         self.max_open = result.max_open
@@ -122,6 +138,7 @@ class GaAStarPlanner(AStarPlanner):
         path, _, kept = self._answer(start)
         if not kept and len(path):
             self._route, self._route_goal = path, self._goal
+            self._route_id += 1
         return path.copy()
 
     def cost_at(self, cell: Cell) -> int:

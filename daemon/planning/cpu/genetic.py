@@ -176,11 +176,15 @@ def _run(
     goal: int,
     pool: np.ndarray,
     segment_cost,
+    carried: np.ndarray | None = None,
 ) -> tuple[np.ndarray | None, float, int]:
     """Algorithm 1 on genes drawn from ``pool`` (padded cells); ``segment_cost(a, b)`` is the
-    d_i of Eq. 2 (INF when infeasible). Returns (best chromosome or None, its c, evaluations)."""
+    d_i of Eq. 2 (INF when infeasible); ``carried`` (m padded cells), if given, replaces the
+    first random chromosome. Returns (best chromosome or None, its c, evaluations)."""
     n, m = params.population, params.waypoints
     pop = pool[rng.integers(0, pool.size, (n, m))]
+    if carried is not None:
+        pop[0] = carried
 
     def evaluate(chromosomes: np.ndarray) -> np.ndarray:
         costs = np.empty(len(chromosomes), dtype=np.float64)
@@ -241,12 +245,19 @@ def _no_path(t0: float, seg: Segments, evaluations: int = 0) -> GaResult:
 
 
 def evolve(
-    blocked: np.ndarray, start: Cell, goal: Cell, params: GaParams, segments: Segments | None = None
+    blocked: np.ndarray,
+    start: Cell,
+    goal: Cell,
+    params: GaParams,
+    segments: Segments | None = None,
+    carried: list[Cell] | None = None,
 ) -> GaResult:
     """GA+A* (Algorithms 1-2) from ``start`` to ``goal`` on ``blocked`` (``bool``, (h, w)).
 
     No path (empty, INF) when an end is outside the map or blocked or the goal cannot be
-    reached; ``[start]`` at cost 0 when start is the goal."""
+    reached; ``[start]`` at cost 0 when start is the goal. ``carried``: ``waypoints`` cells
+    that enter the initial population as one chromosome (the planner carries its last route
+    over a reroute); ignored unless every one is reachable from ``start``."""
     t0 = time.perf_counter()
     seg = segments or Segments()
     seg.load(blocked)
@@ -262,7 +273,14 @@ def evolve(
     if not mask[g]:
         return _no_path(t0, seg)
     pool = np.flatnonzero(mask)
-    best, best_c, evaluations = _run(_rng(params, start, goal), params, s, g, pool, seg.cost)
+    genes = None
+    if carried is not None and len(carried) == params.waypoints:
+        genes = np.array([seg.padded(c) for c in carried], dtype=np.int64)
+        inside = all(0 <= c[0] < seg.shape[0] and 0 <= c[1] < seg.shape[1] for c in carried)
+        if not (inside and mask[genes].all()):
+            genes = None
+    rng = _rng(params, start, goal)
+    best, best_c, evaluations = _run(rng, params, s, g, pool, seg.cost, genes)
     if best is None:
         return _no_path(t0, seg, evaluations)
     points = [s, *best.tolist(), g]

@@ -145,6 +145,7 @@ def test_after_any_deltas_every_answer_is_walkable_on_the_current_map(world, dat
 def test_the_kept_path_is_reused_until_a_cell_of_it_is_blocked():
     truth = np.zeros((30, 30), bool)
     truth[15, 3:27] = True
+    base = truth.copy()
     p = GaAStarPlanner(GaParams(seed=3))
     p.plan(truth, (0, 15))
     first = p.path((29, 15))
@@ -160,11 +161,30 @@ def test_the_kept_path_is_reused_until_a_cell_of_it_is_blocked():
     truth.reshape(-1)[[0, mid[0] * 30 + mid[1]]] = True
     check_path(again, truth, tuple(first[2]), (0, 15), path_cost(again))
     assert p.search_stats is not None and p.search_stats.iterations > 0
-    fresh = GaAStarPlanner(GaParams(seed=3), keep_route=False)
-    fresh.plan(truth, (0, 15))
-    np.testing.assert_array_equal(fresh.path(tuple(first[2])), again)  # same map and start
+    # The reroute carries the old route over: never dearer (Eq. 2) than rejoining it.
+    assert path_cost(again) <= path_cost(fresh_rejoin(truth, first, tuple(first[2]), p))
+    twin = GaAStarPlanner(GaParams(seed=3))  # the same history gives the same answers
+    twin.plan(base, (0, 15))
+    twin.path((29, 15))
+    twin.update(np.array([0, mid[0] * 30 + mid[1]]), np.array([True, True]))
+    np.testing.assert_array_equal(twin.path(tuple(first[2])), again)
     off = p.path((29, 0))  # off the path: the GA from there
     assert p.ga_runs == 3 and tuple(off[0]) == (29, 0)
+
+
+def fresh_rejoin(truth, route, start, p) -> np.ndarray:
+    """A* from ``start`` to each carried waypoint of the old ``route`` and on to the goal."""
+    from daemon.planning.cpu.genetic import Segments
+
+    seg = Segments()
+    seg.load(truth)
+    ahead = route[int(np.argmax(-np.abs(route - np.asarray(start)).max(axis=1))) : -1]
+    at = np.linspace(0, len(ahead) - 1, p.params.waypoints + 2)[1:-1].round().astype(int)
+    points = [start, *[tuple(ahead[i]) for i in at], tuple(route[-1])]
+    cells = [seg.path(seg.padded(a), seg.padded(b))[1 if i else 0 :]
+             for i, (a, b) in enumerate(itertools.pairwise(points))]  # fmt: skip
+    flat = np.concatenate(cells)
+    return np.stack((flat // seg.width - 1, flat % seg.width - 1), axis=1)
 
 
 def test_more_search_finds_paths_closer_to_the_optimum():
