@@ -61,3 +61,22 @@ def test_bench_walks_and_demo_commands_take_it(tmp_path):
               "--json", str(tmp_path / "walks.json")],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
+
+
+def test_the_study_rows_compare_the_three_methods_on_one_map(capsys):
+    from sim.ga_study import format_rows, main, study
+
+    rows = study([30], [0.1], [100], [0.2], maps=1, repeats=1, seed=0)
+    assert [r.method for r in rows[:4]] == ["GA", "A*", "GA+A*", "GA+A* (planner)"]
+    assert {r.setup for r in rows} == {"room-30 10%", "courtyard-100 20%"}
+    by = {(r.setup, r.method): r for r in rows}
+    for setup in ("room-30 10%", "courtyard-100 20%"):
+        assert by[(setup, "A*")].vs_astar_median == 1.0 and by[(setup, "A*")].found == 1
+        for method in ("GA+A*", "GA+A* (planner)"):
+            r = by[(setup, method)]
+            assert r.found == 1 and r.vs_astar_median >= 1.0 and r.searches_median > 1
+            assert r.ms_median > 0 and r.length_m_median >= by[(setup, "A*")].length_m_median
+    assert "paper (Table 2" in format_rows(rows)
+    main(["--rooms", "30", "--densities", "0.2", "--courtyards", "", "--maps", "1",
+          "--repeats", "1"])  # fmt: skip
+    assert "room-30 20%" in capsys.readouterr().out
