@@ -94,11 +94,23 @@ def _extended_astar_planner(backend: str, variant: str) -> GlobalPlanner:
     return ExtendedAStarPlanner(tie_break="exact" if variant == "fast" else "paper", fallback=True)
 
 
+def _ga_astar_planner(backend: str, variant: str) -> GlobalPlanner:
+    """Ghoniem et al.'s GA with A* fitness (``cpu/ga_astar.py``), CPU whatever the backend, with
+    the default ``GaParams`` (seed 0). One form only: the variant is checked, not used. Not
+    optimal: for study and comparison, not a default."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+    from .cpu.ga_astar import GaAStarPlanner
+
+    return GaAStarPlanner()
+
+
 PLANNERS: dict[str, PlannerFactory] = {
     "eds": _field_planner(False),
     "dss": _field_planner(True),
     "astar": _astar_planner,
     "extended-astar": _extended_astar_planner,
+    "ga-astar": _ga_astar_planner,
 }
 """The registered planners by name (iterate it for the names; ``register`` adds to it)."""
 
