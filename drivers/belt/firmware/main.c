@@ -8,6 +8,11 @@
  * patterns (steady or pulsed), the frame's TTL, the 500 ms link watchdog and heartbeats.
  * The hardware watchdog resets the chip (motors off: pins float to inputs) if the main loop
  * ever hangs. Protocol: drivers/belt/PROTOCOL.md.
+ *
+ * Three push buttons to ground (internal pull-ups): D4 = PD4, D7 = PD7, D8 = PB0, sampled
+ * every millisecond, debounced (20 ms), reported as short (at release) or long (at 800 ms,
+ * while still held) presses, each repeated every 100 ms until the host acknowledges it.
+ * The battery through a 1:2 divider on A0 (ADC0, AVcc = 5 V reference), read every 100 ms.
  */
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -26,6 +31,16 @@
 #define LINK_WATCHDOG_MS 500u
 #define BYTE_TIMEOUT_MS 50u
 #define HEARTBEAT_MS 200u
+#define STATUS_MS 1000u
+#define DEBOUNCE_MS 20u
+#define LONG_PRESS_MS 800u
+#define BUTTON_RESEND_MS 100u
+#define BUTTON_EXPIRE_MS 2000u /* a press older than this means nothing any more */
+#define BUTTON_QUEUE 4u
+#define NBUTTONS 3u
+#define BATTERY_MS 100u
+#define AVCC_MV 5000u
+#define DIVIDER 2u /* battery -> 2 x 10 kOhm -> A0 */
 
 /* ---- UART ring buffers (sizes are powers of two) ---- */
 #define RX_SIZE 64u
@@ -151,6 +166,26 @@ static uint8_t state = STATE_BOOT;
 static uint8_t pattern[4], output[4];
 static uint16_t period_ms, last_seq, tx_seq, watchdog_trips;
 static uint32_t pattern_start, ttl_deadline, last_valid, last_byte, next_heartbeat;
+static uint32_t next_status, next_battery;
+static uint8_t intensity = INTENSITY_MAX;
+static uint16_t battery_mv;
+
+/* ---- buttons: debounced in the millisecond tick ---- */
+typedef struct {
+    uint8_t raw, stable, long_sent;
+    uint32_t changed_at, pressed_at;
+} button_t;
+
+typedef struct {
+    uint16_t press;
+    uint8_t button, kind;
+    uint32_t at, sent;
+} press_t;
+
+static button_t buttons[NBUTTONS];
+static press_t pending[BUTTON_QUEUE];
+static uint8_t npending;
+static uint16_t presses, presses_dropped;
 
 static void send(uint8_t type, const uint8_t *payload, uint8_t len)
 {
@@ -182,6 +217,134 @@ static void send_heartbeat(uint32_t now)
     put16(p + 19, (uint16_t)(now & 0xFFFF));
     put16(p + 21, (uint16_t)(now >> 16));
     send(TYPE_HEARTBEAT, p, HEARTBEAT_LEN);
+}
+
+static void send_status(void)
+{
+    uint8_t p[STATUS_LEN];
+    put16(p, battery_mv);
+    p[2] = intensity;
+    p[3] = npending;
+    put16(p + 4, presses);
+    put16(p + 6, presses_dropped);
+    send(TYPE_STATUS, p, STATUS_LEN);
+}
+
+static void send_press(press_t *q, uint32_t now)
+{
+    uint8_t p[BUTTON_LEN];
+    put16(p, q->press);
+    p[2] = q->button;
+    p[3] = q->kind;
+    send(TYPE_BUTTON, p, BUTTON_LEN);
+    q->sent = now;
+}
+
+static void drop_pending(uint8_t i)
+{
+    for (; i + 1u < npending; i++)
+        pending[i] = pending[i + 1u];
+    npending--;
+}
+
+static void queue_press(uint8_t button, uint8_t kind, uint32_t now)
+{
+    if (++presses == 0) /* 0 is never a press number */
+        presses = 1;
+    if (npending == BUTTON_QUEUE) { /* the host hears none of them: this one is lost */
+        presses_dropped++;
+        return;
+    }
+    press_t *q = &pending[npending++];
+    q->press = presses;
+    q->button = button;
+    q->kind = kind;
+    q->at = now;
+    send_press(q, now);
+}
+
+static void button_ack(uint16_t press)
+{
+    for (uint8_t i = 0; i < npending; i++)
+        if (pending[i].press == press) {
+            drop_pending(i);
+            return;
+        }
+}
+
+static void buttons_init(void)
+{
+    DDRD &= (uint8_t)~(_BV(PD4) | _BV(PD7));
+    PORTD |= _BV(PD4) | _BV(PD7); /* pull-ups: a button pulls its pin to ground */
+    DDRB &= (uint8_t)~_BV(PB0);
+    PORTB |= _BV(PB0);
+}
+
+static uint8_t button_down(uint8_t i)
+{
+    switch (i) {
+    case 0:
+        return !(PIND & _BV(PD4));
+    case 1:
+        return !(PIND & _BV(PD7));
+    default:
+        return !(PINB & _BV(PB0));
+    }
+}
+
+static void buttons_tick(uint32_t now)
+{
+    for (uint8_t i = 0; i < NBUTTONS; i++) {
+        button_t *b = &buttons[i];
+        uint8_t raw = button_down(i);
+        if (raw != b->raw) {
+            b->raw = raw;
+            b->changed_at = now;
+        }
+        if (raw != b->stable && reached(now, b->changed_at + DEBOUNCE_MS)) {
+            b->stable = raw;
+            if (raw) {
+                b->pressed_at = now;
+                b->long_sent = 0;
+            } else if (!b->long_sent) {
+                queue_press(i, BUTTON_SHORT, now);
+            }
+        }
+        if (b->stable && !b->long_sent && reached(now, b->pressed_at + LONG_PRESS_MS)) {
+            b->long_sent = 1;
+            queue_press(i, BUTTON_LONG, now);
+        }
+    }
+    for (uint8_t i = 0; i < npending;) {
+        if (reached(now, pending[i].at + BUTTON_EXPIRE_MS)) {
+            presses_dropped++;
+            drop_pending(i);
+            continue;
+        }
+        if (reached(now, pending[i].sent + BUTTON_RESEND_MS))
+            send_press(&pending[i], now);
+        i++;
+    }
+}
+
+/* ---- battery on ADC0 ---- */
+static void adc_init(void)
+{
+    ADMUX = _BV(REFS0);                                     /* AVcc reference, ADC0 */
+    ADCSRA = _BV(ADEN) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0); /* 125 kHz ADC clock */
+    DIDR0 = _BV(ADC0D);
+    ADCSRA |= _BV(ADSC);
+}
+
+static void battery_tick(uint32_t now)
+{
+    if (!reached(now, next_battery) || (ADCSRA & _BV(ADSC)))
+        return;
+    next_battery = now + BATTERY_MS;
+    uint16_t mv = (uint16_t)((uint32_t)ADC * AVCC_MV * DIVIDER / 1024u);
+    /* A running mean over about four readings: a motor's current dip is not a low battery. */
+    battery_mv = battery_mv ? (uint16_t)((3u * (uint32_t)battery_mv + mv) / 4u) : mv;
+    ADCSRA |= _BV(ADSC);
 }
 
 static void ack(uint16_t seq, uint8_t result)
@@ -224,6 +387,16 @@ static void handle_frame(const uint8_t *f, uint32_t now)
         ok = 1;
     } else if (type == TYPE_PING && len == 0)
         ok = 1;
+    else if (type == TYPE_INTENSITY && len == INTENSITY_LEN && f[FRAME_HEADER] <= INTENSITY_MAX) {
+        ok = 1;
+        if (intensity != f[FRAME_HEADER]) {
+            intensity = f[FRAME_HEADER];
+            next_status = now; /* tell the host at the next tick */
+        }
+    } else if (type == TYPE_BUTTON_ACK && len == BUTTON_ACK_LEN) {
+        button_ack((uint16_t)(f[FRAME_HEADER] | (f[FRAME_HEADER + 1] << 8)));
+        ok = 1; /* a repeated ack, for a press already gone, is no error */
+    }
     if (!ok) {
         parser.count.malformed++;
         ack(seq, ACK_REFUSED);
@@ -243,7 +416,7 @@ static void update_outputs(uint32_t now)
     if (on && period_ms)
         on = ((now - pattern_start) % period_ms) < (uint16_t)(period_ms / 2);
     for (uint8_t i = 0; i < 4; i++) {
-        uint8_t level = on ? pattern[i] : 0;
+        uint8_t level = on ? frame_scale_level(pattern[i], intensity) : 0;
         if (level != output[i]) {
             output[i] = level;
             motor_set(i, level);
@@ -261,9 +434,15 @@ static void tick(uint32_t now)
         watchdog_trips++;
     }
     update_outputs(now);
+    buttons_tick(now);
+    battery_tick(now);
     if (reached(now, next_heartbeat)) {
         next_heartbeat = now + HEARTBEAT_MS;
         send_heartbeat(now);
+    }
+    if (reached(now, next_status)) {
+        next_status = now + STATUS_MS;
+        send_status();
     }
 }
 
@@ -280,6 +459,8 @@ int main(void)
     MCUSR = 0;
     wdt_enable(WDTO_500MS);
     pwm_init();
+    buttons_init();
+    adc_init();
     uart_init();
     clock_init();
     frame_parser_init(&parser);
