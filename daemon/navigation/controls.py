@@ -86,6 +86,7 @@ class UserControls:
         """Presses with no action (button 0 long, or a button this daemon does not know)."""
         self._low = False
         self._warned_at = -math.inf
+        self._answered = False
 
     def finish(
         self,
@@ -107,11 +108,13 @@ class UserControls:
         if inbox.battery_v is not None:
             self.battery_v = inbox.battery_v
         switched = False
+        self._answered = False
         for press in inbox.buttons:
             switched |= self._press(press, out, now, guidance, where)
         self._check_battery(out, now)
-        if out.voice and any(c.kind != "stop" for c in out.voice):
-            # A routine direction right after an answer would talk over it.
+        if self._answered:
+            # A routine direction right after an answer would talk over it. Not after
+            # "guidance resumed": the direction is what the user wants to hear next.
             limiter = guidance.cues.limiter
             limiter.last_routine_at = max(limiter.last_routine_at, now)
         return switched
@@ -186,6 +189,7 @@ class UserControls:
         priority: CuePriority = CuePriority.ROUTINE,
     ) -> None:
         # Answers to the user's own request bypass the limiter: asked for, so said now.
+        self._answered |= priority is CuePriority.ROUTINE
         out.voice.append(VoiceCue(text=text, lang=self.lang, priority=priority, kind=kind,
                                   stamp=now))  # fmt: skip
 
