@@ -44,7 +44,7 @@ EVENT_SHAPES: dict[PatternKind, EventShape] = {
     # else drives (GUIDE behind becomes TURN_AROUND, back and a side), then quiet: over
     # within PAUSE_QUIET_MS of the press reaching the daemon. RESUMED: three motors (no other
     # pattern drives exactly three) for a moment, then GUIDE takes over.
-    PatternKind.PAUSED: EventShape((0, 0, 255, 0), 0, 120),
+    PatternKind.PAUSED: EventShape((0, 0, 255, 0), 0, 100),
     PatternKind.RESUMED: EventShape((0, 200, 200, 200), 0, 150),
 }
 PAUSE_QUIET_MS = 200
