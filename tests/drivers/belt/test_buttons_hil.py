@@ -194,3 +194,102 @@ def test_buttons_intensity_and_battery_on_the_simulated_nano(belt_kind, daemon, 
           f"{stop_ms:.0f} ms, intensity on PWM {intensity_ms:.0f} ms after settings/set, "
           f"low battery heard "
           f"{battery_s:.1f} s after the voltage dropped; first cue {first.text!r}")  # fmt: skip
+
+
+class FrameHost:
+    """The host side without the driver: frames out, every belt frame in, on a thread."""
+
+    def __init__(self, port: str) -> None:
+        import serial
+
+        self.ser = serial.Serial(port, 115200, timeout=0.02)
+        self.ser.reset_input_buffer()
+        self.parser = F.Parser()
+        self.frames: list[tuple[float, object]] = []
+        self.seq = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        while not self._stop.is_set():
+            data = self.ser.read(256)
+            now = time.monotonic()
+            self.frames += [(now, f.decode()) for f in self.parser.feed(data)]
+
+    def send(self, frame_of_seq) -> None:
+        self.seq += 1
+        self.ser.write(frame_of_seq(self.seq))
+
+    def of(self, kind: type, after: float = 0.0) -> list:
+        return [m for t, m in list(self.frames) if isinstance(m, kind) and t > after]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(1)
+        self.ser.close()
+
+
+@pytest.mark.timeout(60)
+def test_presses_are_debounced_repeated_until_acked_and_expire(belt):
+    host = FrameHost(belt.link)
+    try:
+        # Keep the link alive (the firmware's watchdog) with a steady pattern.
+        host.send(lambda s: F.pattern_frame(s, F.Pattern((100, 0, 0, 0), 0, 5000)))
+        # A 5 ms bounce is no press; a 100 ms press is one short press, sent at the release.
+        belt.button(0, True)
+        time.sleep(0.005)
+        belt.button(0, False)
+        t0 = time.monotonic()
+        released = belt.press(1, hold_s=0.1)
+        assert belt.pins[-1][0] == released
+        time.sleep(0.35)
+        copies = host.of(F.Button, t0)
+        assert copies and {c.press for c in copies} == {1}, copies
+        assert copies[0] == F.Button(1, 1, F.PressKind.SHORT)
+        assert 2 <= len(copies) <= 5  # again every 100 ms while nobody acks
+        host.send(lambda s: F.button_ack_frame(s, 1))
+        time.sleep(0.15)
+        acked = time.monotonic()
+        time.sleep(0.3)
+        assert host.of(F.Button, acked) == []  # acked: no more copies
+        # A long press is reported at 800 ms while still held, and its release says nothing.
+        down = belt.button(2, True)
+        deadline = time.monotonic() + 2.0
+        while not host.of(F.Button, down) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        long_press = host.of(F.Button, down)[0]
+        assert long_press == F.Button(2, 2, F.PressKind.LONG)
+        # Never acked: it goes for 2 s, then is dropped and counted.
+        time.sleep(2.4)
+        belt.button(2, False)
+        time.sleep(1.2)
+        status = host.of(F.Status)[-1]
+        assert status.presses == 2 and status.presses_dropped == 1 and status.pending == 0
+    finally:
+        host.close()
+
+
+@pytest.mark.timeout(60)
+def test_intensity_frames_scale_the_pwm_and_the_battery_reads_back(belt):
+    host = FrameHost(belt.link)
+    try:
+        motors = (200, 0, 100, 255)
+        host.send(lambda s: F.pattern_frame(s, F.Pattern(motors, 0, 5000)))
+        assert belt.wait_levels(motors, 2.0) is not None
+        for intensity in (0, 33, 100, 60):
+            want = tuple(F.scale_level(m, intensity) for m in motors)
+            host.send(lambda s, i=intensity: F.intensity_frame(s, i))
+            assert belt.wait_levels(want, 1.0) is not None, (intensity, belt.levels, want)
+        before = time.monotonic()
+        host.send(lambda s: F.intensity_frame(s, 101))  # out of range: refused, nothing changes
+        time.sleep(0.3)
+        assert tuple(belt.levels) == tuple(F.scale_level(m, 60) for m in motors)
+        assert F.Ack(host.seq, F.ACK_REFUSED) in host.of(F.Ack, before)
+        belt.battery(3700)
+        time.sleep(1.8)  # the running mean settles, then the next STATUS carries it
+        status = host.of(F.Status)[-1]
+        assert status.intensity == 60
+        assert abs(status.battery_mv - 3700) <= 15  # the ADC's step is 9.8 mV on the battery
+    finally:
+        host.close()
