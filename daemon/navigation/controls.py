@@ -38,6 +38,17 @@ BUTTON_ACTIONS: dict[tuple[int, str], str] = {
 """(button, press kind) → action. Button 0 long is left free: a held pause button does
 nothing, so a user who leans on it does not toggle guidance twice."""
 
+CONTROL_PHRASES = frozenset(
+    {
+        PatternKind.PAUSED, PatternKind.RESUMED, "repeat_none", "where_goal", "where_turn",
+        "where_no_goal", "where_no_pose", "battery", "battery_low", "battery_unknown",
+        "intensity",
+    }
+)  # fmt: skip
+"""The keys of ``cues.PHRASES`` said only about the user's controls and the belt itself:
+answers to a press and the battery warning, never an instruction to walk by. (Where-am-I
+names clock hours: a listener must not take it for a turn.)"""
+
 INTENSITY_STEPS = (0, 25, 50, 75, 100)
 """The intensity button steps up through these and wraps to the lowest."""
 
@@ -200,4 +211,4 @@ def _silence(out: StepOutput) -> None:
     out.voice[:] = [c for c in out.voice if c.kind == str(PatternKind.STOP)]
 
 
-__all__ = ["BUTTON_ACTIONS", "BatteryPolicy", "UserControls", "Whereabouts"]
+__all__ = ["BUTTON_ACTIONS", "CONTROL_PHRASES", "BatteryPolicy", "UserControls", "Whereabouts"]

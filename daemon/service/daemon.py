@@ -185,6 +185,8 @@ class Daemon:
             self.rejected_unrouted += 1
             log.warning("rejected", extra={"fields": {"key": key, "reason": str(exc)}})
             return
+        if topic is T.BELT_HEALTH and user not in self.runners:
+            return  # a belt that is merely on starts no session (nor keeps an idle one alive)
         runner = self._runner(user)
         if runner is None:
             self._refuse_user(user)

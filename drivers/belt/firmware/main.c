@@ -8,11 +8,7 @@
  * patterns (steady or pulsed), the frame's TTL, the 500 ms link watchdog and heartbeats.
  * The hardware watchdog resets the chip (motors off: pins float to inputs) if the main loop
  * ever hangs. Protocol: drivers/belt/PROTOCOL.md.
- *
- * Three push buttons to ground (internal pull-ups): D4 = PD4, D7 = PD7, D8 = PB0, sampled
- * every millisecond, debounced (20 ms), reported as short (at release) or long (at 800 ms,
- * while still held) presses, each repeated every 100 ms until the host acknowledges it.
- * The battery through a 1:2 divider on A0 (ADC0, AVcc = 5 V reference), read every 100 ms.
+ * The buttons and the battery: inputs.c.
  */
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -21,6 +17,7 @@
 #include <util/atomic.h>
 
 #include "frame.h"
+#include "inputs.h"
 
 #ifndef BAUD
 #define BAUD 115200
@@ -32,15 +29,6 @@
 #define BYTE_TIMEOUT_MS 50u
 #define HEARTBEAT_MS 200u
 #define STATUS_MS 1000u
-#define DEBOUNCE_MS 20u
-#define LONG_PRESS_MS 800u
-#define BUTTON_RESEND_MS 100u
-#define BUTTON_EXPIRE_MS 2000u /* a press older than this means nothing any more */
-#define BUTTON_QUEUE 4u
-#define NBUTTONS 3u
-#define BATTERY_MS 100u
-#define AVCC_MV 5000u
-#define DIVIDER 2u /* battery -> 2 x 10 kOhm -> A0 */
 
 /* ---- UART ring buffers (sizes are powers of two) ---- */
 #define RX_SIZE 64u
@@ -119,11 +107,6 @@ static uint32_t now_ms(void)
     return t;
 }
 
-static uint8_t reached(uint32_t now, uint32_t deadline)
-{
-    return (int32_t)(now - deadline) >= 0;
-}
-
 /* ---- motors: 8-bit fast PWM on Timer0 and Timer1, clk/64 = 976 Hz ---- */
 static void pwm_init(void)
 {
@@ -166,35 +149,17 @@ static uint8_t state = STATE_BOOT;
 static uint8_t pattern[4], output[4];
 static uint16_t period_ms, last_seq, tx_seq, watchdog_trips;
 static uint32_t pattern_start, ttl_deadline, last_valid, last_byte, next_heartbeat;
-static uint32_t next_status, next_battery;
+static uint32_t next_status;
 static uint8_t intensity = INTENSITY_MAX;
-static uint16_t battery_mv;
 
-/* ---- buttons: debounced in the millisecond tick ---- */
-typedef struct {
-    uint8_t raw, stable, long_sent;
-    uint32_t changed_at, pressed_at;
-} button_t;
-
-typedef struct {
-    uint16_t press;
-    uint8_t button, kind;
-    uint32_t at, sent;
-} press_t;
-
-static button_t buttons[NBUTTONS];
-static press_t pending[BUTTON_QUEUE];
-static uint8_t npending;
-static uint16_t presses, presses_dropped;
-
-static void send(uint8_t type, const uint8_t *payload, uint8_t len)
+void send(uint8_t type, const uint8_t *payload, uint8_t len)
 {
     uint8_t out[FRAME_MAX];
     uint8_t n = frame_encode(out, type, tx_seq++, payload, len);
     uart_write(out, n);
 }
 
-static void put16(uint8_t *p, uint16_t v)
+void put16(uint8_t *p, uint16_t v)
 {
     p[0] = (uint8_t)(v & 0xFF);
     p[1] = (uint8_t)(v >> 8);
@@ -222,129 +187,8 @@ static void send_heartbeat(uint32_t now)
 static void send_status(void)
 {
     uint8_t p[STATUS_LEN];
-    put16(p, battery_mv);
-    p[2] = intensity;
-    p[3] = npending;
-    put16(p + 4, presses);
-    put16(p + 6, presses_dropped);
+    inputs_status(p, intensity);
     send(TYPE_STATUS, p, STATUS_LEN);
-}
-
-static void send_press(press_t *q, uint32_t now)
-{
-    uint8_t p[BUTTON_LEN];
-    put16(p, q->press);
-    p[2] = q->button;
-    p[3] = q->kind;
-    send(TYPE_BUTTON, p, BUTTON_LEN);
-    q->sent = now;
-}
-
-static void drop_pending(uint8_t i)
-{
-    for (; i + 1u < npending; i++)
-        pending[i] = pending[i + 1u];
-    npending--;
-}
-
-static void queue_press(uint8_t button, uint8_t kind, uint32_t now)
-{
-    if (++presses == 0) /* 0 is never a press number */
-        presses = 1;
-    if (npending == BUTTON_QUEUE) { /* the host hears none of them: this one is lost */
-        presses_dropped++;
-        return;
-    }
-    press_t *q = &pending[npending++];
-    q->press = presses;
-    q->button = button;
-    q->kind = kind;
-    q->at = now;
-    send_press(q, now);
-}
-
-static void button_ack(uint16_t press)
-{
-    for (uint8_t i = 0; i < npending; i++)
-        if (pending[i].press == press) {
-            drop_pending(i);
-            return;
-        }
-}
-
-static void buttons_init(void)
-{
-    DDRD &= (uint8_t)~(_BV(PD4) | _BV(PD7));
-    PORTD |= _BV(PD4) | _BV(PD7); /* pull-ups: a button pulls its pin to ground */
-    DDRB &= (uint8_t)~_BV(PB0);
-    PORTB |= _BV(PB0);
-}
-
-static uint8_t button_down(uint8_t i)
-{
-    switch (i) {
-    case 0:
-        return !(PIND & _BV(PD4));
-    case 1:
-        return !(PIND & _BV(PD7));
-    default:
-        return !(PINB & _BV(PB0));
-    }
-}
-
-static void buttons_tick(uint32_t now)
-{
-    for (uint8_t i = 0; i < NBUTTONS; i++) {
-        button_t *b = &buttons[i];
-        uint8_t raw = button_down(i);
-        if (raw != b->raw) {
-            b->raw = raw;
-            b->changed_at = now;
-        }
-        if (raw != b->stable && reached(now, b->changed_at + DEBOUNCE_MS)) {
-            b->stable = raw;
-            if (raw) {
-                b->pressed_at = now;
-                b->long_sent = 0;
-            } else if (!b->long_sent) {
-                queue_press(i, BUTTON_SHORT, now);
-            }
-        }
-        if (b->stable && !b->long_sent && reached(now, b->pressed_at + LONG_PRESS_MS)) {
-            b->long_sent = 1;
-            queue_press(i, BUTTON_LONG, now);
-        }
-    }
-    for (uint8_t i = 0; i < npending;) {
-        if (reached(now, pending[i].at + BUTTON_EXPIRE_MS)) {
-            presses_dropped++;
-            drop_pending(i);
-            continue;
-        }
-        if (reached(now, pending[i].sent + BUTTON_RESEND_MS))
-            send_press(&pending[i], now);
-        i++;
-    }
-}
-
-/* ---- battery on ADC0 ---- */
-static void adc_init(void)
-{
-    ADMUX = _BV(REFS0);                                     /* AVcc reference, ADC0 */
-    ADCSRA = _BV(ADEN) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0); /* 125 kHz ADC clock */
-    DIDR0 = _BV(ADC0D);
-    ADCSRA |= _BV(ADSC);
-}
-
-static void battery_tick(uint32_t now)
-{
-    if (!reached(now, next_battery) || (ADCSRA & _BV(ADSC)))
-        return;
-    next_battery = now + BATTERY_MS;
-    uint16_t mv = (uint16_t)((uint32_t)ADC * AVCC_MV * DIVIDER / 1024u);
-    /* A running mean over about four readings: a motor's current dip is not a low battery. */
-    battery_mv = battery_mv ? (uint16_t)((3u * (uint32_t)battery_mv + mv) / 4u) : mv;
-    ADCSRA |= _BV(ADSC);
 }
 
 static void ack(uint16_t seq, uint8_t result)
@@ -394,7 +238,7 @@ static void handle_frame(const uint8_t *f, uint32_t now)
             next_status = now; /* tell the host at the next tick */
         }
     } else if (type == TYPE_BUTTON_ACK && len == BUTTON_ACK_LEN) {
-        button_ack((uint16_t)(f[FRAME_HEADER] | (f[FRAME_HEADER + 1] << 8)));
+        inputs_ack((uint16_t)(f[FRAME_HEADER] | (f[FRAME_HEADER + 1] << 8)));
         ok = 1; /* a repeated ack, for a press already gone, is no error */
     }
     if (!ok) {
@@ -434,8 +278,7 @@ static void tick(uint32_t now)
         watchdog_trips++;
     }
     update_outputs(now);
-    buttons_tick(now);
-    battery_tick(now);
+    inputs_tick(now);
     if (reached(now, next_heartbeat)) {
         next_heartbeat = now + HEARTBEAT_MS;
         send_heartbeat(now);
@@ -459,8 +302,7 @@ int main(void)
     MCUSR = 0;
     wdt_enable(WDTO_500MS);
     pwm_init();
-    buttons_init();
-    adc_init();
+    inputs_init();
     uart_init();
     clock_init();
     frame_parser_init(&parser);
