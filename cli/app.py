@@ -31,6 +31,7 @@ COMMAND_MODULES = [
     "cli.run",
     "cli.goal",
     "cli.status",
+    "cli.settings",
     "cli.sim",
     "cli.schema",
 ]

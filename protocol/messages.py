@@ -63,6 +63,8 @@ class PatternKind(StrEnum):
     TURN_AROUND = "turn_around"
     WAIT = "wait"
     OFF = "off"
+    PAUSED = "paused"  # the user paused guidance (belt button): one tap, then quiet
+    RESUMED = "resumed"  # the user resumed it: a short three-motor tap, then GUIDE
 
 
 class BeltPattern(Message):
@@ -99,6 +101,35 @@ class BeltHealth(Message):
     watchdog_trips: int = Field(ge=0)
     latency_ms: float | None = Field(default=None, ge=0, description="median ack round trip")
     heartbeat_age_s: float | None = Field(default=None, ge=0)
+    battery_v: float | None = Field(
+        default=None, ge=0, le=20, description="the belt's battery, read by the Nano"
+    )
+    intensity: int | None = Field(
+        default=None, ge=0, le=100, description="the intensity the firmware applies now"
+    )
+    presses: int = Field(default=0, ge=0, description="button presses published")
+    presses_dropped: int = Field(
+        default=0, ge=0, description="presses the belt gave up on (never acknowledged)"
+    )
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+
+
+class BeltButton(Message):
+    """A press of one of the belt's buttons, once per press (the driver drops repeats)."""
+
+    press: int = Field(ge=1, lt=2**16, description="the belt's own press number")
+    button: int = Field(ge=0, le=2, description="0 = D4, 1 = D7, 2 = D8 (PATTERNS.md)")
+    kind: Literal["short", "long"]
+    stamp: float = Field(ge=0, allow_inf_nan=False)
+
+
+class UserSettings(Message):
+    """One user's settings that may change while walking: asked for on ``settings/set``
+    (the user's own key only), applied and stored by the daemon, published on ``settings``."""
+
+    intensity: int = Field(
+        default=100, ge=0, le=100, description="belt intensity: 0 = the 40 % floor, 100 = full"
+    )
     stamp: float = Field(ge=0, allow_inf_nan=False)
 
 
@@ -170,6 +201,7 @@ class NavStatus(Message):
         default=StatusCode.OK,
         description="machine-readable cause, e.g. goal_off_map, stale_pose; empty when all is well",
     )
+    paused: bool = Field(default=False, description="the user paused guidance (belt button)")
 
 
 class Health(Message):

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from .messages import (
+    BeltButton,
     BeltHealth,
     BeltPattern,
     Goal,
@@ -39,6 +40,7 @@ from .messages import (
     NavStatus,
     Pose,
     RfidStats,
+    UserSettings,
     VoiceCue,
 )
 
@@ -179,6 +181,13 @@ BELT = _t("belt", "belt", BeltPattern, PS, "daemon", "belt driver, sim, recorder
           qos=QoS(priority=Priority.REAL_TIME, express=True))
 BELT_HEALTH = _t("belt_health", "belt/health", BeltHealth, PS, "belt driver", "view, tools",
                  qos=LATEST_WINS)
+BELT_BUTTON = _t("belt_button", "belt/button", BeltButton, PS, "belt driver", "daemon")
+SETTINGS_SET = _t("settings_set", "settings/set", UserSettings, PS, "the user's client / phone",
+                  "daemon (on this user's key only)")
+SETTINGS = _t("settings", "settings", UserSettings, PS, "daemon",
+              "belt driver (intensity), client")
+SETTINGS_QUERY = _t("settings_query", "settings", UserSettings, Q, "daemon",
+                    "belt driver (at start), client")
 VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder")
 RFID_STATS = _t("rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools",
                 qos=LATEST_WINS)
@@ -188,7 +197,8 @@ ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes
 
 TOPICS: tuple[Topic, ...] = (
     MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,
-    BELT, BELT_HEALTH, VOICE, RFID_STATS, HEALTH, ALIVE,
+    BELT, BELT_HEALTH, BELT_BUTTON, SETTINGS_SET, SETTINGS, SETTINGS_QUERY, VOICE, RFID_STATS,
+    HEALTH, ALIVE,
 )  # fmt: skip
 
 

@@ -40,7 +40,15 @@ EVENT_SHAPES: dict[PatternKind, EventShape] = {
     PatternKind.NO_PATH: EventShape((255, 0, 255, 0), 250, 2000),
     PatternKind.WAIT: EventShape((140, 0, 140, 0), 1500, 1600),
     PatternKind.OFF: EventShape((0, 0, 0, 0), 0, 50),
+    # The belt buttons (issue 26). PAUSED: one short tap on the back alone, which nothing
+    # else drives (GUIDE behind becomes TURN_AROUND, back and a side), then quiet: over
+    # within PAUSE_QUIET_MS of the press reaching the daemon. RESUMED: three motors (no other
+    # pattern drives exactly three) for a moment, then GUIDE takes over.
+    PatternKind.PAUSED: EventShape((0, 0, 255, 0), 0, 100),
+    PatternKind.RESUMED: EventShape((0, 200, 200, 200), 0, 150),
 }
+PAUSE_QUIET_MS = 200
+"""After a pause the belt is quiet within this long (the PAUSED tap's TTL is shorter)."""
 
 PULSE_NEAR_M = 1.0
 """Clearance below which GUIDE starts to pulse."""

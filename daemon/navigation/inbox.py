@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from protocol.messages import (
+    BeltButton,
     BeltPattern,
     Goal,
     MapDelta,
@@ -14,6 +15,7 @@ from protocol.messages import (
     NavPath,
     NavStatus,
     Pose,
+    UserSettings,
     VoiceCue,
 )
 
@@ -32,11 +34,17 @@ class Inbox:
     pose: Pose | None = None
     tick: bool = False
     """Step even with nothing new: notices a pose that has gone stale."""
+    buttons: list[BeltButton] = field(default_factory=list)
+    settings: UserSettings | None = None
+    """A change the user asked for on their own ``settings/set`` key."""
+    battery_v: float | None = None
+    """The belt's battery, from its latest health."""
 
     def __bool__(self) -> bool:
         return bool(
             self.rejections or self.deltas or self.snapshot or self.snapshot_failed
-            or self.goal or self.pose or self.tick
+            or self.goal or self.pose or self.tick or self.buttons or self.settings
+            or self.battery_v is not None
         )
 
 
@@ -51,6 +59,8 @@ class StepOutput:
     path_meta: dict = field(default_factory=dict)
     statuses: list[NavStatus] = field(default_factory=list)
     want_snapshot: bool = False
+    settings: UserSettings | None = None
+    """The user's settings changed (a button, or ``settings/set``): to store and publish."""
 
     def path(self) -> NavPath | None:
         if self.path_cells is None:

@@ -38,6 +38,7 @@ from protocol.messages import (
     StatusCode,
 )
 
+from .controls import BatteryPolicy, UserControls, Whereabouts
 from .inbox import Inbox, StepOutput
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
@@ -66,6 +67,8 @@ class NavigatorSettings:
     voice: Literal["companion", "sole"] = "companion"
     """``sole``: the voice guides alone (no belt); it speaks more and stops before contact."""
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    intensity: int = 100
+    battery: BatteryPolicy = field(default_factory=BatteryPolicy)
 
 
 @dataclass(slots=True)
@@ -120,7 +123,13 @@ class Navigator:
         self._last_status: tuple | None = None
         self._last_status_at = 0.0
         self._distance_m: float | None = None
+        self._turn_xy: tuple[float, float] | None = None
         self._held = False
+        self.controls = UserControls(
+            settings.lang,  # type: ignore[arg-type]  # validated by the config
+            settings.intensity,
+            settings.battery,
+        )
 
     # -- the step -------------------------------------------------------------------------
 
@@ -156,6 +165,9 @@ class Navigator:
                 self._wait_for_map(now, out)
             elif not self._held:
                 self._guide(now, out)
+        if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
+            why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
+            self._set_state(self.state, OK, why, now, out, force=True)
         self.route.settle()  # no path read this step: the planner still gets the changes
         self.steps += 1
         self.last.step_ms = (time.perf_counter() - t0) * 1e3
@@ -169,6 +181,14 @@ class Navigator:
         out = StepOutput()
         self._reject(Rejection(code, reason, counted=False), now, out)
         return out
+
+    def _whereabouts(self) -> Whereabouts:
+        goal_xy = None
+        if self.goal_cell is not None and self.maps.map is not None:
+            r, c = self.goal_cell
+            cell_m = self.settings.cell_m
+            goal_xy = ((c + 0.5) * cell_m, (self.maps.map.shape[0] - r - 0.5) * cell_m)
+        return Whereabouts(self.pose, goal_xy, self._distance_m, self._turn_xy)
 
     def snapshot(self, now: float) -> MapSnapshot | None:
         return self.maps.snapshot(now)
@@ -275,6 +295,7 @@ class Navigator:
         out.belt.append(g.pattern)
         if g.cue is not None:
             out.voice.append(g.cue)
+        self._turn_xy = g.target
         out.path_cells = path
         out.path_meta = dict(
             cost=cost,
@@ -345,4 +366,5 @@ class Navigator:
             rejected=self.rejected,
             replans=self.replans,
             backend=self.route.name,
+            paused=self.controls.paused,
         )

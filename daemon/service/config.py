@@ -21,6 +21,7 @@ from pydantic_settings import (
 )
 
 from daemon.navigation import NavigatorSettings
+from daemon.navigation.controls import BatteryPolicy
 from daemon.planning.registry import PLANNERS
 from protocol.settings import ZenohSettings
 
@@ -54,6 +55,15 @@ class DaemonConfig(BaseSettings):
     landmarks: dict[str, tuple[float, float]] = Field(
         default_factory=dict, description="named goals: name = [x, y] in metres"
     )
+    intensity: int = Field(
+        default=100, ge=0, le=100, description="a new user's belt intensity (settings/set)"
+    )
+    settings_dir: Path | None = Field(
+        default=None, description="users' run-time settings kept here; None: in memory only"
+    )
+    low_battery_v: float = Field(default=3.5, gt=0, description="the belt warns below this")
+    battery_empty_v: float = Field(default=3.3, gt=0, description="0 % when spoken")
+    battery_full_v: float = Field(default=4.2, gt=0, description="100 % when spoken")
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
     log_format: Literal["journal", "json"] = "journal"
 
@@ -76,6 +86,9 @@ class DaemonConfig(BaseSettings):
             voice=self.voice,
             stale_pose_s=self.stale_pose_s,
             landmarks=dict(self.landmarks),
+            battery=BatteryPolicy(
+                low_v=self.low_battery_v, empty_v=self.battery_empty_v, full_v=self.battery_full_v
+            ),
         )
 
     @classmethod

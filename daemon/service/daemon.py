@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import gc
 import logging
 import signal
@@ -32,6 +33,7 @@ from .bridge import Bridge
 from .config import DaemonConfig
 from .runner import UserRunner
 from .sdnotify import Notifier
+from .user_settings import SettingsStore
 
 log = logging.getLogger("guidebelt.daemon")
 
@@ -44,6 +46,7 @@ class Daemon:
         self.config = config
         self.notifier = notifier if notifier is not None else Notifier()
         self.runners: dict[str, UserRunner] = {}
+        self.settings = SettingsStore(config.settings_dir, config.intensity)
         self.rejected_unrouted = 0
         """Messages refused before reaching a user (bad key, too many users)."""
         self.started = time.time()
@@ -158,11 +161,20 @@ class Daemon:
         if len(self.runners) >= self.config.max_users:
             return None
         assert self._bridge is not None
-        navigator = Navigator(user, self.config.navigator_settings())
+        stored = self.settings.load(user)
+        nav_settings = self.config.navigator_settings()
+        nav_settings = dataclasses.replace(nav_settings, intensity=stored.intensity)
+        navigator = Navigator(user, nav_settings)
         runner = UserRunner(
-            navigator, self._bridge.publish, self._bridge.request, self.config.snapshot_timeout_s
+            navigator,
+            self._bridge.publish,
+            self._bridge.request,
+            self.config.snapshot_timeout_s,
+            store_settings=self.settings.save,
         )
         self.runners[user] = runner
+        # The belt driver may have started first: it learns the user's intensity now.
+        self._bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
         log.info("new user", extra={"fields": {"user": user, "backend": navigator.route.name}})
         return runner
 
@@ -173,6 +185,8 @@ class Daemon:
             self.rejected_unrouted += 1
             log.warning("rejected", extra={"fields": {"key": key, "reason": str(exc)}})
             return
+        if topic is T.BELT_HEALTH and user not in self.runners:
+            return  # a belt that is merely on starts no session (nor keeps an idle one alive)
         runner = self._runner(user)
         if runner is None:
             self._refuse_user(user)
@@ -187,6 +201,14 @@ class Daemon:
             runner.put_delta(msg)
         elif topic is T.POSE:
             runner.put_pose(msg)
+        elif topic is T.BELT_BUTTON:
+            runner.put_button(msg)
+        elif topic is T.SETTINGS_SET:
+            # The user is the key's: a sample on guidebelt/ann/settings/set changes ann's
+            # settings and no one else's (who may publish there is issue 24's ACL).
+            runner.put_settings(msg)
+        elif topic is T.BELT_HEALTH:
+            runner.put_belt_health(msg)
         else:
             runner.put_goal(msg)
 
@@ -221,6 +243,8 @@ class Daemon:
                 wire.reply(query, T.HEALTH, None, codec.encode(self.health()))
             elif topic is T.STATUS_QUERY:
                 self._reply_statuses(query)
+            elif topic is T.SETTINGS_QUERY:
+                self._reply_settings(query)
             else:
                 self._reply_snapshots(query)
                 return  # those replies come later, from the workers
@@ -239,6 +263,11 @@ class Daemon:
             runner = self.runners[user]
             payload = runner.last_status or codec.encode(runner.navigator.status(time.time()))
             wire.reply(query, T.STATUS_QUERY, user, payload)
+
+    def _reply_settings(self, query: zenoh.Query) -> None:
+        for user in self._matching_users(query, T.SETTINGS_QUERY):
+            settings = self.runners[user].settings(time.time())
+            wire.reply(query, T.SETTINGS_QUERY, user, codec.encode(settings))
 
     def _reply_snapshots(self, query: zenoh.Query) -> None:
         users = self._matching_users(query, T.MAP_SNAPSHOT)

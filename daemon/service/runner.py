@@ -20,7 +20,16 @@ import zenoh
 from daemon.navigation import Inbox, Navigator, Rejection, StepOutput
 from protocol import codec
 from protocol import topics as T
-from protocol.messages import Goal, MapDelta, MapSnapshot, Pose, StatusCode
+from protocol.messages import (
+    BeltButton,
+    BeltHealth,
+    Goal,
+    MapDelta,
+    MapSnapshot,
+    Pose,
+    StatusCode,
+    UserSettings,
+)
 
 log = logging.getLogger("guidebelt.runner")
 
@@ -32,8 +41,10 @@ class UserRunner:
         publish: Callable[[str, bytes], None],
         request: Callable[[str, float, Callable[[bytes | None], None]], None],
         snapshot_timeout_s: float,
+        store_settings: Callable[[str, UserSettings], None] | None = None,
     ) -> None:
         self.navigator = navigator
+        self._store_settings = store_settings
         self.user = navigator.user
         self._publish = publish
         self._request = request
@@ -65,6 +76,28 @@ class UserRunner:
     def put_goal(self, goal: Goal) -> None:
         self._inbox.goal = goal
         self._heard()
+
+    def put_button(self, press: BeltButton) -> None:
+        self._inbox.buttons.append(press)
+        self._heard()
+
+    def put_settings(self, settings: UserSettings) -> None:
+        self._inbox.settings = settings  # the latest wins
+        self._heard()
+
+    def put_belt_health(self, health: BeltHealth) -> None:
+        """The belt's battery. Health comes twice a second and steps nobody by itself,
+        except when the battery just went below the warning level."""
+        if health.battery_v is None:
+            return
+        low = self.navigator.settings.battery.low_v
+        known = self.navigator.controls.battery_v
+        self._inbox.battery_v = health.battery_v
+        if health.battery_v < low and (known is None or known >= low):
+            self._wake.set()
+
+    def settings(self, now: float) -> UserSettings:
+        return UserSettings(intensity=self.navigator.controls.intensity, stamp=now)
 
     def _heard(self) -> None:
         self.last_input = self._loop.time()
@@ -119,6 +152,10 @@ class UserRunner:
         for status in out.statuses:
             self.last_status = codec.encode(status)
             self._publish(T.STATUS.key(user), self.last_status)
+        if out.settings is not None:
+            self._publish(T.SETTINGS.key(user), codec.encode(out.settings))
+            if self._store_settings is not None:
+                self._store_settings(user, out.settings)
         if out.want_snapshot:
             self._loop.call_soon_threadsafe(self._ask_for_snapshot)
 

@@ -11,6 +11,11 @@ The current pattern is re-sent every 100 ms until its TTL runs out (the firmware
 every motor off after 500 ms without a valid frame); when there is nothing to show, a PING
 keeps the link checked and measured. ``BeltService`` wires the link to zenoh: patterns in,
 ``BeltHealth`` out, and STOP as soon as the daemon's liveliness token disappears.
+
+Buttons: the belt repeats each press until a BUTTON_ACK; the link acks every copy and hands
+each press number on once (``on_button``), which the service publishes on ``belt/button``.
+Intensity: the user's (``settings``, from the daemon) goes to the belt on every connection
+and again whenever the belt's STATUS shows another.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import os
 import statistics
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import serial
@@ -40,14 +46,25 @@ SILENCE_S = 1.0  # no byte from the belt for this long: the link is dead, reopen
 # Opening a Nano's port pulses DTR, which resets it into its bootloader for about a second
 # before the firmware's first heartbeat; reopening sooner would reset it again, for ever.
 BOOT_GRACE_S = 3.0
+PRESS_MEMORY_S = 3.0  # longer than the belt repeats a press (2 s): a copy, not a new press
 
 
 class BeltLink:
     """One serial link to the belt firmware, reconnecting for ever until ``close()``."""
 
-    def __init__(self, port: str, baudrate: int = 115200) -> None:
+    def __init__(
+        self,
+        port: str,
+        baudrate: int = 115200,
+        on_button: Callable[[F.Button], None] | None = None,
+    ) -> None:
         self.port = port
         self.baudrate = baudrate
+        self.on_button = on_button
+        self.intensity = F.INTENSITY_MAX  # the user's, sent to the belt
+        self.status: F.Status | None = None
+        self.presses = 0
+        self._pressed: dict[int, float] = {}  # press number -> when first heard
         self.connected = asyncio.Event()
         self.pattern: F.Pattern | None = None
         self.expires = 0.0  # monotonic time the current pattern's TTL runs out
@@ -73,6 +90,11 @@ class BeltLink:
         self.pattern = pattern
         self.expires = time.monotonic() + pattern.ttl_ms / 1000
         self._send_current()
+
+    def set_intensity(self, intensity: int) -> None:
+        """The user's intensity (0..100), to the belt now and after every reconnection."""
+        self.intensity = max(0, min(F.INTENSITY_MAX, int(intensity)))
+        self._write(F.intensity_frame(self._next_seq(), self.intensity))
 
     def stop(self) -> None:
         """Every motor off now, and nothing more until the next pattern."""
@@ -119,6 +141,7 @@ class BeltLink:
         log.info("belt connected on %s", self.port)
         keepalive = asyncio.create_task(self._keepalive())
         try:
+            self._write(F.intensity_frame(self._next_seq(), self.intensity))
             self._send_current()
             await self._lost.wait()
         finally:
@@ -206,8 +229,27 @@ class BeltLink:
                     self.rtts.append(now - sent)
             elif isinstance(msg, F.Heartbeat):
                 self.heartbeat, self.heartbeat_at = msg, now
+            elif isinstance(msg, F.Button):
+                self._on_press(msg, now)
+            elif isinstance(msg, F.Status):
+                self.status = msg
+                if msg.intensity != self.intensity:  # a belt that rebooted, or a lost frame
+                    self._write(F.intensity_frame(self._next_seq(), self.intensity))
             else:
                 self.parser.malformed += 1
+
+    def _on_press(self, press: F.Button, now: float) -> None:
+        # Every copy is acked (the ack of an earlier copy may be the one that was lost);
+        # only the first is handed on.
+        self._write(F.button_ack_frame(self._next_seq(), press.press))
+        for old in [n for n, t in self._pressed.items() if now - t > PRESS_MEMORY_S]:
+            del self._pressed[old]
+        if press.press in self._pressed:
+            return
+        self._pressed[press.press] = now
+        self.presses += 1
+        if self.on_button is not None:
+            self.on_button(press)
 
     def health(self) -> dict[str, object]:
         """The fields of ``protocol.messages.BeltHealth`` (without the stamp)."""
@@ -215,6 +257,7 @@ class BeltLink:
         c = hb.counters if hb else F.Counters()
         p = self.parser
         connected = self.connected.is_set()
+        st = self.status
         return {
             "port": self.port,
             "connected": connected,
@@ -232,6 +275,10 @@ class BeltLink:
             "watchdog_trips": hb.watchdog_trips if hb else 0,
             "latency_ms": statistics.median(self.rtts) * 1000 if self.rtts else None,
             "heartbeat_age_s": time.monotonic() - self.heartbeat_at if self.heartbeat_at else None,
+            "battery_v": st.battery_mv / 1000 if st and connected else None,
+            "intensity": st.intensity if st and connected else None,
+            "presses": self.presses,
+            "presses_dropped": st.presses_dropped if st else 0,
         }
 
 
@@ -260,9 +307,21 @@ class BeltService:
         def on_alive(sample: zenoh.Sample) -> None:
             loop.call_soon_threadsafe(self._on_alive, sample.kind == zenoh.SampleKind.PUT)
 
+        def on_settings(sample: zenoh.Sample) -> None:
+            loop.call_soon_threadsafe(self._on_settings, sample.payload.to_bytes())
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            if reply.ok is not None:
+                on_settings(reply.ok)
+
         sub = wire.declare_subscriber(self.session, T.BELT, on_pattern, self.user)
+        settings = wire.declare_subscriber(self.session, T.SETTINGS, on_settings, self.user)
         alive = wire.watch_liveliness(self.session, T.ALIVE, on_alive)
         pub = wire.declare_publisher(self.session, T.BELT_HEALTH, self.user)
+        buttons = wire.declare_publisher(self.session, T.BELT_BUTTON, self.user)
+        self.link.on_button = lambda press: self._publish_press(buttons, press)
+        # The user's intensity as the daemon has it now; later changes come on SETTINGS.
+        wire.get(self.session, T.SETTINGS_QUERY, self.user, on_reply, 2.0)
         link_task = asyncio.create_task(self.link.run())
         try:
             while not link_task.done():
@@ -274,7 +333,7 @@ class BeltService:
             link_task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await link_task
-            for entity in (sub, alive, pub):
+            for entity in (sub, settings, alive, pub, buttons):
                 entity.undeclare()
 
     def health(self):
@@ -295,6 +354,26 @@ class BeltService:
         # The firmware pulses no faster than 20 ms; a shorter period is a fast pulse.
         period = msg.period_ms if msg.period_ms == 0 else max(msg.period_ms, F.PERIOD_MIN_MS)
         self.link.show(F.Pattern(tuple(msg.motors), period, msg.ttl_ms))
+
+    def _publish_press(self, publisher, press: F.Button) -> None:
+        from protocol.messages import BeltButton
+
+        kind = "long" if press.kind == F.PressKind.LONG else "short"
+        msg = BeltButton(press=press.press, button=press.button, kind=kind, stamp=time.time())
+        publisher.put(msg.model_dump_json())
+
+    def _on_settings(self, raw: bytes) -> None:
+        from protocol.codec import DecodeError, decode
+        from protocol.messages import UserSettings
+
+        try:
+            msg = decode(UserSettings, raw)
+        except DecodeError as exc:
+            self.rejected += 1
+            log.warning("settings rejected: %s", exc)
+            return
+        if msg.intensity != self.link.intensity:
+            self.link.set_intensity(msg.intensity)
 
     def _on_alive(self, alive: bool) -> None:
         was_alive = self.daemons_alive > 0

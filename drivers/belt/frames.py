@@ -26,14 +26,32 @@ PERIOD_MIN_MS = 20  # a pulse period, when not 0 (steady)
 LINK_WATCHDOG_MS = 500
 BYTE_TIMEOUT_MS = 50
 HEARTBEAT_MS = 200
+STATUS_MS = 1000
+INTENSITY_MAX = 100
+INTENSITY_FLOOR_PCT = 40  # intensity scales motor levels by 40..100 %, never to nothing
+DEBOUNCE_MS = 20  # a button's level must hold this long to count
+LONG_PRESS_MS = 800  # held this long: a long press, reported while still held
+BUTTON_RESEND_MS = 100  # an unacknowledged press goes again this often...
+BUTTON_EXPIRE_MS = 2000  # ...until acknowledged or this old (then counted as dropped)
+BUTTON_QUEUE = 4
+BUTTONS = 3
 
 
 class FrameType(IntEnum):
     PATTERN = 0x01
     STOP = 0x02
     PING = 0x03
+    INTENSITY = 0x04
+    BUTTON_ACK = 0x05
     ACK = 0x81
     HEARTBEAT = 0x82
+    BUTTON = 0x83
+    STATUS = 0x84
+
+
+class PressKind(IntEnum):
+    SHORT = 1  # released before LONG_PRESS_MS: reported at the release
+    LONG = 2  # held LONG_PRESS_MS: reported at that moment, the release is not
 
 
 class BeltState(IntEnum):
@@ -50,9 +68,15 @@ ACK_REFUSED = 1
 PATTERN_LEN = 8
 ACK_LEN = 3
 HEARTBEAT_LEN = 23
+INTENSITY_LEN = 1
+BUTTON_ACK_LEN = 2
+BUTTON_LEN = 4
+STATUS_LEN = 8
 _PATTERN = struct.Struct("<4BHH")
 _ACK = struct.Struct("<HB")
 _HEARTBEAT = struct.Struct("<BH4B6HI")
+_BUTTON = struct.Struct("<HBB")
+_STATUS = struct.Struct("<HBBHH")
 
 
 def crc16(data: bytes) -> int:
@@ -101,6 +125,62 @@ def ping_frame(seq: int) -> bytes:
     return encode(FrameType.PING, seq)
 
 
+def intensity_frame(seq: int, intensity: int) -> bytes:
+    return encode(FrameType.INTENSITY, seq, bytes([intensity]))
+
+
+def button_ack_frame(seq: int, press: int) -> bytes:
+    return encode(FrameType.BUTTON_ACK, seq, struct.pack("<H", press & 0xFFFF))
+
+
+def scale_level(level: int, intensity: int) -> int:
+    """A motor level as the firmware drives it at ``intensity`` (``frame_scale_level``).
+
+    Every level is scaled by the same factor, 40 % at intensity 0 up to 100 % at 100, so a
+    pattern keeps its shape (which motors, which period: what tells events apart by touch)
+    and a GUIDE blend keeps its direction; the 40 % floor keeps every pattern felt."""
+    intensity = min(intensity, INTENSITY_MAX)
+    pct = INTENSITY_FLOOR_PCT + (INTENSITY_MAX - INTENSITY_FLOOR_PCT) * intensity // INTENSITY_MAX
+    out = (level * pct + 50) // 100
+    return 1 if level and not out else out  # a motor that is on stays on
+
+
+@dataclass(frozen=True)
+class Button:
+    """A debounced press: ``press`` numbers the belt's presses (1, 2, …, wrapping at 2¹⁶,
+    never 0), so a press repeated until acknowledged is recognised as the same one."""
+
+    press: int
+    button: int  # 0..BUTTONS-1
+    kind: PressKind
+
+    def payload(self) -> bytes:
+        return _BUTTON.pack(self.press, self.button, self.kind)
+
+    @classmethod
+    def unpack(cls, payload: bytes) -> Button:
+        press, button, kind = _BUTTON.unpack(payload)
+        return cls(press, button, PressKind(kind))
+
+
+@dataclass(frozen=True)
+class Status:
+    battery_mv: int  # the battery, from ADC0 through the 1:2 divider
+    intensity: int  # the level applied, 0..100
+    pending: int  # presses not yet acknowledged
+    presses: int  # presses since reset (wraps)
+    presses_dropped: int  # presses that expired unacknowledged or found the queue full
+
+    def payload(self) -> bytes:
+        return _STATUS.pack(
+            self.battery_mv, self.intensity, self.pending, self.presses, self.presses_dropped
+        )
+
+    @classmethod
+    def unpack(cls, payload: bytes) -> Status:
+        return cls(*_STATUS.unpack(payload))
+
+
 @dataclass(frozen=True)
 class Ack:
     seq: int
@@ -147,9 +227,13 @@ class Frame:
     seq: int
     payload: bytes
 
-    def decode(self) -> Ack | Heartbeat | Pattern | None:
+    def decode(self) -> Ack | Heartbeat | Pattern | Button | Status | None:
         """The typed message, or None for a type/length this side does not know."""
         n = len(self.payload)
+        if self.ftype == FrameType.BUTTON and n == BUTTON_LEN and self.payload[3] in (1, 2):
+            return Button.unpack(self.payload)
+        if self.ftype == FrameType.STATUS and n == STATUS_LEN:
+            return Status.unpack(self.payload)
         if self.ftype == FrameType.ACK and n == ACK_LEN:
             return Ack(*_ACK.unpack(self.payload))
         if self.ftype == FrameType.HEARTBEAT and n == HEARTBEAT_LEN:

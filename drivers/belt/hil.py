@@ -81,6 +81,7 @@ class SimulatedBelt:
         self.stats: str | None = None
         self.rx_bursts: list[float] = []  # monotonic times the host started talking
         self.rx_sim: list[float] = []  # the same moments on the belt's clock
+        self.pins: list[tuple[float, float, int, int]] = []  # (mono, sim_s, button, down)
         self.ready_at = 0.0  # monotonic time of the last start's "ready" (pty in place)
         self._cond = threading.Condition()
         self._reader: threading.Thread | None = None
@@ -96,8 +97,8 @@ class SimulatedBelt:
             build_firmware()
         self._ready = False
         self.proc = subprocess.Popen(
-            self.command(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-            cwd=ROOT, bufsize=1,
+            self.command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL, text=True, cwd=ROOT, bufsize=1,
         )  # fmt: skip
         self._reader = threading.Thread(target=self._read, args=(self.proc,), daemon=True)
         self._reader.start()
@@ -123,9 +124,39 @@ class SimulatedBelt:
                 elif words == ["ready"]:
                     self._ready = True
                     self.ready_at = time.monotonic()
+                elif words[:1] == ["button"] and len(words) == 5:
+                    t_us, mono_us, button, down = map(int, words[1:])
+                    self.pins.append((mono_us / 1e6, t_us / 1e6, button, down))
                 elif words[:1] == ["stats"]:
                     self.stats = line.strip()
                 self._cond.notify_all()
+
+    def _tell(self, line: str) -> None:
+        assert self.proc is not None and self.proc.stdin is not None, "belt not running"
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def button(self, button: int, down: bool) -> float:
+        """Push (``down``) or release a button on the belt; the monotonic time the belt
+        process applied it to the pin (it reports that moment)."""
+        with self._cond:
+            n = len(self.pins)
+        self._tell(f"button {button} {int(down)}")
+        if not self.wait_for(lambda: len(self.pins) > n, 2.0):
+            raise RuntimeError("the belt did not apply the button")
+        with self._cond:
+            return self.pins[n][0]
+
+    def press(self, button: int, hold_s: float = 0.1) -> float:
+        """A whole press (down, ``hold_s``, up); the moment of the release, when the belt
+        reports a short press (a long one, ``hold_s`` ≥ 0.8, is reported while held)."""
+        self.button(button, True)
+        time.sleep(hold_s)
+        return self.button(button, False)
+
+    def battery(self, millivolts: int) -> None:
+        """The battery's voltage from now on (the Nano reads half of it on A0)."""
+        self._tell(f"battery {int(millivolts)}")
 
     def wait_for(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` (checked under the lock, after each line) holds."""
@@ -152,8 +183,10 @@ class SimulatedBelt:
                 proc.wait(timeout)
         if self._reader is not None:
             self._reader.join(timeout)
-        if proc.stdout is not None:
-            proc.stdout.close()
+        for pipe in (proc.stdin, proc.stdout):
+            if pipe is not None:
+                with contextlib.suppress(OSError):
+                    pipe.close()
         with self._cond:
             self.levels = [0, 0, 0, 0]  # a dead Nano drives nothing (its pins float)
 

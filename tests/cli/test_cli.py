@@ -38,3 +38,18 @@ def test_goal_then_status_from_the_command_line(daemon):
     assert "cli-user" in json.loads(shown.stdout.split("daemon: ", 1)[1].splitlines()[0])["users"]
     bad = guidebelt("goal", "Not Valid", "1", "1", "--connect", endpoint)
     assert bad.returncode != 0
+
+
+@pytest.mark.timeout(120)
+def test_settings_changed_and_shown_from_the_command_line(daemon):
+    endpoint = f"tcp/127.0.0.1:{daemon.port}"
+    # The user exists once the daemon has heard of them: a goal does it.
+    assert guidebelt("goal", "cli-settings", "1", "1", "--connect", endpoint, "--wait", "0.3")
+    changed = guidebelt("settings", "cli-settings", "--intensity", "30", "--connect", endpoint)
+    assert changed.returncode == 0, changed.stderr
+    assert json.loads(changed.stdout.removeprefix("cli-settings: "))["intensity"] == 30
+    shown = guidebelt("settings", "cli-settings", "--connect", endpoint)
+    assert shown.returncode == 0, shown.stderr
+    assert json.loads(shown.stdout.removeprefix("cli-settings: "))["intensity"] == 30
+    too_strong = guidebelt("settings", "cli-settings", "--intensity", "150", "--connect", endpoint)
+    assert too_strong.returncode != 0

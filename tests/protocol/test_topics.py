@@ -138,3 +138,19 @@ def test_no_key_is_spelled_and_no_session_opened_outside_protocol():
     assert offenders == []
     opens = [p for p in _sources("protocol") if "zenoh.open(" in p.read_text()]
     assert [p.name for p in opens] == ["session.py"]
+
+
+def test_the_belt_buttons_and_settings_are_in_the_table_and_the_schema():
+    """Issue 26: what the belt's buttons and the user's settings travel on is in the one table,
+    so ``guidebelt schema`` documents it with no list of its own."""
+    from protocol.schema import schemas
+
+    assert T.topic_of("guidebelt/ann/belt/button") is T.BELT_BUTTON
+    assert T.topic_of("guidebelt/ann/settings/set") is T.SETTINGS_SET
+    assert T.topic_of("guidebelt/ann/settings", T.Kind.QUERYABLE) is T.SETTINGS_QUERY
+    assert T.SETTINGS_SET.user_of("guidebelt/ann/settings/set") == "ann"
+    out = schemas()
+    assert {"BeltButton", "UserSettings"} <= set(out)
+    assert out["UserSettings"]["properties"]["intensity"]["maximum"] == 100
+    assert "paused" in out["NavStatus"]["properties"]
+    assert "battery_v" in out["BeltHealth"]["properties"]

@@ -99,3 +99,13 @@ uint8_t frame_encode(uint8_t *out, uint8_t type, uint16_t seq, const uint8_t *pa
     out[n + 1] = (uint8_t)(crc & 0xFF);
     return (uint8_t)(n + FRAME_CRC);
 }
+
+uint8_t frame_scale_level(uint8_t level, uint8_t intensity)
+{
+    if (intensity > INTENSITY_MAX)
+        intensity = INTENSITY_MAX;
+    uint16_t pct = (uint16_t)(INTENSITY_FLOOR_PCT +
+                              (INTENSITY_MAX - INTENSITY_FLOOR_PCT) * intensity / INTENSITY_MAX);
+    uint8_t out = (uint8_t)(((uint16_t)level * pct + 50u) / 100u);
+    return (level && !out) ? 1u : out; /* a motor that is on stays on */
+}

@@ -19,13 +19,29 @@
 #define TYPE_PATTERN 0x01u
 #define TYPE_STOP 0x02u
 #define TYPE_PING 0x03u
+#define TYPE_INTENSITY 0x04u  /* the user's intensity, 0..100 */
+#define TYPE_BUTTON_ACK 0x05u /* the host has a press: stop repeating it */
 /* belt -> host */
 #define TYPE_ACK 0x81u
 #define TYPE_HEARTBEAT 0x82u
+#define TYPE_BUTTON 0x83u /* a debounced press, repeated until acknowledged */
+#define TYPE_STATUS 0x84u /* battery, intensity, presses: every second */
 
 #define PATTERN_LEN 8u
 #define ACK_LEN 3u
 #define HEARTBEAT_LEN 23u
+#define INTENSITY_LEN 1u
+#define BUTTON_ACK_LEN 2u
+#define BUTTON_LEN 4u
+#define STATUS_LEN 8u
+
+#define INTENSITY_MAX 100u
+/* Intensity scales every motor level by FLOOR..100 %, never below the floor: a pattern's
+ * shape (which motors, which period) is what tells events apart, and it stays felt. */
+#define INTENSITY_FLOOR_PCT 40u
+
+#define BUTTON_SHORT 1u
+#define BUTTON_LONG 2u
 
 #define TTL_MIN_MS 50u
 #define TTL_MAX_MS 5000u
@@ -70,6 +86,11 @@ uint8_t frame_parser_poll(frame_parser_t *p);
 
 /* The line was quiet past the inter-byte timeout: a partial frame is counted and dropped. */
 void frame_parser_timeout(frame_parser_t *p);
+
+/* A motor level as the firmware drives it at the user's intensity (0..100): scaled by
+ * INTENSITY_FLOOR_PCT + (100 - INTENSITY_FLOOR_PCT) * intensity / 100 percent, rounded half
+ * up. 0 stays 0 and any other level at least 1; a ratio between two motors (a GUIDE direction) is kept to rounding. */
+uint8_t frame_scale_level(uint8_t level, uint8_t intensity);
 
 /* Writes a whole frame into out (FRAME_MAX bytes); returns its length. */
 uint8_t frame_encode(uint8_t *out, uint8_t type, uint16_t seq, const uint8_t *payload,

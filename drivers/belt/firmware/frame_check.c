@@ -3,6 +3,7 @@
  * Reads commands on stdin, one per line, and answers on stdout:
  *   C HEX             -> "crc XXXX"                       CRC-16 of the bytes
  *   E TYPE SEQ HEX    -> "frame HEX"                      frame_encode()
+ *   S LEVEL INTENSITY -> "level N"                        frame_scale_level()
  *   P HEX TIMEOUT     -> "frame TYPE SEQ HEX" per frame, then
  *                        "counters RX CRC OVERSIZED TRUNCATED MALFORMED"
  * HEX may be "-" for no bytes. Built with the host compiler: cc -o frame_check frame_check.c frame.c
@@ -38,11 +39,13 @@ int main(void)
     char line[4096], hex[4000];
     uint8_t data[2000];
     while (fgets(line, sizeof(line), stdin)) {
-        unsigned type, seq;
+        unsigned type, seq, level, intensity;
         int timeout;
         if (sscanf(line, "C %3999s", hex) == 1) {
             int n = unhex(hex, data, sizeof(data));
             printf("crc %04x\n", frame_crc16(data, (uint8_t)n));
+        } else if (sscanf(line, "S %u %u", &level, &intensity) == 2) {
+            printf("level %u\n", frame_scale_level((uint8_t)level, (uint8_t)intensity));
         } else if (sscanf(line, "E %u %u %3999s", &type, &seq, hex) == 3) {
             uint8_t out[FRAME_MAX];
             int n = unhex(hex, data, FRAME_MAX_PAYLOAD);

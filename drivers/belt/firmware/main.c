@@ -8,6 +8,7 @@
  * patterns (steady or pulsed), the frame's TTL, the 500 ms link watchdog and heartbeats.
  * The hardware watchdog resets the chip (motors off: pins float to inputs) if the main loop
  * ever hangs. Protocol: drivers/belt/PROTOCOL.md.
+ * The buttons and the battery: inputs.c.
  */
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -16,6 +17,7 @@
 #include <util/atomic.h>
 
 #include "frame.h"
+#include "inputs.h"
 
 #ifndef BAUD
 #define BAUD 115200
@@ -26,6 +28,7 @@
 #define LINK_WATCHDOG_MS 500u
 #define BYTE_TIMEOUT_MS 50u
 #define HEARTBEAT_MS 200u
+#define STATUS_MS 1000u
 
 /* ---- UART ring buffers (sizes are powers of two) ---- */
 #define RX_SIZE 64u
@@ -104,11 +107,6 @@ static uint32_t now_ms(void)
     return t;
 }
 
-static uint8_t reached(uint32_t now, uint32_t deadline)
-{
-    return (int32_t)(now - deadline) >= 0;
-}
-
 /* ---- motors: 8-bit fast PWM on Timer0 and Timer1, clk/64 = 976 Hz ---- */
 static void pwm_init(void)
 {
@@ -151,15 +149,17 @@ static uint8_t state = STATE_BOOT;
 static uint8_t pattern[4], output[4];
 static uint16_t period_ms, last_seq, tx_seq, watchdog_trips;
 static uint32_t pattern_start, ttl_deadline, last_valid, last_byte, next_heartbeat;
+static uint32_t next_status;
+static uint8_t intensity = INTENSITY_MAX;
 
-static void send(uint8_t type, const uint8_t *payload, uint8_t len)
+void send(uint8_t type, const uint8_t *payload, uint8_t len)
 {
     uint8_t out[FRAME_MAX];
     uint8_t n = frame_encode(out, type, tx_seq++, payload, len);
     uart_write(out, n);
 }
 
-static void put16(uint8_t *p, uint16_t v)
+void put16(uint8_t *p, uint16_t v)
 {
     p[0] = (uint8_t)(v & 0xFF);
     p[1] = (uint8_t)(v >> 8);
@@ -182,6 +182,13 @@ static void send_heartbeat(uint32_t now)
     put16(p + 19, (uint16_t)(now & 0xFFFF));
     put16(p + 21, (uint16_t)(now >> 16));
     send(TYPE_HEARTBEAT, p, HEARTBEAT_LEN);
+}
+
+static void send_status(void)
+{
+    uint8_t p[STATUS_LEN];
+    inputs_status(p, intensity);
+    send(TYPE_STATUS, p, STATUS_LEN);
 }
 
 static void ack(uint16_t seq, uint8_t result)
@@ -224,6 +231,16 @@ static void handle_frame(const uint8_t *f, uint32_t now)
         ok = 1;
     } else if (type == TYPE_PING && len == 0)
         ok = 1;
+    else if (type == TYPE_INTENSITY && len == INTENSITY_LEN && f[FRAME_HEADER] <= INTENSITY_MAX) {
+        ok = 1;
+        if (intensity != f[FRAME_HEADER]) {
+            intensity = f[FRAME_HEADER];
+            next_status = now; /* tell the host at the next tick */
+        }
+    } else if (type == TYPE_BUTTON_ACK && len == BUTTON_ACK_LEN) {
+        inputs_ack((uint16_t)(f[FRAME_HEADER] | (f[FRAME_HEADER + 1] << 8)));
+        ok = 1; /* a repeated ack, for a press already gone, is no error */
+    }
     if (!ok) {
         parser.count.malformed++;
         ack(seq, ACK_REFUSED);
@@ -243,7 +260,7 @@ static void update_outputs(uint32_t now)
     if (on && period_ms)
         on = ((now - pattern_start) % period_ms) < (uint16_t)(period_ms / 2);
     for (uint8_t i = 0; i < 4; i++) {
-        uint8_t level = on ? pattern[i] : 0;
+        uint8_t level = on ? frame_scale_level(pattern[i], intensity) : 0;
         if (level != output[i]) {
             output[i] = level;
             motor_set(i, level);
@@ -261,9 +278,14 @@ static void tick(uint32_t now)
         watchdog_trips++;
     }
     update_outputs(now);
+    inputs_tick(now);
     if (reached(now, next_heartbeat)) {
         next_heartbeat = now + HEARTBEAT_MS;
         send_heartbeat(now);
+    }
+    if (reached(now, next_status)) {
+        next_status = now + STATUS_MS;
+        send_status();
     }
 }
 
@@ -280,6 +302,7 @@ int main(void)
     MCUSR = 0;
     wdt_enable(WDTO_500MS);
     pwm_init();
+    inputs_init();
     uart_init();
     clock_init();
     frame_parser_init(&parser);

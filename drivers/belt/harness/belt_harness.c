@@ -15,10 +15,17 @@
  *   rx T_US MONO_US           the first byte from the host after 100 ms of quiet
  *   stats SIM_S WALL_S MAX_LAG_MS SLIPS SLEEP_PCT   at exit: how closely the simulation
  *                             kept real time, and the share of cycles the AVR slept
+ *   button T_US MONO_US ID DOWN   a stdin command below took effect on the pin
+ *   battery T_US MONO_US MV       the battery voltage now on the divider
+ * Commands on stdin, one a line, applied within a simulated millisecond:
+ *   button ID DOWN            push button ID (0 = D4, 1 = D7, 2 = D8) down (1) or up (0)
+ *   battery MV                the battery's voltage in millivolts; A0 sees half of it
+ *                             through the 1:2 divider (4000 mV at start)
  * Other lines (simavr's own messages) are noise to readers.
  */
 #define _GNU_SOURCE
 #include <errno.h>
+#include <fcntl.h>
 #include <getopt.h>
 #include <signal.h>
 #include <stdint.h>
@@ -29,6 +36,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "avr_adc.h"
+#include "avr_ioport.h"
 #include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
@@ -158,6 +167,56 @@ static void byte_received(struct avr_irq_t *irq, uint32_t value, void *param)
     last = avr->cycle;
 }
 
+/* The buttons' pins: a pressed button pulls its pin low (the firmware enables pull-ups). */
+static const struct {
+    char port;
+    int pin;
+} button_pins[] = {{'D', 4}, {'D', 7}, {'B', 0}};
+#define NBUTTONS (int)(sizeof(button_pins) / sizeof(button_pins[0]))
+#define BATTERY_START_MV 4000u
+
+static void set_button(int id, int down)
+{
+    avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(button_pins[id].port),
+                                button_pins[id].pin),
+                  down ? 0 : 1);
+}
+
+static void set_battery(unsigned mv)
+{
+    avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0), mv / 2u);
+}
+
+/* Read whatever stdin holds (non-blocking) and apply each whole line. */
+static void poll_commands(void)
+{
+    static char line[256];
+    static size_t len;
+    char buf[256];
+    ssize_t n;
+    while ((n = read(STDIN_FILENO, buf, sizeof(buf))) > 0) {
+        for (ssize_t i = 0; i < n; i++) {
+            if (buf[i] != '\n') {
+                if (len < sizeof(line) - 1)
+                    line[len++] = buf[i];
+                continue;
+            }
+            line[len] = 0;
+            len = 0;
+            int id, down;
+            unsigned mv;
+            unsigned long long t_us = cycles_ns(avr->cycle) / 1000, mono_us = mono_ns() / 1000;
+            if (sscanf(line, "button %d %d", &id, &down) == 2 && id >= 0 && id < NBUTTONS) {
+                set_button(id, down);
+                printf("button %llu %llu %d %d\n", t_us, mono_us, id, down ? 1 : 0);
+            } else if (sscanf(line, "battery %u", &mv) == 1) {
+                set_battery(mv);
+                printf("battery %llu %llu %u\n", t_us, mono_us, mv);
+            }
+        }
+    }
+}
+
 static void on_signal(int sig)
 {
     stop = 1;
@@ -208,6 +267,7 @@ int main(int argc, char **argv)
     avr->frequency = F_CPU;
     avr->sleep = sleep_paced;
     avr->log = 1; /* errors only */
+    avr->vcc = avr->avcc = avr->aref = 5000; /* mV: the Nano's 5 V, the ADC's reference */
 
     uart_pty_init(avr, &uart);
     uart_pty_connect(&uart, '0');
@@ -232,14 +292,24 @@ int main(int argc, char **argv)
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT),
                             byte_received, NULL);
 
+    for (int i = 0; i < NBUTTONS; i++)
+        set_button(i, 0); /* released: the pins read high */
+    set_battery(BATTERY_START_MV);
+    fcntl(STDIN_FILENO, F_SETFL, fcntl(STDIN_FILENO, F_GETFL) | O_NONBLOCK);
+
     start_ns = anchor_ns = mono_ns();
     printf("ready\n");
     int state = cpu_Running;
     unsigned long n = 0;
+    avr_cycle_count_t polled = 0;
     while (!stop && state != cpu_Done && state != cpu_Crashed) {
         state = avr_run(avr);
         if ((++n & 0xFFF) == 0) /* running flat out: stay behind the wall clock too */
             pace(avr->cycle);
+        if (avr->cycle - polled >= F_CPU / 1000) { /* commands once a simulated ms */
+            polled = avr->cycle;
+            poll_commands();
+        }
     }
     double wall_s = (double)(mono_ns() - start_ns) / 1e9;
     printf("stats %.3f %.3f %.3f %llu %.1f\n", (double)cycles_ns(avr->cycle) / 1e9, wall_s,

@@ -85,14 +85,26 @@ def test_each_event_has_its_own_documented_shape() -> None:
 
 
 def test_no_event_feels_like_guide() -> None:
-    """GUIDE drives at most two adjacent motors and never pulses slower than 800 ms."""
+    """GUIDE drives at most two adjacent motors and never pulses slower than 800 ms. It
+    never drives the back motor alone (a target behind is TURN_AROUND: see the next test),
+    so PAUSED, the back motor alone, cannot be taken for a direction."""
     for kind, shape in EVENT_SHAPES.items():
         if kind is PatternKind.OFF:
             continue
         on = [i for i, m in enumerate(shape.motors) if m]
         adjacent_pair = len(on) == 2 and (on[1] - on[0]) % 4 in (1, 3)
-        single = len(on) == 1
+        single = len(on) == 1 and on != [2]
         assert not (single or adjacent_pair) or shape.period_ms > 800, kind
+
+
+def test_guide_never_drives_the_back_motor_alone() -> None:
+    """Guidance turns a target more than 135° off into TURN_AROUND; within ±135° neither the
+    blend nor the hysteresis's snap to an axis leaves the back motor running alone."""
+    hyst = DirectionHysteresis()
+    for step in range(-1350, 1351, 5):  # sweep both ways: the snap depends on the past
+        for cw in (deg(step / 10), deg(-step / 10)):
+            motors = blend(hyst(cw))
+            assert [i for i, m in enumerate(motors) if m] != [2], step
 
 
 def test_turn_around_points_back_and_to_the_side_to_turn() -> None:

@@ -181,3 +181,20 @@ def test_driver_reopens_a_port_that_went_silent(belt):
             await asyncio.wait_for(task, 2)
 
     asyncio.run(scenario())
+
+
+def test_every_copy_of_a_press_is_acked_and_handed_on_once(monkeypatch):
+    """The belt repeats a press until acked: the link acks each copy (an earlier ack may be
+    the one lost) and publishes the press once; a press number seen again later is new."""
+    got: list[F.Button] = []
+    link = BeltLink("/dev/null-belt", on_button=got.append)
+    acks: list[bytes] = []
+    monkeypatch.setattr(link, "_write", acks.append)
+    press = F.Button(7, 1, F.PressKind.SHORT)
+    for t in (10.0, 10.1, 10.2):
+        link._on_press(press, t)
+    assert got == [press] and link.presses == 1
+    assert [F.Parser().feed(a)[0].ftype for a in acks] == [F.FrameType.BUTTON_ACK] * 3
+    assert {F.Parser().feed(a)[0].payload for a in acks} == {(7).to_bytes(2, "little")}
+    link._on_press(press, 10.2 + 3.5)  # after the belt's own 2 s: a new press (the belt reset)
+    assert got == [press, press]

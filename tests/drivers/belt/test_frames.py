@@ -27,9 +27,43 @@ def test_python_encodes_and_decodes_frames(vector):
     (frame,) = F.Parser().feed(raw)
     assert F.encode(frame.ftype, frame.seq, frame.payload) == raw
     msg = frame.decode()
-    assert msg is not None or frame.ftype in (F.FrameType.STOP, F.FrameType.PING)
-    if isinstance(msg, F.Pattern | F.Ack | F.Heartbeat):
+    # Host frames whose payload is no more than one number carry no message class.
+    simple = (F.FrameType.STOP, F.FrameType.PING, F.FrameType.INTENSITY, F.FrameType.BUTTON_ACK)
+    assert msg is not None or frame.ftype in simple
+    if isinstance(msg, F.Pattern | F.Ack | F.Heartbeat | F.Button | F.Status):
         assert msg.payload() == frame.payload
+
+
+def test_new_frame_types_decode_to_what_was_encoded():
+    (button,) = F.Parser().feed(
+        F.encode(F.FrameType.BUTTON, 3, F.Button(9, 1, F.PressKind.LONG).payload())
+    )
+    assert button.decode() == F.Button(9, 1, F.PressKind.LONG)
+    status = F.Status(battery_mv=3650, intensity=25, pending=2, presses=70, presses_dropped=1)
+    (frame,) = F.Parser().feed(F.encode(F.FrameType.STATUS, 4, status.payload()))
+    assert frame.decode() == status
+    # A press kind this side does not know is no press: refused like an unknown type.
+    bad = F.encode(F.FrameType.BUTTON, 5, bytes([1, 0, 0, 3]))
+    assert F.Parser().feed(bad)[0].decode() is None
+
+
+def test_python_scales_intensity_like_the_vectors():
+    for case in VECTORS["intensity"]:
+        assert F.scale_level(case["level"], case["intensity"]) == case["out"], case
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    a=st.integers(0, 255), b=st.integers(0, 255), intensity=st.integers(0, 100),
+)  # fmt: skip
+def test_intensity_keeps_shape_floor_and_direction(a, b, intensity):
+    sa, sb = F.scale_level(a, intensity), F.scale_level(b, intensity)
+    assert (sa == 0) == (a == 0)  # a motor that is off stays off, one that is on stays on
+    assert sa <= a and sa >= (a * F.INTENSITY_FLOOR_PCT) // 100  # never below the floor
+    if a >= b:
+        assert sa >= sb  # the stronger motor stays the stronger
+    if a + b >= 40:  # a GUIDE blend: the direction's fraction moves by rounding only
+        assert abs(sa / max(sa + sb, 1) - a / (a + b)) <= 1.5 / (sa + sb)
 
 
 @pytest.mark.parametrize("case", VECTORS["parser"], ids=lambda v: v["name"])
@@ -58,6 +92,9 @@ def test_c_side_matches_vectors(simavr_built):
         (frame,) = F.Parser().feed(raw)
         payload = frame.payload.hex() or "-"
         assert _frame_check([f"E {frame.ftype} {frame.seq} {payload}"]) == [f"frame {v['hex']}"]
+    cases = VECTORS["intensity"]
+    got = _frame_check([f"S {c['level']} {c['intensity']}" for c in cases])
+    assert got == [f"level {c['out']}" for c in cases]
     for case in VECTORS["parser"]:
         lines = _frame_check([f"P {case['input']} {int(case['timeout_at_end'])}"])
         want = [f"frame {f['type']} {f['seq']} {f['payload'] or '-'}" for f in case["frames"]]
