@@ -80,9 +80,15 @@ class VisGraphPlanner(GlobalPlanner):
     # -- the map ----------------------------------------------------------------------------
 
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
-        """Store the map and goal and cut it into polygons (blocks seen before keep theirs)."""
+        """Store the map and goal and cut it into polygons (blocks seen before keep theirs).
+        The same map with another goal keeps everything: polygons, points and judgements."""
         t0 = time.perf_counter()
         blocked, shape, goal = checked_plan_input(blocked, goal)
+        if shape == self._shape and np.array_equal(blocked, self._blocked):
+            # The same map, a new goal: the polygons, points and judgements stand (§4.4).
+            self._goal = goal
+            self._version += 1
+            return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
         self._shape, self._goal = shape, goal
         self._blocked = blocked.copy()
         self._version += 1
@@ -154,10 +160,14 @@ class VisGraphPlanner(GlobalPlanner):
 
     # -- searches ---------------------------------------------------------------------------
 
-    def polygon_path(self, start: Cell) -> tuple[np.ndarray, float, np.ndarray]:
+    def polygon_path(
+        self, start: Cell, whole_graph: bool = False
+    ) -> tuple[np.ndarray, float, np.ndarray]:
         """A* over the points of visibility from ``start``: (points (k, 2), length, stats).
 
-        Points are (row, col) in cells; (empty, inf) when the graph has no path."""
+        Points are (row, col) in cells; (empty, inf) when the graph has no path.
+        ``whole_graph`` first judges every pair of nodes, as a planner does that builds the
+        whole visibility graph for each start and goal (the paper's Dijkstra baseline)."""
         s, goal = len(self._vx) - 2, len(self._vx) - 1
         self._vx[s], self._vy[s] = start
         self._vx[goal], self._vy[goal] = self._goal
@@ -165,6 +175,12 @@ class VisGraphPlanner(GlobalPlanner):
             self._vis[node, :] = vg.UNKNOWN
             self._vis[:, node] = vg.UNKNOWN
         stats = np.zeros(vg.STATS, dtype=np.int64)
+        if whole_graph:
+            vg.full_graph(
+                self._vx, self._vy, self._vpoly, self._vk, self._vis, self._px, self._py,
+                self._pn, self._bbox, self._starts, self._items, self._th, self._tw,
+                self._stamp, self._epoch, stats,
+            )  # fmt: skip
         length = vg.search(
             self._vx, self._vy, self._vpoly, self._vk, self._vis, self._px, self._py,
             self._pn, self._bbox, self._starts, self._items, self._th, self._tw, self._stamp,

@@ -229,6 +229,33 @@ def test_around_a_wall_the_path_is_the_taut_string():
     check_cells(p.path((28, 15)), blocked, (28, 15), (2, 15))
 
 
+def test_a_new_goal_on_the_same_map_keeps_the_graph():
+    blocked = np.zeros((30, 30), bool)
+    blocked[10:20, 5:25] = True
+    p = VisGraphPlanner()
+    p.plan(blocked, (2, 15))
+    first = p.cost_at((28, 15))
+    judged = p._vis.copy()
+    assert p.plan(blocked, (28, 15)).iterations == 0  # nothing cut again
+    assert (p._vis[:-2, :-2] == judged[:-2, :-2]).all()  # the points' judgements stand
+    assert p.cost_at((2, 15)) == first and p.goal == (28, 15)
+    fresh = VisGraphPlanner()
+    fresh.plan(blocked, (28, 15))
+    assert fresh.cost_at((2, 15)) == first
+
+
+def test_the_whole_graph_and_dijkstra_find_the_same_length_as_lazy_a_star():
+    blocked = np.zeros((40, 40), bool)
+    for r, c in [(8, 8), (20, 25), (30, 10), (12, 30)]:
+        blocked[r : r + 5, c : c + 4] = True
+    lengths = []
+    for heuristic, whole in [(True, False), (False, False), (False, True)]:
+        p = VisGraphPlanner(heuristic=heuristic)
+        p.plan(blocked, (1, 38))
+        lengths.append(p.polygon_path((38, 1), whole_graph=whole)[1])
+    assert lengths[0] == pytest.approx(lengths[1]) and lengths[0] == pytest.approx(lengths[2])
+
+
 def test_changing_one_cell_cuts_one_block_again():
     blocked = np.zeros((64, 64), bool)
     blocked[20:40, 10:50] = True
