@@ -87,83 +87,102 @@ def label_components(blocked: np.ndarray) -> tuple[np.ndarray, int]:  # pragma: 
     return labels, n
 
 
-def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+@njit(cache=True, inline="always")
+def _cross(ox, oy, ax, ay, bx, by):  # pragma: no cover - compiled
+    return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
 
 
-def convex_hull(points: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def convex_hull(points: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """Andrew's monotone chain; counter-clockwise in (row, col) as x, y; no collinear points."""
-    pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
-    if len(pts) <= 2:
-        return pts
-    lower: list[np.ndarray] = []
-    for p in pts:
-        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= _EPS:
-            lower.pop()
-        lower.append(p)
-    upper: list[np.ndarray] = []
-    for p in pts[::-1]:
-        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= _EPS:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    order = np.argsort(points[:, 1], kind="mergesort")
+    order = order[np.argsort(points[order, 0], kind="mergesort")]  # by row, then col
+    m = order.size
+    hull = np.empty((2 * m + 1, 2), dtype=np.float64)
+    k = 0
+    for half in range(2):  # the lower chain forwards, then the upper chain backwards
+        base = k
+        for j in range(m):
+            idx = order[j] if half == 0 else order[m - 1 - j]
+            x, y = points[idx, 0], points[idx, 1]
+            if k > 0 and hull[k - 1, 0] == x and hull[k - 1, 1] == y:
+                continue
+            while (
+                k - base >= 2
+                and _cross(hull[k - 2, 0], hull[k - 2, 1], hull[k - 1, 0], hull[k - 1, 1], x, y)
+                <= _EPS
+            ):
+                k -= 1
+            hull[k, 0], hull[k, 1] = x, y
+            k += 1
+        k -= 1  # each chain's last point is the other's first
+    return hull[: max(k, 0)].copy()
 
 
-def _line_meet(p1, p2, p3, p4) -> np.ndarray | None:
-    """Where line p1p2 meets line p3p4 (None if parallel)."""
-    d1, d2 = p2 - p1, p4 - p3
-    den = d1[0] * d2[1] - d1[1] * d2[0]
+@njit(cache=True, inline="always")
+def _line_meet(x1, y1, x2, y2, x3, y3, x4, y4):  # pragma: no cover - compiled
+    """Where line 12 meets line 34: (found, x, y); not found if they are parallel."""
+    d1x, d1y, d2x, d2y = x2 - x1, y2 - y1, x4 - x3, y4 - y3
+    den = d1x * d2y - d1y * d2x
     if abs(den) < _EPS:
-        return None
-    t = ((p3[0] - p1[0]) * d2[1] - (p3[1] - p1[1]) * d2[0]) / den
-    return p1 + t * d1
+        return False, 0.0, 0.0
+    t = ((x3 - x1) * d2y - (y3 - y1) * d2x) / den
+    return True, x1 + t * d1x, y1 + t * d1y
 
 
-def reduce_edges(poly: np.ndarray, max_edges: int = MAX_EDGES) -> np.ndarray:
+@njit(cache=True)
+def reduce_edges(poly: np.ndarray, max_edges: int = MAX_EDGES) -> np.ndarray:  # pragma: no cover
     """A convex polygon with at most ``max_edges`` edges that contains ``poly``.
 
     Greedy: drop the edge whose removal (extending its two neighbours to their meeting point)
     adds the least area, while more than ``max_edges`` remain. An edge can be dropped only
     when its neighbours turn by less than 180° together, else they never meet on its side.
     """
-    verts = [np.asarray(v, dtype=np.float64) for v in poly]
-    while len(verts) > max_edges:
-        n = len(verts)
-        best, best_area, best_point = -1, np.inf, None
+    v = poly.copy()
+    n = v.shape[0]
+    while n > max_edges:
+        best, best_area, bx, by = -1, np.inf, 0.0, 0.0
         for i in range(n):
-            a, b = verts[i], verts[(i + 1) % n]
-            prev, nxt = verts[i - 1], verts[(i + 2) % n]
-            x = _line_meet(prev, a, b, nxt)
-            if x is None:
+            a, b = i, (i + 1) % n
+            prev, nxt = (i - 1) % n, (i + 2) % n
+            ok, x, y = _line_meet(
+                v[prev, 0], v[prev, 1], v[a, 0], v[a, 1], v[b, 0], v[b, 1], v[nxt, 0], v[nxt, 1]
+            )
+            if not ok:
                 continue
             # x must lie beyond a along prev→a (and beyond b along nxt→b): outside the edge.
-            if np.dot(x - a, a - prev) <= 0 or np.dot(x - b, b - nxt) <= 0:
+            if (x - v[a, 0]) * (v[a, 0] - v[prev, 0]) + (y - v[a, 1]) * (v[a, 1] - v[prev, 1]) <= 0:
                 continue
-            area = 0.5 * abs(_cross(a, x, b))
+            if (x - v[b, 0]) * (v[b, 0] - v[nxt, 0]) + (y - v[b, 1]) * (v[b, 1] - v[nxt, 1]) <= 0:
+                continue
+            area = 0.5 * abs(_cross(v[a, 0], v[a, 1], x, y, v[b, 0], v[b, 1]))
             if area < best_area:
-                best, best_area, best_point = i, area, x
+                best, best_area, bx, by = i, area, x, y
         if best < 0:  # cannot happen for a convex polygon with more than four edges
             raise ValueError("no edge of the polygon can be dropped")
-        verts[best] = best_point
-        del verts[(best + 1) % n]
-    return np.array(verts)
+        v[best, 0], v[best, 1] = bx, by
+        drop = (best + 1) % n
+        v[drop : n - 1] = v[drop + 1 : n].copy()
+        n -= 1
+    return v[:n].copy()
 
 
-def offset(poly: np.ndarray, d: float) -> np.ndarray:
+@njit(cache=True)
+def offset(poly: np.ndarray, d: float) -> np.ndarray:  # pragma: no cover - compiled
     """The convex polygon with every edge moved outward by ``d`` (counter-clockwise input)."""
-    n = len(poly)
+    n = poly.shape[0]
+    lines = np.empty((n, 4), dtype=np.float64)
+    for i in range(n):
+        ax, ay = poly[i, 0], poly[i, 1]
+        ex, ey = poly[(i + 1) % n, 0] - ax, poly[(i + 1) % n, 1] - ay
+        norm = np.sqrt(ex * ex + ey * ey)
+        nx, ny = ey / norm, -ex / norm  # outward for counter-clockwise (row, col)
+        lines[i] = (ax + d * nx, ay + d * ny, ax + ex + d * nx, ay + ey + d * ny)
     out = np.empty_like(poly)
-    lines = []
     for i in range(n):
-        a, b = poly[i], poly[(i + 1) % n]
-        e = b - a
-        normal = np.array([e[1], -e[0]]) / np.hypot(e[0], e[1])  # outward for CCW (row, col)
-        lines.append((a + d * normal, b + d * normal))
-    for i in range(n):
-        p1, p2 = lines[i - 1]
-        p3, p4 = lines[i]
-        x = _line_meet(p1, p2, p3, p4)
-        out[i] = x if x is not None else p3
+        p, q = lines[(i - 1) % n], lines[i]
+        ok, x, y = _line_meet(p[0], p[1], p[2], p[3], q[0], q[1], q[2], q[3])
+        out[i, 0], out[i, 1] = (x, y) if ok else (q[0], q[1])
     return out
 
 
@@ -178,34 +197,50 @@ def covers(poly: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return inside
 
 
-def _hull_of_cells(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _hull_of_cells(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:  # pragma: no cover
     """Hull of the squares of the cells: only each row's outermost cells can add corners."""
-    order = np.lexsort((cols, rows))
-    r, c = rows[order], cols[order]
-    first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
-    last = np.r_[first[1:] - 1, r.size - 1]
-    ends_r = np.concatenate([r[first], r[last]]).astype(np.float64)
-    ends_c = np.concatenate([c[first], c[last]]).astype(np.float64)
-    pts = np.concatenate(
-        [np.stack([ends_r + dr, ends_c + dc], axis=1) for dr in (-0.5, 0.5) for dc in (-0.5, 0.5)]
-    )
-    return convex_hull(pts)
+    r0 = rows.min()
+    span = rows.max() - r0 + 1
+    lo = np.full(span, np.iinfo(np.int64).max)
+    hi = np.full(span, np.iinfo(np.int64).min)
+    for i in range(rows.size):
+        k = rows[i] - r0
+        lo[k] = min(lo[k], cols[i])
+        hi[k] = max(hi[k], cols[i])
+    pts = np.empty((8 * span, 2), dtype=np.float64)
+    m = 0
+    for k in range(span):
+        if lo[k] > hi[k]:
+            continue
+        for c in (lo[k], hi[k]):
+            for dr in (-0.5, 0.5):
+                for dc in (-0.5, 0.5):
+                    pts[m, 0], pts[m, 1] = r0 + k + dr, c + dc
+                    m += 1
+    return convex_hull(pts[:m])
 
 
-def _try_piece(free: np.ndarray, rows: np.ndarray, cols: np.ndarray, grow: float):
-    """The enlarged convex polygon of these cells, or None if it would cover a centre that
-    ``free`` marks (or one beyond ``free``'s bounds, which is taken as free)."""
+@njit(cache=True)
+def _try_piece(free, rows, cols, grow):  # pragma: no cover - compiled
+    """The enlarged convex polygon of these cells, or an empty one if it would cover a centre
+    that ``free`` marks (or one beyond ``free``'s bounds, which is taken as free)."""
     poly = offset(reduce_edges(_hull_of_cells(rows, cols)), DELTA + grow)
     h, w = free.shape
+    n = poly.shape[0]
     r0, r1 = int(np.floor(poly[:, 0].min())), int(np.ceil(poly[:, 0].max()))
     c0, c1 = int(np.floor(poly[:, 1].min())), int(np.ceil(poly[:, 1].max()))
-    rr, cc = np.mgrid[r0 : r1 + 1, c0 : c1 + 1]
-    inside = covers(poly, rr.astype(np.float64), cc.astype(np.float64))
-    within = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-    if np.any(inside & ~within):
-        return None
-    if np.any(free[rr[inside], cc[inside]]):
-        return None
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            inside = True
+            for i in range(n):
+                ax, ay = poly[i, 0], poly[i, 1]
+                bx, by = poly[(i + 1) % n, 0], poly[(i + 1) % n, 1]
+                if (bx - ax) * (c - ay) - (by - ay) * (r - ax) < -1e-7:
+                    inside = False
+                    break
+            if inside and (r < 0 or r >= h or c < 0 or c >= w or free[r, c]):
+                return poly[:0]
     return poly
 
 
@@ -238,7 +273,7 @@ def component_pieces(
     while todo:
         r, c = todo.pop()
         poly = _try_piece(free, r, c, grow)
-        if poly is not None:
+        if len(poly):
             out.append(Piece(poly, int(r.size)))
         else:  # a single cell's square never covers another centre, so this ends
             todo.extend(_split(r, c))
