@@ -347,3 +347,20 @@ def test_the_registry_builds_it_on_the_cpu_for_every_backend(backend):
     assert p.fallback and p.use_h
     with pytest.raises(ValueError, match="variant"):
         make_planner("visgraph", backend, "turbo")
+
+
+def test_more_than_four_feature_points_of_one_hexagon_can_be_visible():
+    """§4.2 says at most four feature points of a polygon with fewer than seven edges are
+    points of visibility for a point; a flat hexagon seen along its axis shows all six."""
+    from daemon.planning.visgraph.graph import conflicts
+
+    angles = np.radians([90, 54, 18, -18, -54, -90])  # a half disc's arc and its chord
+    hexagon = np.stack([np.cos(angles), np.sin(angles)], axis=1)[::-1].copy()
+    assert strictly_inside(hexagon, np.array([0.5, 0.0]))  # counter-clockwise, as the planner's
+
+    def visible_from(m) -> int:
+        xs, ys = hexagon[:, 0].copy(), hexagon[:, 1].copy()
+        return sum(not conflicts(xs, ys, 6, m[0], m[1], v[0], v[1]) for v in hexagon)
+
+    assert visible_from((100.0, 0.0)) == 6
+    assert visible_from((-100.0, 0.0)) == 2  # behind the chord: its two ends only
