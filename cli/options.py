@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-PLANNER_NAMES = "eds, dss, astar, extended-astar, ga-astar"
+PLANNER_NAMES = "eds, dss, astar, extended-astar, ga-astar, visgraph"
 """The registry's planners (``daemon.planning.registry.PLANNERS``), for help texts: a
 command module does not import the registry at the top (``cli/app.py``);
 ``tests/cli`` checks the two agree."""

@@ -105,12 +105,24 @@ def _ga_astar_planner(backend: str, variant: str) -> GlobalPlanner:
     return GaAStarPlanner()
 
 
+def _visgraph_planner(backend: str, variant: str) -> GlobalPlanner:
+    """Chen et al.'s visibility graph + A* (``visgraph/planner.py``), CPU whatever the backend.
+    ``fast`` and ``paper`` build the same planner (the paper's A* is already its form); where
+    the polygons shut a passage the grid keeps open, it answers the grid's A* path."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
+    from .visgraph.planner import VisGraphPlanner
+
+    return VisGraphPlanner()
+
+
 PLANNERS: dict[str, PlannerFactory] = {
     "eds": _field_planner(False),
     "dss": _field_planner(True),
     "astar": _astar_planner,
     "extended-astar": _extended_astar_planner,
     "ga-astar": _ga_astar_planner,
+    "visgraph": _visgraph_planner,
 }
 """The registered planners by name (iterate it for the names; ``register`` adds to it)."""
 

@@ -1,0 +1,1 @@
+"""Chen et al.'s visibility graph with A* (seed 003): polygons, points of visibility, planner."""
