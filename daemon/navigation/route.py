@@ -107,7 +107,7 @@ class Route:
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
-            return escape_path(planner, blocked, occupancy, cell, self._escape_reach)
+            return self._escape(planner, blocked, occupancy, cell)
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -120,12 +120,22 @@ class Route:
         self.report.max_open = getattr(planner, "max_open", None)
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the
-            # sensor saw late): the way out is the same as from inside the margin, searched
-            # twice as far (the pocket itself can be that wide).
-            return escape_path(planner, blocked, occupancy, cell, 2 * self._escape_reach)
+            # sensor saw late): the way out is the same as from inside the margin.
+            return self._escape(planner, blocked, occupancy, cell)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, (path_cost(path) if len(path) else int(INF))
+
+    def _escape(
+        self, planner: GlobalPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell
+    ) -> tuple[np.ndarray, int]:
+        """The way out to the nearest usable cell within the margin's reach, else within
+        three times it: a user who wandered between obstacles (or a pocket as wide as the
+        margin) is led back out rather than told there is no path."""
+        path, cost = escape_path(planner, blocked, occupancy, cell, self._escape_reach)
+        if len(path) == 0:
+            path, cost = escape_path(planner, blocked, occupancy, cell, 3 * self._escape_reach)
+        return path, cost
 
     def _take(self) -> tuple[np.ndarray, np.ndarray]:
         pending, self._pending = self._pending, None
