@@ -116,7 +116,8 @@ def walks(
         voice = follow == "voice"
         shown = Table(title=f"walks that follow the {follow} ({runs} runs each, {backend})")
         for name in ("scenario", "grid", "unknown", "runs", "success", "length ratio", "max ratio",
-                     "collisions", "steps/walk", "cues/walk", "holds"):  # fmt: skip
+                     "collisions", "steps/walk", "cues/walk", "holds",
+                     "route changes said"):  # fmt: skip
             shown.add_column(name, justify="right")
         if voice:
             shown.add_column("silence s, mean/max", justify="right")
@@ -126,6 +127,7 @@ def walks(
                 f"{r['success_rate']:.1%}", _ratio(r["length_ratio"]),
                 _ratio(r["length_ratio_max"]), str(r["collisions"]),
                 f"{r['steps_per_walk']:.1f}", f"{r['cues_per_walk']:.1f}", str(r["holds"]),
+                f"{r['reroutes_announced']}/{r['route_changes']}",
             ]  # fmt: skip
             if voice:
                 cells.append(f"{r['longest_silence_s']:.1f} / {r['longest_silence_max_s']:.1f}")

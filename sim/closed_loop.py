@@ -15,8 +15,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from daemon.navigation import Inbox, Navigator, StepReport
-from protocol.messages import BeltPattern, Goal, GoalCell, NavState, Pose
+from protocol.messages import BeltPattern, Goal, GoalCell, NavState, PatternKind, Pose
 
 from .world import World
 
@@ -39,12 +41,38 @@ class Walk:
     belts: list[BeltPattern] = field(default_factory=list)
     """The last pattern of every step (what the user felt while acting)."""
     cues: int = 0
+    route_changes: int = 0
+    """Steps whose route left the last guided route ahead of the user (``route_departs``)."""
+    reroutes_announced: int = 0
+    """Of those, announced in words in that step or the next."""
     actions: dict[str, int] = field(default_factory=dict)
     final_state: NavState = NavState.IDLE
 
     @property
     def steps(self) -> int:
         return max(0, len(self.walked) - 1)
+
+
+ANNOUNCING = frozenset({"new_route", "off_route", "reroute"})
+"""Cue kinds that tell the user the route changed."""
+UNGUIDED = frozenset({PatternKind.WAIT, PatternKind.NO_PATH, PatternKind.ARRIVED, PatternKind.OFF})
+
+
+def route_departs(
+    last: np.ndarray, new: np.ndarray, cell_m: float, ahead_m: float = 3.0, by_m: float = 1.1
+) -> bool:
+    """True when a cell of ``new`` within ``ahead_m`` (along it) of its start lies more than
+    ``by_m`` from every cell of ``last``: the way ahead changed, not just its first cell.
+    (Written here apart from the daemon's own test, ``guidance/route_watch.py``, so the walks
+    check the daemon rather than repeat it. The daemon announces a route that leaves the last
+    by more than 1 m, comparing points 10 cm apart; ``by_m`` 1.1 m leaves that sampling room,
+    so a change counted here is one the daemon must have announced.)"""
+    if len(last) == 0 or len(new) < 2:
+        return False
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(new, axis=0).T))]) * cell_m
+    near = new[along <= ahead_m].astype(np.float64)
+    gap = np.hypot(near[:, None, 0] - last[None, :, 0], near[:, None, 1] - last[None, :, 1])
+    return bool(gap.min(axis=1).max() * cell_m > by_m)
 
 
 PoseSource = Callable[[World, float], Pose | None]
@@ -86,6 +114,8 @@ def run_walk(
     if not deltas or deltas[0].seq != 0:  # the known map did not fit in delta 0: a snapshot
         inbox = Inbox(snapshot=world.snapshot(now), goal=goal)
     belt: BeltPattern | None = None
+    guided = np.empty((0, 2), np.int64)  # the route the user was last guided on
+    owed = False  # a route change not yet announced, from the step before
     for _ in range(max_actions):
         if map_first and inbox.deltas and inbox.goal is None:
             navigator.step(inbox, now)
@@ -97,6 +127,18 @@ def run_walk(
         if out.belt:
             belt = out.belt[-1]
             walk.belts.append(belt)
+        said = any(cue.kind in ANNOUNCING for cue in out.voice)
+        if owed:
+            walk.reroutes_announced += said
+            owed = False
+        if belt is not None and belt.kind not in UNGUIDED and len(out.path_cells):
+            if route_departs(guided, out.path_cells, world.scenario.cell_m):
+                walk.route_changes += 1
+                if said:
+                    walk.reroutes_announced += 1
+                else:
+                    owed = True  # the next step may still say it
+            guided = np.asarray(out.path_cells)
         if navigator.state == NavState.ARRIVED:
             walk.arrived, walk.reason = True, "arrived"
             break

@@ -39,6 +39,8 @@ _TURN = re.compile(r"(?:turn to|gira a las) (\d{1,2})\b")
 _AHEAD = re.compile(r"^(?:straight ahead|sigue recto)\b")
 _METRES = re.compile(r"(\d+) (?:metres|metre|metros|metro)\b")
 _HALF = re.compile(r"\b(?:half a metre|medio metro)\b")
+_CHANGE = re.compile(r"^(?:new route|off route|nueva ruta|fuera de ruta), ")
+_GOAL_IN = re.compile(r"^(?:goal in|destino a) ")
 _WAIT_AFTER = re.compile(r"\b(?:and wait|y espera)$")
 _AROUND = ("turn around", "da la vuelta")
 _HALT = (
@@ -71,7 +73,8 @@ class Heard:
     """What one cue means to the listener."""
 
     action: str
-    """``turn`` (with ``turn_rad``), ``turn_wait`` (turn, then stand), ``around`` or ``halt``."""
+    """``turn`` (with ``turn_rad``), ``turn_wait`` (turn, then stand), ``around``, ``halt`` or
+    ``keep`` (go on as before: the distance left to the goal)."""
     turn_rad: float = 0.0
     """Counter-clockwise turn (the walker's frame): 3 o'clock is −π/2."""
     metres: float | None = None
@@ -79,7 +82,9 @@ class Heard:
 
 def understand(text: str) -> Heard | None:
     """The meaning of a cue's words, or None for words the listener does not know."""
-    t = text.strip().lower()
+    t = _CHANGE.sub("", text.strip().lower())  # a new route: the way that follows is the news
+    if _GOAL_IN.search(t):
+        return Heard("keep")  # the distance left: walk on as before
     if t in _AROUND:
         return Heard("around", math.pi)
     if t in _HALT:
@@ -141,6 +146,8 @@ class VoiceWalker:
         p = self.params
         if meaning.action == "halt":
             self.walking, self._turn_pending = False, False
+            return
+        if meaning.action == "keep":
             return
         turn = meaning.turn_rad
         if meaning.action == "around" or turn != 0.0:

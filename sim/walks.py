@@ -63,6 +63,10 @@ class BeltWalk:
     """Voice walks: the longest time between two cues heard (the walk's start and its
     "arrived" count as cues; the stall after the last cue of a walk that never arrives does
     not); None for belt walks, which the belt guides every step."""
+    route_changes: int = 0
+    """Steps whose route left the route the user was guided on (``closed_loop.route_departs``)."""
+    reroutes_announced: int = 0
+    """Of those, said in words that step or the next."""
 
     @property
     def length_ratio(self) -> float:
@@ -173,18 +177,21 @@ def belt_walk(
         track=np.array(done.track, dtype=np.float64),
         steps=walker.steps,
         longest_silence_s=silence,
+        route_changes=done.route_changes,
+        reroutes_announced=done.reroutes_announced,
     )
 
 
 def _one(task: tuple) -> tuple:
     """One walk as ``(grid, unknown, arrived, ratio, collisions, cues, holds, steps,
-    longest silence)``: a plain tuple, so it crosses process boundaries cheaply."""
+    longest silence, route changes, announced)``: a plain tuple, so it crosses process
+    boundaries cheaply."""
     name, grid, unknown, seed, backend, smooth, params, planner, follow, voice_params = task
     w = belt_walk(make_scenario(name, grid, unknown, seed), seed=seed, backend=backend,
                   smooth=smooth, params=params, planner=planner, follow=follow,
                   voice_params=voice_params)  # fmt: skip
     return (grid, unknown, w.arrived, w.length_ratio, w.collisions, w.cues, w.holds, w.steps,
-            w.longest_silence_s)  # fmt: skip
+            w.longest_silence_s, w.route_changes, w.reroutes_announced)  # fmt: skip
 
 
 def summarise(grid: int, unknown: float, results: list[tuple], scenario: str = "courtyard") -> dict:
@@ -204,6 +211,11 @@ def summarise(grid: int, unknown: float, results: list[tuple], scenario: str = "
         "holds": int(sum(r[6] for r in results)),
         "steps_per_walk": round(float(np.mean([r[7] for r in results])), 1),
         **_silences([r[8] for r in results]),
+        # Route changes, and walks where every one was announced within a step of it.
+        "route_changes": int(sum(r[9] for r in results)),
+        "reroutes_announced": int(sum(r[10] for r in results)),
+        "walks_with_changes": int(sum(r[9] > 0 for r in results)),
+        "walks_all_announced": int(sum(r[9] > 0 and r[10] == r[9] for r in results)),
     }
 
 

@@ -20,6 +20,9 @@ PHRASES: dict[str, dict[str, str]] = {
     "en": {
         "turn": "turn to {hour} o'clock, then {dist}",
         "turn_wait": "turn to {hour} o'clock and wait",
+        "new_route": "new route, {way}",
+        "off_route": "off route, {way}",
+        "goal_in": "goal in {dist}",
         "ahead": "straight ahead, {dist}",
         "metres": "{n} metres",
         "metre": "1 metre",
@@ -45,6 +48,9 @@ PHRASES: dict[str, dict[str, str]] = {
     "es": {
         "turn": "gira a las {hour}, luego {dist}",
         "turn_wait": "gira a las {hour} y espera",
+        "new_route": "nueva ruta, {way}",
+        "off_route": "fuera de ruta, {way}",
+        "goal_in": "destino a {dist}",
         "ahead": "sigue recto, {dist}",
         "metres": "{n} metros",
         "metre": "1 metro",
@@ -172,6 +178,28 @@ class CueMaker:
             return None
         return VoiceCue(
             text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="direction", stamp=now
+        )
+
+    def route_change(
+        self, change: str, rel: float, metres: float, now: float
+    ) -> VoiceCue | None:
+        """"new route, turn to 2 o'clock, then 3 metres" (or "off route, …"): said at once,
+        as a safety cue is, since the way the user was walking is no longer the way."""
+        way = direction_text(rel, metres, self.lang)
+        text = PHRASES[self.lang][change].format(way=way)
+        if not self.limiter.allow(text, CuePriority.SAFETY, now):
+            return None
+        return VoiceCue(
+            text=text, lang=self.lang, priority=CuePriority.SAFETY, kind=change, stamp=now
+        )
+
+    def goal_in(self, metres: float, now: float) -> VoiceCue | None:
+        """The distance left on the last leg ("goal in 5 metres"), a routine cue."""
+        text = PHRASES[self.lang]["goal_in"].format(dist=say_distance(metres, self.lang))
+        if not self.limiter.allow(text, CuePriority.ROUTINE, now):
+            return None
+        return VoiceCue(
+            text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="countdown", stamp=now
         )
 
     def event(self, kind: PatternKind, now: float) -> VoiceCue | None:

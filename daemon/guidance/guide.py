@@ -23,6 +23,7 @@ from protocol.messages import BeltPattern, PatternKind, Pose, VoiceCue
 from .cues import SAFETY_KINDS, CueLimiter, CueMaker, clock_hour
 from .hold import HoldPolicy
 from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
+from .route_watch import RouteWatch
 from .smoothing import rubber_band
 from .sole_voice import SoleVoice, SoleVoiceSettings, sole_limiter
 from .turning_points import (
@@ -34,6 +35,9 @@ from .turning_points import (
     turning_points,
     xy_to_continuous,
 )
+
+COUNTDOWN_M = (10.0, 5.0, 2.0)
+"""Distances to the goal announced on the last leg ("goal in 5 metres")."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,9 @@ class Guidance:
             # leaves it no room; lines to the target stay wholly outside it.
             self.shave_cells = 0
         self.hysteresis = DirectionHysteresis()
+        self.route_watch = RouteWatch()
         self._announced: tuple[np.ndarray, int] | None = None
+        self._countdown: set[float] = set()
 
     @property
     def lang(self) -> str:
@@ -105,6 +111,8 @@ class Guidance:
         self.hold.reset()
         self.cues.limiter.reset()
         self._announced = None
+        self.route_watch.reset()
+        self._countdown.clear()
         if self.sole is not None:
             self.sole.reset()
 
@@ -145,6 +153,7 @@ class Guidance:
         pts = self._points(path, blocked)
         target = self._target(pts, user, blocked)
         rel = relative_angle(bearing(shape, user, target), pose.heading)
+        change = self.route_watch.check(path, self.cell_m)
 
         verdict = self.hold.update(path, user, blocked, self.cell_m, now)
         if verdict == "hold":
@@ -152,13 +161,20 @@ class Guidance:
         if verdict == "expired":
             return self.event(PatternKind.REROUTE, now)
 
+        if change is None:
+            self.route_watch.keep(path, self.cell_m)  # from here on the user is guided on it
         metres = float(np.hypot(*(target - user))) * self.cell_m
         target_xy = (float(target[1] * self.cell_m), float((shape[0] - target[0]) * self.cell_m))
         cw = -rel
         if abs(rel) > self.turn_around:
             self.hysteresis.reset()
             pattern = self.patterns.turn_around(cw, now)
-            cue = self.cues.event(PatternKind.TURN_AROUND, now)
+            if change is not None:  # the new way lies behind: said as the new route
+                cue = self.cues.route_change(change, rel, metres, now)
+                if cue is not None:
+                    self.route_watch.keep(path, self.cell_m)
+            else:
+                cue = self.cues.event(PatternKind.TURN_AROUND, now)
             self._announced = None
             if self.sole is not None:
                 self.sole.after_safety()
@@ -169,6 +185,14 @@ class Guidance:
             )
             if danger:  # said now, or less than a second ago: either way no step that way
                 return GuidanceOutput(self.patterns.event(PatternKind.STOP, now), stop, target_xy)
+        if change is not None:
+            cue = self.cues.route_change(change, rel, metres, now)
+            if cue is not None:  # the distinct pattern once, with the new direction in words
+                self.route_watch.keep(path, self.cell_m)
+                self._announced = (target.copy(), clock_hour(rel))
+                if self.sole is not None:
+                    self.sole.said_way(target, now)
+                return GuidanceOutput(self.patterns.event(PatternKind.REROUTE, now), cue, target_xy)
         felt = self.hysteresis(cw)
         clearance = forward_clearance_m(blocked, user, pose.heading, self.cell_m)
         pattern = self.patterns.guide(felt, clearance, now)
@@ -178,7 +202,19 @@ class Guidance:
             )
         else:
             cue = self._direction_cue(target, rel, metres, now)
+        if cue is None and bool(np.all(np.abs(target - goal) < 1e-9)):
+            cue = self._count_down(metres, now)
         return GuidanceOutput(pattern, cue, target_xy)
+
+    def _count_down(self, metres: float, now: float) -> VoiceCue | None:
+        """On the last leg, the distance left as it passes each of ``COUNTDOWN_M``, once."""
+        due = [m for m in COUNTDOWN_M if metres <= m and m not in self._countdown]
+        if not due:
+            return None
+        cue = self.cues.goal_in(metres, now)
+        if cue is not None:
+            self._countdown.update(due)
+        return cue
 
     def _points(self, path: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
         # Only the next leg or two matter to the user (the target and its distance): a leg is

@@ -112,6 +112,12 @@ class SoleVoice:
         """A safety cue was said (stop, wait, reroute, turn around…): the way is owed."""
         self._owed = True
 
+    def said_way(self, target: np.ndarray, now: float) -> None:
+        """The way was said by another rule (a new route announced with its direction)."""
+        self._owed = False
+        self._target = target.copy()
+        self._said_at = now
+
     def stop_before_contact(
         self,
         occupancy: np.ndarray | None,

@@ -27,7 +27,8 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
     # A phrase added to cues.py that the listener cannot parse would silently stall walks.
     for lang, table in PHRASES.items():
         for key, text in table.items():
-            if key in ("turn", "turn_wait", "ahead", "metres", "metre", "half"):
+            if key in ("turn", "turn_wait", "ahead", "metres", "metre", "half", "new_route",
+                       "off_route", "goal_in"):  # fmt: skip
                 continue  # templates: checked through direction_text below
             if key in CONTROL_PHRASES:
                 continue  # answers to the belt's buttons and the battery: no instruction
@@ -39,6 +40,14 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
             assert math.isclose(math.remainder(heard.turn_rad - rel, 2 * math.pi), 0.0,
                                 abs_tol=1e-9)  # fmt: skip
         assert understand(direction_text(0.0, 0.4, lang)).metres == 0.5  # type: ignore[arg-type,union-attr]
+        # A new route or off route: the way that follows; the countdown: walk on.
+        for change in ("new_route", "off_route"):
+            way = direction_text(-math.radians(90), 2.0, lang)  # type: ignore[arg-type]
+            heard = understand(table[change].format(way=way))
+            assert heard is not None and heard.action == "turn" and heard.metres == 2.0
+            assert math.isclose(heard.turn_rad, -math.pi / 2)
+        countdown = understand(table["goal_in"].format(dist=table["metres"].format(n=5)))
+        assert countdown is not None and countdown.action == "keep"
         # "turn to 2 o'clock and wait": the same turn, then stand for the way.
         wait = understand(direction_text(-math.radians(60), 3.0, lang, wait=True))  # type: ignore[arg-type]
         assert wait is not None and wait.action == "turn_wait"
@@ -123,9 +132,19 @@ def test_walks_command_follows_the_voice_and_refuses_a_bogus_walker(tmp_path) ->
     (row,) = json.loads(out.read_text())
     assert row["follow"] == "voice" and row["runs"] == 2
     assert {"success_rate", "collisions", "steps_per_walk", "cues_per_walk",
-            "longest_silence_s", "longest_silence_max_s"} <= set(row)  # fmt: skip
+            "longest_silence_s", "longest_silence_max_s", "route_changes", "reroutes_announced",
+            "walks_with_changes", "walks_all_announced"} <= set(row)  # fmt: skip
     res = CliRunner().invoke(app, ["walks", "--follow", "bogus", "--runs", "1"])
     assert res.exit_code != 0
     assert "'bogus': choose one of belt, voice" in " ".join(res.output.split())
     with pytest.raises(ValueError, match="follow 'bogus'"):
         run_table([50], [0.2], 1, follow="bogus")
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("follow", ["belt", "voice"])
+def test_a_route_change_on_the_walk_is_announced_within_a_step(follow: str) -> None:
+    # Courtyard 100²/40 % seed 8: a newly seen obstacle turns the way ahead once.
+    walk = belt_walk(make_courtyard(100, 0.4, seed=8), seed=8, follow=follow)
+    assert walk.arrived and walk.route_changes >= 1
+    assert walk.reroutes_announced == walk.route_changes

@@ -1,0 +1,85 @@
+"""New route, off route and the countdown: what the user is told when the way ahead changes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from daemon.guidance.guide import Guidance
+from daemon.guidance.route_watch import RouteWatch
+from protocol.messages import PatternKind, Pose
+from sim.closed_loop import route_departs
+
+NORTH = math.pi / 2
+SHAPE = (60, 60)
+
+
+def line(r0: int, c0: int, r1: int, c1: int) -> np.ndarray:
+    n = max(abs(r1 - r0), abs(c1 - c0))
+    return np.stack([np.rint(np.linspace(r0, r1, n + 1)), np.rint(np.linspace(c0, c1, n + 1))],
+                    axis=1).astype(np.int32)  # fmt: skip
+
+
+def north_then(c: int) -> np.ndarray:
+    """From (50, 30) north to row 35, then across to column ``c`` and on north to row 5."""
+    return np.vstack([line(50, 30, 35, 30), line(35, 30, 35, c)[1:], line(35, c, 5, c)[1:]])
+
+
+def test_the_route_watch_tells_a_new_route_from_a_straighter_one_and_an_excursion() -> None:
+    w = RouteWatch()
+    straight = line(50, 30, 5, 30)
+    assert w.check(straight, 0.1) is None  # nothing to compare with yet
+    w.keep(straight, 0.1)
+    # A corner cut by a cell or two is the same route.
+    assert w.check(north_then(31), 0.1) is None
+    # The way ahead now turns 2 m east within the next 3 m: a new route.
+    east = np.vstack([line(50, 30, 48, 30), line(48, 30, 48, 50)[1:]])
+    assert w.check(east, 0.1) == "new_route"
+    # A user 1.5 m east of the kept route is off it: said once, until back near it.
+    off = line(40, 45, 5, 45)
+    assert w.check(off, 0.1) == "off_route"
+    assert w.check(off, 0.1) is None
+    assert w.check(line(45, 31, 5, 31), 0.1) is None  # back on the route: re-armed
+    assert w.check(off, 0.1) == "off_route"
+
+
+def test_the_walks_independent_check_counts_the_same_changes() -> None:
+    straight = line(50, 30, 5, 30)
+    assert not route_departs(straight, north_then(31), 0.1)
+    assert route_departs(straight, np.vstack([line(50, 30, 48, 30), line(48, 30, 48, 50)[1:]]), 0.1)
+    # A change beyond 3 m of the user is not the way ahead yet.
+    assert not route_departs(straight, np.vstack([line(50, 30, 15, 30), line(15, 30, 15, 55)[1:]]),
+                             0.1)  # fmt: skip
+
+
+def guide(g: Guidance, path: np.ndarray, t: float, heading: float = NORTH):
+    r, c = int(path[0][0]), int(path[0][1])
+    pose = Pose(x=(c + 0.5) * 0.1, y=(SHAPE[0] - r - 0.5) * 0.1, heading=heading, stamp=t)
+    return g.guide(path, pose, SHAPE, t, np.zeros(SHAPE, dtype=bool))
+
+
+def test_a_new_route_is_announced_at_once_with_its_direction_and_the_reroute_pattern() -> None:
+    g = Guidance(cell_m=0.1)
+    first = guide(g, line(50, 30, 5, 30), 0.0)
+    assert first.pattern.kind is PatternKind.GUIDE and first.cue is not None
+    out = guide(g, np.vstack([line(50, 30, 49, 30), line(49, 30, 49, 55)[1:],
+                              line(49, 55, 5, 55)[1:]]), 0.6)  # fmt: skip
+    assert out.pattern.kind is PatternKind.REROUTE
+    assert out.cue is not None and out.cue.kind == "new_route"
+    # Across the empty map the way goes straight for the far corner, ahead and to the right.
+    assert out.cue.text in ("new route, turn to 1 o'clock, then 5 metres",)
+    # The next step on the same route: guided again, nothing more to announce.
+    assert guide(g, np.vstack([line(49, 31, 49, 55), line(49, 55, 5, 55)[1:]]), 1.2,
+                 heading=0.0).pattern.kind is PatternKind.GUIDE  # fmt: skip
+
+
+def test_the_last_leg_counts_down_to_the_goal() -> None:
+    g = Guidance(cell_m=0.1)
+    said = []
+    for i, r in enumerate(range(58, 20, -1)):  # straight north to the goal at row 5
+        out = guide(g, line(r, 30, 5, 30), 0.6 * i)
+        if out.cue is not None:
+            said.append(out.cue.text)
+    assert "goal in 5 metres" in said and "goal in 2 metres" in said
+    assert said.count("goal in 5 metres") == 1
