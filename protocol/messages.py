@@ -125,10 +125,21 @@ class BeltButton(Message):
 
 class UserSettings(Message):
     """One user's settings that may change while walking: asked for on ``settings/set``
-    (the user's own key only), applied and stored by the daemon, published on ``settings``."""
+    (the user's own key only), applied and stored by the daemon, published on ``settings``.
+    In a request a field left out (null) stays as it is; what the daemon publishes has every
+    field."""
 
-    intensity: int = Field(
-        default=100, ge=0, le=100, description="belt intensity: 0 = the 40 % floor, 100 = full"
+    intensity: int | None = Field(
+        default=None, ge=0, le=100, description="belt intensity: 0 = the 40 % floor, 100 = full"
+    )
+    voice: Literal["companion", "sole"] | None = Field(
+        default=None, description="companion: beside the belt; sole: the voice guides alone"
+    )
+    wording: Literal["clock", "sides"] | None = Field(
+        default=None, description="turn to 2 o'clock, or turn slightly right"
+    )
+    units: Literal["metric", "imperial"] | None = Field(
+        default=None, description="distances in metres or in feet"
     )
     stamp: float = Field(ge=0, allow_inf_nan=False)
 

@@ -38,6 +38,12 @@ from .belt_walker import step_hits
 _TURN = re.compile(r"(?:turn to|gira a las) (\d{1,2})\b")
 _AHEAD = re.compile(r"^(?:straight ahead|sigue recto)\b")
 _METRES = re.compile(r"(\d+) (?:metres|metre|metros|metro)\b")
+_FEET = re.compile(r"(\d+) (?:feet|foot|pies|pie)\b")
+_SIDE = re.compile(
+    r"^(?:turn|gira) (slightly|sharply|un poco a la|muy a la|a la)? ?(right|left|derecha|izquierda)"
+)
+_SIDE_DEG = {None: 90.0, "slightly": 30.0, "un poco a la": 30.0, "sharply": 135.0,
+             "muy a la": 135.0, "a la": 90.0}  # fmt: skip
 _HALF = re.compile(r"\b(?:half a metre|medio metro)\b")
 _CHANGE = re.compile(r"^(?:new route|off route|nueva ruta|fuera de ruta), ")
 _GOAL_IN = re.compile(r"^(?:goal in|destino a) ")
@@ -92,6 +98,15 @@ def understand(text: str) -> Heard | None:
     half = _HALF.search(t)
     metres_m = _METRES.search(t)
     metres = 0.5 if half else float(metres_m.group(1)) if metres_m else None
+    feet = _FEET.search(t)
+    if feet:
+        metres = float(feet.group(1)) * 0.3048
+    action = "turn_wait" if _WAIT_AFTER.search(t) else "turn"
+    side = _SIDE.search(t)
+    if side:
+        degrees = _SIDE_DEG[side.group(1)]
+        left = side.group(2) in ("left", "izquierda")
+        return Heard(action, math.radians(degrees if left else -degrees), metres)
     turn = _TURN.search(t)
     if turn:
         hour = int(turn.group(1))
@@ -99,7 +114,6 @@ def understand(text: str) -> Heard | None:
             return None
         # Hours 1..6 are to the right (clockwise, negative here), 7..11 to the left.
         degrees = -30.0 * hour if hour <= 6 else 30.0 * (12 - hour)
-        action = "turn_wait" if _WAIT_AFTER.search(t) else "turn"
         return Heard(action, math.radians(degrees), metres)
     if _AHEAD.search(t):
         return Heard("turn", 0.0, metres)

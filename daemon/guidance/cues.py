@@ -15,6 +15,11 @@ from typing import Literal
 from protocol.messages import CuePriority, PatternKind, VoiceCue
 
 Lang = Literal["en", "es"]
+Wording = Literal["clock", "sides"]
+"""Directions as clock hours ("turn to 2 o'clock") or as sides ("turn slightly right")."""
+Units = Literal["metric", "imperial"]
+
+FOOT_M = 0.3048
 
 PHRASES: dict[str, dict[str, str]] = {
     "en": {
@@ -27,6 +32,16 @@ PHRASES: dict[str, dict[str, str]] = {
         "metres": "{n} metres",
         "metre": "1 metre",
         "half": "half a metre",
+        "feet": "{n} feet",
+        "foot": "1 foot",
+        "side_turn": "turn {side}, then {dist}",
+        "side_wait": "turn {side} and wait",
+        "slightly right": "slightly right",
+        "right": "right",
+        "sharply right": "sharply right",
+        "slightly left": "slightly left",
+        "left": "left",
+        "sharply left": "sharply left",
         PatternKind.ARRIVED: "arrived",
         PatternKind.STOP: "stop",
         PatternKind.REROUTE: "path blocked, rerouting",
@@ -55,6 +70,16 @@ PHRASES: dict[str, dict[str, str]] = {
         "metres": "{n} metros",
         "metre": "1 metro",
         "half": "medio metro",
+        "feet": "{n} pies",
+        "foot": "1 pie",
+        "side_turn": "gira {side}, luego {dist}",
+        "side_wait": "gira {side} y espera",
+        "slightly right": "un poco a la derecha",
+        "right": "a la derecha",
+        "sharply right": "muy a la derecha",
+        "slightly left": "un poco a la izquierda",
+        "left": "a la izquierda",
+        "sharply left": "muy a la izquierda",
         PatternKind.ARRIVED: "has llegado",
         PatternKind.STOP: "alto",
         PatternKind.REROUTE: "camino bloqueado, buscando otra ruta",
@@ -94,21 +119,51 @@ def clock_hour(rel: float) -> int:
     return 12 if h == 0 else int(h)
 
 
-def say_distance(metres: float, lang: Lang) -> str:
+def side_of(rel: float) -> str | None:
+    """Relative angle (radians, positive = left) → a side phrase key; None for straight ahead
+    (within the ±15° that 12 o'clock covers)."""
+    deg = math.degrees(rel)
+    if abs(deg) <= 15.0:
+        return None
+    hand = "left" if deg > 0 else "right"
+    if abs(deg) <= 45.0:
+        return f"slightly {hand}"
+    return hand if abs(deg) <= 112.5 else f"sharply {hand}"
+
+
+def say_distance(metres: float, lang: Lang, units: Units = "metric") -> str:
     p = PHRASES[lang]
+    if units == "imperial":
+        n = max(1, math.floor(metres / FOOT_M + 0.5))
+        return p["foot"] if n == 1 else p["feet"].format(n=n)
     if metres < 0.75:
         return p["half"]
     n = max(1, math.floor(metres + 0.5))  # half up: round() would say 4 for 4.5
     return p["metre"] if n == 1 else p["metres"].format(n=n)
 
 
-def direction_text(rel: float, metres: float, lang: Lang, wait: bool = False) -> str:
+def direction_text(
+    rel: float,
+    metres: float,
+    lang: Lang,
+    wait: bool = False,
+    wording: Wording = "clock",
+    units: Units = "metric",
+) -> str:
     """The way in words; ``wait``: turn on the spot and stand (a turn near an obstacle, kept
     apart from the walking that follows it)."""
     hour = clock_hour(rel)
+    dist = say_distance(metres, lang, units)
+    if wording == "sides":
+        side = side_of(rel) if hour != 12 else None
+        if side is None:
+            return PHRASES[lang]["ahead"].format(dist=dist)
+        said = PHRASES[lang][side]
+        if wait:
+            return PHRASES[lang]["side_wait"].format(side=said)
+        return PHRASES[lang]["side_turn"].format(side=said, dist=dist)
     if wait and hour != 12:
         return PHRASES[lang]["turn_wait"].format(hour=hour)
-    dist = say_distance(metres, lang)
     if hour == 12:
         return PHRASES[lang]["ahead"].format(dist=dist)
     return PHRASES[lang]["turn"].format(hour=hour, dist=dist)
@@ -164,28 +219,38 @@ class CueLimiter:
 class CueMaker:
     """Phrases cues in one language and passes them through the limiter."""
 
-    def __init__(self, lang: Lang = "en", limiter: CueLimiter | None = None) -> None:
+    def __init__(
+        self,
+        lang: Lang = "en",
+        limiter: CueLimiter | None = None,
+        wording: Wording = "clock",
+        units: Units = "metric",
+    ) -> None:
         if lang not in PHRASES:
             raise ValueError(f"unsupported language {lang!r}; choose one of {sorted(PHRASES)}")
+        if wording not in ("clock", "sides") or units not in ("metric", "imperial"):
+            raise ValueError(
+                f"wording {wording!r} / units {units!r}: clock or sides, metric or imperial"
+            )
         self.lang: Lang = lang
         self.limiter = limiter or CueLimiter()
+        self.wording: Wording = wording
+        self.units: Units = units
 
     def direction(
         self, rel: float, metres: float, now: float, wait: bool = False
     ) -> VoiceCue | None:
-        text = direction_text(rel, metres, self.lang, wait)
+        text = direction_text(rel, metres, self.lang, wait, self.wording, self.units)
         if not self.limiter.allow(text, CuePriority.ROUTINE, now):
             return None
         return VoiceCue(
             text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="direction", stamp=now
         )
 
-    def route_change(
-        self, change: str, rel: float, metres: float, now: float
-    ) -> VoiceCue | None:
-        """"new route, turn to 2 o'clock, then 3 metres" (or "off route, …"): said at once,
+    def route_change(self, change: str, rel: float, metres: float, now: float) -> VoiceCue | None:
+        """ "new route, turn to 2 o'clock, then 3 metres" (or "off route, …"): said at once,
         as a safety cue is, since the way the user was walking is no longer the way."""
-        way = direction_text(rel, metres, self.lang)
+        way = direction_text(rel, metres, self.lang, False, self.wording, self.units)
         text = PHRASES[self.lang][change].format(way=way)
         if not self.limiter.allow(text, CuePriority.SAFETY, now):
             return None
@@ -195,7 +260,8 @@ class CueMaker:
 
     def goal_in(self, metres: float, now: float) -> VoiceCue | None:
         """The distance left on the last leg ("goal in 5 metres"), a routine cue."""
-        text = PHRASES[self.lang]["goal_in"].format(dist=say_distance(metres, self.lang))
+        dist = say_distance(metres, self.lang, self.units)
+        text = PHRASES[self.lang]["goal_in"].format(dist=dist)
         if not self.limiter.allow(text, CuePriority.ROUTINE, now):
             return None
         return VoiceCue(

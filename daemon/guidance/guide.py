@@ -20,7 +20,7 @@ import numpy as np
 
 from protocol.messages import BeltPattern, PatternKind, Pose, VoiceCue
 
-from .cues import SAFETY_KINDS, CueLimiter, CueMaker, clock_hour
+from .cues import SAFETY_KINDS, CueLimiter, CueMaker, Units, Wording, clock_hour
 from .hold import HoldPolicy
 from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
 from .route_watch import RouteWatch
@@ -71,6 +71,8 @@ class Guidance:
         limiter: CueLimiter | None = None,
         voice: Literal["companion", "sole"] = "companion",
         sole: SoleVoiceSettings | None = None,
+        wording: Wording = "clock",
+        units: Units = "metric",
     ) -> None:
         """``voice="sole"``: the voice is the user's only guide (no belt worn, or the user's
         choice): ``sole_voice.py`` decides when to speak, and says "stop" before contact."""
@@ -85,21 +87,44 @@ class Guidance:
         self.smooth = smooth
         self.hold = hold if hold is not None else HoldPolicy()
         self.patterns = PatternMaker()
-        if voice not in ("companion", "sole"):
-            raise ValueError(f"voice must be companion or sole, got {voice!r}")
-        self.voice = voice
-        if voice == "sole" and limiter is None:
-            limiter = sole_limiter(sole)
-        self.cues = CueMaker(lang, limiter)
-        self.sole = SoleVoice(self.cues, sole) if voice == "sole" else None
-        if self.sole is not None:
-            # A listener turns by ear to ±tens of degrees: a line that shaves the margin
-            # leaves it no room; lines to the target stay wholly outside it.
-            self.shave_cells = 0
+        self._radius_m = radius_m
+        self._sole_settings = sole
+        self.cues = CueMaker(lang, limiter, wording, units)
+        self.voice: Literal["companion", "sole"] = "companion"
+        self.sole: SoleVoice | None = None
+        self._set_voice(voice, limiter)
         self.hysteresis = DirectionHysteresis()
         self.route_watch = RouteWatch()
         self._announced: tuple[np.ndarray, int] | None = None
         self._countdown: set[float] = set()
+
+    def _set_voice(self, voice: str, limiter: CueLimiter | None = None) -> None:
+        if voice not in ("companion", "sole"):
+            raise ValueError(f"voice must be companion or sole, got {voice!r}")
+        self.voice = voice  # type: ignore[assignment]
+        if voice == "sole":
+            self.cues.limiter = limiter or sole_limiter(self._sole_settings)
+            self.sole = SoleVoice(self.cues, self._sole_settings)
+            # A listener turns by ear to ±tens of degrees: a line that shaves the margin
+            # leaves it no room; lines to the target stay wholly outside it.
+            self.shave_cells = 0
+        else:
+            self.cues.limiter = limiter or CueLimiter()
+            self.sole = None
+            self.shave_cells = int(0.5 * self._radius_m / self.cell_m)
+
+    def apply(
+        self, voice: str | None = None, wording: str | None = None, units: str | None = None
+    ) -> None:
+        """A user's settings changed while walking (None: as it was). A new voice role starts
+        with a fresh limiter and says the way at once."""
+        if wording is not None:
+            self.cues.wording = wording  # type: ignore[assignment]
+        if units is not None:
+            self.cues.units = units  # type: ignore[assignment]
+        if voice is not None and voice != self.voice:
+            self._set_voice(voice)
+            self._announced = None
 
     @property
     def lang(self) -> str:

@@ -115,7 +115,10 @@ class UserControls:
         elif out.voice:
             self.last_instruction = out.voice[-1]
         if inbox.settings is not None:
-            self._set_intensity(inbox.settings.intensity, now, out)
+            asked = inbox.settings
+            guidance.apply(voice=asked.voice, wording=asked.wording, units=asked.units)
+            intensity = self.intensity if asked.intensity is None else asked.intensity
+            self._set_intensity(intensity, now, out, guidance)
         if inbox.battery_v is not None:
             self.battery_v = inbox.battery_v
         switched = False
@@ -159,15 +162,23 @@ class UserControls:
             self._say(out, self._battery_text(), "battery", now)
         elif action == "intensity":
             higher = [n for n in INTENSITY_STEPS if n > self.intensity]
-            self._set_intensity(higher[0] if higher else INTENSITY_STEPS[0], now, out)
+            self._set_intensity(higher[0] if higher else INTENSITY_STEPS[0], now, out, guidance)
             self._say(out, p["intensity"].format(n=self.intensity), "intensity", now)
         else:
             self.ignored += 1
         return False
 
-    def _set_intensity(self, intensity: int, now: float, out: StepOutput) -> None:
+    def _set_intensity(
+        self, intensity: int, now: float, out: StepOutput, guidance: Guidance
+    ) -> None:
         self.intensity = intensity
-        out.settings = UserSettings(intensity=intensity, stamp=now)
+        out.settings = self.state(guidance, now)
+
+    def state(self, guidance: Guidance, now: float) -> UserSettings:
+        """Every setting as it is now: what the daemon publishes and stores."""
+        return UserSettings(intensity=self.intensity, voice=guidance.voice,
+                            wording=guidance.cues.wording, units=guidance.cues.units,
+                            stamp=now)  # fmt: skip
 
     def _battery_text(self) -> str:
         p = PHRASES[self.lang]

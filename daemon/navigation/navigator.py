@@ -66,6 +66,8 @@ class NavigatorSettings:
     arrive_m: float = 0.3
     voice: Literal["companion", "sole"] = "companion"
     """``sole``: the voice guides alone (no belt); it speaks more and stops before contact."""
+    wording: Literal["clock", "sides"] = "clock"
+    units: Literal["metric", "imperial"] = "metric"
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     intensity: int = 100
     battery: BatteryPolicy = field(default_factory=BatteryPolicy)
@@ -108,7 +110,8 @@ class Navigator:
         # Guidance may shave the inflation margin; it must know the real radius.
         self.guidance = guidance or Guidance(
             cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
-            arrive_m=settings.arrive_m, voice=settings.voice,
+            arrive_m=settings.arrive_m, voice=settings.voice, wording=settings.wording,
+            units=settings.units,
         )  # fmt: skip
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None
@@ -138,6 +141,9 @@ class Navigator:
         self.last = StepReport()
         self._held = False  # a STOP or WAIT of this step is not undone by a GUIDE of this step
         out = StepOutput()
+        if inbox.settings is not None:  # this step's words already in the user's choice
+            asked = inbox.settings
+            self.guidance.apply(voice=asked.voice, wording=asked.wording, units=asked.units)
         for rej in inbox.rejections:
             self._reject(rej, now, out)
         if inbox.snapshot_failed:

@@ -47,6 +47,10 @@ class DaemonConfig(BaseSettings):
         default="companion",
         description="companion: the voice speaks beside the belt; sole: it guides alone",
     )
+    wording: Literal["clock", "sides"] = Field(
+        default="clock", description="turn to 2 o'clock, or turn slightly right"
+    )
+    units: Literal["metric", "imperial"] = Field(default="metric", description="metres or feet")
     stale_pose_s: float = Field(default=1.0, gt=0, description="older poses are refused")
     max_users: int = Field(default=16, ge=1)
     user_idle_s: float = Field(default=600.0, gt=0, description="forget a silent, idle user")
@@ -84,6 +88,8 @@ class DaemonConfig(BaseSettings):
             user_radius_m=self.user_radius_m,
             lang=self.lang,
             voice=self.voice,
+            wording=self.wording,
+            units=self.units,
             stale_pose_s=self.stale_pose_s,
             landmarks=dict(self.landmarks),
             battery=BatteryPolicy(

@@ -163,7 +163,13 @@ class Daemon:
         assert self._bridge is not None
         stored = self.settings.load(user)
         nav_settings = self.config.navigator_settings()
-        nav_settings = dataclasses.replace(nav_settings, intensity=stored.intensity)
+        nav_settings = dataclasses.replace(
+            nav_settings,
+            intensity=nav_settings.intensity if stored.intensity is None else stored.intensity,
+            voice=stored.voice or nav_settings.voice,
+            wording=stored.wording or nav_settings.wording,
+            units=stored.units or nav_settings.units,
+        )
         navigator = Navigator(user, nav_settings)
         runner = UserRunner(
             navigator,

@@ -97,7 +97,7 @@ class UserRunner:
             self._wake.set()
 
     def settings(self, now: float) -> UserSettings:
-        return UserSettings(intensity=self.navigator.controls.intensity, stamp=now)
+        return self.navigator.controls.state(self.navigator.guidance, now)
 
     def _heard(self) -> None:
         self.last_input = self._loop.time()

@@ -53,3 +53,13 @@ def test_settings_changed_and_shown_from_the_command_line(daemon):
     assert json.loads(shown.stdout.removeprefix("cli-settings: "))["intensity"] == 30
     too_strong = guidebelt("settings", "cli-settings", "--intensity", "150", "--connect", endpoint)
     assert too_strong.returncode != 0
+    # Words and units change alone; the intensity set before stays.
+    words = guidebelt("settings", "cli-settings", "--wording", "sides", "--units", "imperial",
+                      "--connect", endpoint)  # fmt: skip
+    assert words.returncode == 0, words.stderr
+    now = json.loads(words.stdout.removeprefix("cli-settings: "))
+    assert (now["wording"], now["units"], now["intensity"], now["voice"]) == (
+        "sides", "imperial", 30, "companion"
+    )  # fmt: skip
+    loud = guidebelt("settings", "cli-settings", "--voice", "loud", "--connect", endpoint)
+    assert loud.returncode == 2 and "companion" in loud.stderr

@@ -151,6 +151,8 @@ def test_the_belt_buttons_and_settings_are_in_the_table_and_the_schema():
     assert T.SETTINGS_SET.user_of("guidebelt/ann/settings/set") == "ann"
     out = schemas()
     assert {"BeltButton", "UserSettings"} <= set(out)
-    assert out["UserSettings"]["properties"]["intensity"]["maximum"] == 100
+    props = out["UserSettings"]["properties"]
+    assert props["intensity"]["anyOf"][0]["maximum"] == 100  # or null: left as it is
+    assert props["wording"]["anyOf"][0]["enum"] == ["clock", "sides"]
     assert "paused" in out["NavStatus"]["properties"]
     assert "battery_v" in out["BeltHealth"]["properties"]

@@ -28,7 +28,9 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
     for lang, table in PHRASES.items():
         for key, text in table.items():
             if key in ("turn", "turn_wait", "ahead", "metres", "metre", "half", "new_route",
-                       "off_route", "goal_in"):  # fmt: skip
+                       "off_route", "goal_in", "feet", "foot", "side_turn", "side_wait",
+                       "slightly right", "right", "sharply right", "slightly left", "left",
+                       "sharply left"):  # fmt: skip
                 continue  # templates: checked through direction_text below
             if key in CONTROL_PHRASES:
                 continue  # answers to the belt's buttons and the battery: no instruction
@@ -40,6 +42,17 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
             assert math.isclose(math.remainder(heard.turn_rad - rel, 2 * math.pi), 0.0,
                                 abs_tol=1e-9)  # fmt: skip
         assert understand(direction_text(0.0, 0.4, lang)).metres == 0.5  # type: ignore[arg-type,union-attr]
+        # Sides and feet, for the user who set them: each side's turn, the distance in feet.
+        for deg, want in ((-30, -30), (-90, -90), (-140, -135), (35, 30), (100, 90), (130, 135)):
+            text = direction_text(math.radians(deg), 3.0, lang, False, "sides", "imperial")  # type: ignore[arg-type]
+            heard = understand(text)
+            assert heard is not None and heard.action == "turn", text
+            assert math.isclose(math.degrees(heard.turn_rad), want), text
+            assert heard.metres is not None and math.isclose(heard.metres, 10 * 0.3048), text
+        ahead = understand(direction_text(0.1, 3.0, lang, False, "sides"))  # type: ignore[arg-type]
+        assert ahead is not None and ahead.turn_rad == 0.0 and ahead.metres == 3.0
+        side_wait = understand(direction_text(-1.0, 3.0, lang, True, "sides"))  # type: ignore[arg-type]
+        assert side_wait is not None and side_wait.action == "turn_wait"
         # A new route or off route: the way that follows; the countdown: walk on.
         for change in ("new_route", "off_route"):
             way = direction_text(-math.radians(90), 2.0, lang)  # type: ignore[arg-type]

@@ -154,3 +154,26 @@ def test_every_event_shape_is_its_own_and_the_pause_tap_is_short():
     felt = {(tuple(m > 0 for m in e.motors), e.period_ms) for e in EVENT_SHAPES.values()}
     assert len(felt) == len(EVENT_SHAPES)
     assert EVENT_SHAPES[PatternKind.PAUSED].ttl_ms <= 150
+
+
+def test_wording_units_and_voice_change_at_run_time_and_the_rest_stays() -> None:
+    s = guiding(intensity=40)
+    now = time.time() + 20  # past the limiter's gaps since the first cue
+    asked = UserSettings(wording="sides", units="imperial", stamp=now)
+    out = s.step(Inbox(settings=asked, pose=pose((26, 15), heading=0.0, stamp=now)), now)
+    st = out.settings
+    assert st is not None
+    assert (st.intensity, st.wording, st.units, st.voice) == (40, "sides", "imperial", "companion")
+    # Facing east with the goal due north: the way is said by the side, in feet.
+    later = now + 20
+    texts = [c.text for c in out.voice]
+    out = s.step(Inbox(pose=pose((26, 15), heading=0.0, stamp=later)), later)
+    texts += [c.text for c in out.voice]
+    assert "turn left, then 8 feet" in texts and "goal in 8 feet" in texts, texts
+    # The voice may become the user's only guide, and back.
+    out = s.step(Inbox(settings=UserSettings(voice="sole", stamp=later)), later)
+    assert s.guidance.voice == "sole" and s.guidance.sole is not None
+    assert out.settings is not None and out.settings.voice == "sole"
+    assert out.settings.wording == "sides" and out.settings.intensity == 40
+    s.step(Inbox(settings=UserSettings(voice="companion", stamp=later)), later)
+    assert s.guidance.voice == "companion" and s.guidance.sole is None
