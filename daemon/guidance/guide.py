@@ -36,6 +36,8 @@ from .turning_points import (
     xy_to_continuous,
 )
 
+REASSURE_MIN_M = 5.0
+"""A leg at least this long is worth a reassurance ("straight ahead, 12 metres")."""
 COUNTDOWN_M = (10.0, 5.0, 2.0)
 """Distances to the goal announced on the last leg ("goal in 5 metres")."""
 
@@ -73,6 +75,7 @@ class Guidance:
         sole: SoleVoiceSettings | None = None,
         wording: Wording = "clock",
         units: Units = "metric",
+        reassure_s: float = 15.0,
     ) -> None:
         """``voice="sole"``: the voice is the user's only guide (no belt worn, or the user's
         choice): ``sole_voice.py`` decides when to speak, and says "stop" before contact."""
@@ -87,6 +90,9 @@ class Guidance:
         self.smooth = smooth
         self.hold = hold if hold is not None else HoldPolicy()
         self.patterns = PatternMaker()
+        self.reassure_s = float(reassure_s)
+        """Beside the belt, the way is said again this often on a long leg (0: never); a sole
+        voice has its own, shorter interval (``sole_voice.py``)."""
         self._radius_m = radius_m
         self._sole_settings = sole
         self.cues = CueMaker(lang, limiter, wording, units)
@@ -96,6 +102,7 @@ class Guidance:
         self.hysteresis = DirectionHysteresis()
         self.route_watch = RouteWatch()
         self._announced: tuple[np.ndarray, int] | None = None
+        self._announced_at = -math.inf
         self._countdown: set[float] = set()
 
     def _set_voice(self, voice: str, limiter: CueLimiter | None = None) -> None:
@@ -286,17 +293,24 @@ class Guidance:
     def _direction_cue(
         self, target: np.ndarray, rel: float, metres: float, now: float
     ) -> VoiceCue | None:
-        """Speak on a new leg or when the clock hour moved by two or more; else stay quiet."""
+        """Speak on a new leg or when the clock hour moved by two or more, and to reassure on
+        a long leg every ``reassure_s``; else stay quiet."""
         hour = clock_hour(rel)
         if self._announced is not None:
             old_target, old_hour = self._announced
             moved = float(np.hypot(*(target - old_target))) * self.cell_m
             turned = min((hour - old_hour) % 12, (old_hour - hour) % 12)
-            if moved < 1.0 and turned < 2:
+            reassure = (
+                self.reassure_s > 0
+                and metres >= REASSURE_MIN_M
+                and now - self._announced_at >= self.reassure_s
+            )
+            if moved < 1.0 and turned < 2 and not reassure:
                 return None
         cue = self.cues.direction(rel, metres, now)
         if cue is not None:
             self._announced = (target.copy(), hour)
+            self._announced_at = now
         return cue
 
 

@@ -68,6 +68,7 @@ class NavigatorSettings:
     """``sole``: the voice guides alone (no belt); it speaks more and stops before contact."""
     wording: Literal["clock", "sides"] = "clock"
     units: Literal["metric", "imperial"] = "metric"
+    reassure_s: float = 15.0
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     intensity: int = 100
     battery: BatteryPolicy = field(default_factory=BatteryPolicy)
@@ -111,7 +112,7 @@ class Navigator:
         self.guidance = guidance or Guidance(
             cell_m=settings.cell_m, lang=settings.lang, radius_m=settings.user_radius_m,
             arrive_m=settings.arrive_m, voice=settings.voice, wording=settings.wording,
-            units=settings.units,
+            units=settings.units, reassure_s=settings.reassure_s,
         )  # fmt: skip
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None

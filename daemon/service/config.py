@@ -51,6 +51,9 @@ class DaemonConfig(BaseSettings):
         default="clock", description="turn to 2 o'clock, or turn slightly right"
     )
     units: Literal["metric", "imperial"] = Field(default="metric", description="metres or feet")
+    reassure_s: float = Field(
+        default=15.0, ge=0, le=600, description="the way said again on a long leg (0: never)"
+    )
     stale_pose_s: float = Field(default=1.0, gt=0, description="older poses are refused")
     max_users: int = Field(default=16, ge=1)
     user_idle_s: float = Field(default=600.0, gt=0, description="forget a silent, idle user")
@@ -90,6 +93,7 @@ class DaemonConfig(BaseSettings):
             voice=self.voice,
             wording=self.wording,
             units=self.units,
+            reassure_s=self.reassure_s,
             stale_pose_s=self.stale_pose_s,
             landmarks=dict(self.landmarks),
             battery=BatteryPolicy(

@@ -83,3 +83,17 @@ def test_the_last_leg_counts_down_to_the_goal() -> None:
             said.append(out.cue.text)
     assert "goal in 5 metres" in said and "goal in 2 metres" in said
     assert said.count("goal in 5 metres") == 1
+
+
+def test_a_long_leg_is_reassured_at_the_configured_interval_and_not_when_off() -> None:
+    def step(g: Guidance, row: int, t: float):  # 20 cm cells: a leg of 8 m north
+        pose = Pose(x=30.5 * 0.2, y=(SHAPE[0] - row - 0.5) * 0.2, heading=NORTH, stamp=t)
+        return g.guide(line(row, 30, 5, 30), pose, SHAPE, t, np.zeros(SHAPE, dtype=bool))
+
+    for every, want in ((4.0, 2), (0.0, 0)):
+        g = Guidance(cell_m=0.2, reassure_s=every)
+        assert step(g, 58, 0.0).cue is not None  # "straight ahead, 8 metres": the first cue
+        again = [step(g, 58 - i, 0.6 * i).cue for i in range(1, 16)]
+        texts = [c.text for c in again if c is not None and c.kind == "direction"]
+        assert len(texts) == want, texts
+        assert all(t.startswith("straight ahead") for t in texts)
