@@ -20,7 +20,7 @@ copied) with the paper's changes to classic A*:
   neighbour, not when it is popped.
 
 What holds, exactly (``tests/daemon/planning/test_extended_astar.py`` property-tests it; the
-rates are measured by ``sim/extended_astar_study.py``, see ``docs/notes/extended-astar.md``):
+rates are measured by ``sim/extended_astar_study.py``; BENCHMARKS.md has them):
 - every path returned starts at the start, ends at the goal, steps between 8-neighbours
   through free cells only, and costs what ``cost_at`` says;
 - its cost is >= the Dijkstra optimum (``dijkstra.dijkstra_field``), and not always equal:

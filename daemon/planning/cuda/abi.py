@@ -75,8 +75,8 @@ C_BASE = 14
 """The barrier count the last loop ended with (the next one starts there)."""
 C_STAMP = 16
 """Nine words: the global timer (ns, low 32 bits) at the call's phase boundaries, written by
-block 0 (``STAMP_PHASES`` in ``cuda/phases.py``), then when the loop saw the call's post: the
-phases' device time per call."""
+block 0 (``STAMP_PHASES`` in ``scripts/profile_cuda_phases.py``), then when the loop saw the
+call's post: the phases' device time per call."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 P_SEG = 40

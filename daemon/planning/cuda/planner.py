@@ -67,7 +67,7 @@ scratch costs about as many tile visits in a row as the map is tiles across, a r
 many as the cells it raises) at 1.0, before the repair was focused. With the focused repair
 both sides of the trade shrink (a repair relaxes only the ellipse between user and goal, and
 so does the plan from scratch it gives up for), and the planner's own time per call, measured
-with cuda/phases.py on one H100 (docs/notes/gpu-focused-repair.md), put the best limit lower
+with scripts/profile_cuda_phases.py on one H100, put the best limit lower
 at 400² and 1000² but not at 2000²: 0.5 cut p99 by 3-13 % at 400² and 1000² in every scenario
 (courtyard, explore, building, streets) with median and walk time within noise, while at 2000²
 it made half the steps plans from scratch (median 0.28 -> 0.70 ms, walk +16 %). Read when a

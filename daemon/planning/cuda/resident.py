@@ -33,8 +33,8 @@ IDLE_MS = 200.0
 """How long a loop waits for the next call before it ends and frees the device: longer than
 the gap between a walk's steps (sensing and inflation: ~1-5 ms at 400², tens of ms at 2000²,
 where 50 ms let the loop end before ~1 % of the steps, each of which then paid a launch:
-those were the p99 steps, cuda/phases.py), short enough that a planner left alone stops
-holding the GPU soon."""
+those were the p99 steps, scripts/profile_cuda_phases.py), short enough that a planner left
+alone stops holding the GPU soon."""
 NOT_READY = 600  # cudaErrorNotReady: the stream still has work
 CHECK_S = 200e-6  # how often ``wait`` asks the driver whether the loop still runs
 

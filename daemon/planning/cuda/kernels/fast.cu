@@ -211,7 +211,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     } else {
         // Warp by warp, so that the flags are set once per distinct tile: a delta of 30,000
         // cells (a 3 m sweep at 2000²) flagged 9 tiles a cell, two atomics each, most of them
-        // on one count, and spent ~200 µs here (cuda/phases.py); a warp's cells lie mostly in
+        // on one count, and spent ~200 µs here (scripts/profile_cuda_phases.py); a warp's cells lie mostly in
         // one tile.
         unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
         const int lane = threadIdx.x & 31;

@@ -21,7 +21,7 @@ __device__ __forceinline__ int tile_h(const Grid& G, int n, int fy, int fx) {
     return STRAIGHT * max(dy, dx) + (DIAGONAL - STRAIGHT) * min(dy, dx);
 }
 
-// Block 0's thread 0 stamps phase boundary i (ctrl[C_STAMP + i], cuda/phases.py).
+// Block 0's thread 0 stamps phase boundary i (ctrl[C_STAMP + i], scripts/profile_cuda_phases.py).
 __device__ __forceinline__ void stamp(unsigned* ctrl, int i) {
     if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
 }

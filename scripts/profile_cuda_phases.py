@@ -6,8 +6,8 @@ scenarios as the benchmark does (``sim.walk``), records every ``update_and_path`
 phases, statistics and own time, and prints, per walk, the median and p99 call and what the
 calls at or above the p99 spent in each phase: the answer to "which steps make the tail".
 
-    python3 -m daemon.planning.cuda.phases --grid 400,1000 --scenario courtyard,explore \\
-        [--modes eds,dss] [--max-steps N] [--json out.json]
+    PYTHONPATH=. python3 scripts/profile_cuda_phases.py --grid 400,1000 \\
+        --scenario courtyard,explore [--modes eds,dss] [--max-steps N] [--json out.json]
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import abi, planner
+from daemon.planning.cuda import abi, planner
 
 STAMP_PHASES = ("take", "delta", "raise", "reset", "relax", "exits", "hops", "walk")
 """The phases between stamps 8, 0, 1, ..., 7: the loop's block 0 takes the posted delta from
