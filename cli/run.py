@@ -30,7 +30,7 @@ def run(
     from daemon.service.daemon import serve
     from daemon.service.logs import setup_logging
 
-    cfg = load_config(config, **({"planner": planner} if planner else {}))
+    cfg = _config_or_exit(load_config, config, planner)
     setup_logging(cfg.log_level, cfg.log_format)
     uvloop.run(serve(cfg))
     # Everything the daemon owns is closed by now. Skip the interpreter's teardown: the
@@ -40,6 +40,28 @@ def run(
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
+
+
+def _config_or_exit(load, path: Path | None, planner: str | None):
+    """The config, or one line on stderr and exit status 2: what systemd's journal shows for
+    a unit that cannot start is that line, not a traceback."""
+    import tomllib
+
+    from pydantic import ValidationError
+
+    try:
+        return load(path, **({"planner": planner} if planner else {}))
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors():
+            where = ".".join(str(p) for p in err["loc"]) or "config"
+            got = f" (got {err['input']!r})" if "input" in err and err["type"] != "missing" else ""
+            problems.append(f"{where}: {err['msg']}{got}")
+        reason = "; ".join(problems)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        reason = str(exc)
+    typer.echo(f"guidebelt run: bad config: {reason}", err=True)
+    raise typer.Exit(2)
 
 
 def register(app: typer.Typer) -> None:

@@ -7,9 +7,12 @@ be read and validated where zenoh is not installed, e.g. the GPU benchmark machi
 from __future__ import annotations
 
 import json
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+Endpoint = Annotated[str, Field(min_length=3, max_length=200, pattern=r"^[a-z0-9-]+/\S+$")]
+"""A zenoh locator, ``proto/address``: tcp/127.0.0.1:7447, tls/host:7447, …"""
 
 
 class ZenohSettings(BaseModel):
@@ -18,9 +21,16 @@ class ZenohSettings(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     mode: Literal["peer", "client"] = "peer"
-    listen: list[str] = Field(default_factory=list, description="e.g. tcp/127.0.0.1:7447")
-    connect: list[str] = Field(default_factory=list, description="routers or peers to join")
-    multicast_scouting: bool = True
+    listen: list[Endpoint] = Field(
+        default_factory=list, max_length=16, description="e.g. tcp/127.0.0.1:7447"
+    )
+    connect: list[Endpoint] = Field(
+        default_factory=list, max_length=16, description="routers or peers to join"
+    )
+    multicast_scouting: bool = Field(
+        default=False,
+        description="find peers on the LAN without naming them: off unless asked for",
+    )
 
     def to_json5(self) -> str:
         return json.dumps(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import socket
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import (
@@ -29,19 +29,23 @@ __all__ = ["DaemonConfig", "ZenohSettings", "load_config"]
 
 DEFAULT_CONFIG_FILE = Path("/etc/guidebelt/guidebelt.toml")
 
+Metres = Annotated[float, Field(ge=-100_000, le=100_000, allow_inf_nan=False)]
+LandmarkName = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_ -]+$")]
+
 
 class DaemonConfig(BaseSettings):
+    # No value can be infinite or NaN: every number below reaches a conversion or a sleep.
     model_config = SettingsConfigDict(
-        env_prefix="GUIDEBELT_", env_nested_delimiter="__", extra="forbid"
+        env_prefix="GUIDEBELT_", env_nested_delimiter="__", extra="forbid", allow_inf_nan=False
     )
 
-    daemon_id: str = Field(default_factory=socket.gethostname)
+    daemon_id: str = Field(default_factory=socket.gethostname, min_length=1, max_length=64)
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
     planner: str = Field(default="eds", description="a planner of the registry: eds, dss, …")
     backend: Literal["auto", "cpu", "cuda", "reference"] = "auto"
     variant: Literal["fast", "paper"] = "fast"
-    cell_m: float = Field(default=0.10, gt=0)
-    user_radius_m: float = Field(default=0.3, ge=0, description="obstacles grow by this")
+    cell_m: float = Field(default=0.10, gt=0, le=1.0)
+    user_radius_m: float = Field(default=0.3, ge=0, le=2.0, description="obstacles grow by this")
     lang: Literal["en", "es"] = "en"
     voice: Literal["companion", "sole"] = Field(
         default="companion",
@@ -54,13 +58,15 @@ class DaemonConfig(BaseSettings):
     reassure_s: float = Field(
         default=15.0, ge=0, le=600, description="the way said again on a long leg (0: never)"
     )
-    stale_pose_s: float = Field(default=1.0, gt=0, description="older poses are refused")
-    max_users: int = Field(default=16, ge=1)
-    user_idle_s: float = Field(default=600.0, gt=0, description="forget a silent, idle user")
-    tick_s: float = Field(default=0.25, gt=0, description="staleness checks and watchdog")
-    snapshot_timeout_s: float = Field(default=1.0, gt=0)
-    landmarks: dict[str, tuple[float, float]] = Field(
-        default_factory=dict, description="named goals: name = [x, y] in metres"
+    stale_pose_s: float = Field(default=1.0, gt=0, le=60, description="older poses are refused")
+    max_users: int = Field(default=16, ge=1, le=10_000)
+    user_idle_s: float = Field(
+        default=600.0, gt=0, le=86_400, description="forget a silent, idle user"
+    )
+    tick_s: float = Field(default=0.25, gt=0, le=60, description="staleness checks and watchdog")
+    snapshot_timeout_s: float = Field(default=1.0, gt=0, le=60)
+    landmarks: dict[LandmarkName, tuple[Metres, Metres]] = Field(
+        default_factory=dict, max_length=1000, description="named goals: name = [x, y] in metres"
     )
     intensity: int = Field(
         default=100, ge=0, le=100, description="a new user's belt intensity (settings/set)"
@@ -68,9 +74,9 @@ class DaemonConfig(BaseSettings):
     settings_dir: Path | None = Field(
         default=None, description="users' run-time settings kept here; None: in memory only"
     )
-    low_battery_v: float = Field(default=3.5, gt=0, description="the belt warns below this")
-    battery_empty_v: float = Field(default=3.3, gt=0, description="0 % when spoken")
-    battery_full_v: float = Field(default=4.2, gt=0, description="100 % when spoken")
+    low_battery_v: float = Field(default=3.5, gt=0, le=10, description="the belt warns below this")
+    battery_empty_v: float = Field(default=3.3, gt=0, le=10, description="0 % when spoken")
+    battery_full_v: float = Field(default=4.2, gt=0, le=10, description="100 % when spoken")
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
     log_format: Literal["journal", "json"] = "journal"
 
