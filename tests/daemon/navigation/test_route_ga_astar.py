@@ -29,21 +29,23 @@ def answers(planner: str) -> list[tuple[list[str], list[PatternKind], bool]]:
     nav = Navigator("u", NavigatorSettings(backend="cpu", planner=planner))
     wall = 10 * SHAPE[1] + np.arange(SHAPE[1])
     gap = wall[:8]
+    # Each step's messages are made when it runs: a pose stamped before a slow step (a cold
+    # compile in a fresh checkout) would be stale by its turn, and STOP is the right answer.
     steps = [
-        Inbox(deltas=[MapDelta.from_arrays(0, SHAPE, wall, np.ones(wall.size, np.uint8),
+        lambda: Inbox(deltas=[MapDelta.from_arrays(0, SHAPE, wall, np.ones(wall.size, np.uint8),
                                            time.time())],
               goal=goal(3, 15), pose=pose((26, 15))),  # a wall across the map: no path
-        Inbox(deltas=[MapDelta.from_arrays(1, SHAPE, gap, np.zeros(gap.size, np.uint8),
+        lambda: Inbox(deltas=[MapDelta.from_arrays(1, SHAPE, gap, np.zeros(gap.size, np.uint8),
                                            time.time())],
               pose=pose((26, 15))),  # a gap opens: guide
-        Inbox(pose=pose((25, 14))),
-        Inbox(goal=goal(10, 20), pose=pose((25, 14))),  # the goal in the wall
-        Inbox(goal=goal(3, 15), pose=pose((25, 14), far=1e308)),  # the pose off the map
-        Inbox(goal=goal(3, 15), pose=pose((25, 14))),
+        lambda: Inbox(pose=pose((25, 14))),
+        lambda: Inbox(goal=goal(10, 20), pose=pose((25, 14))),  # the goal in the wall
+        lambda: Inbox(goal=goal(3, 15), pose=pose((25, 14), far=1e308)),  # the pose off the map
+        lambda: Inbox(goal=goal(3, 15), pose=pose((25, 14))),
     ]  # fmt: skip
     out = []
-    for inbox in steps:
-        o = nav.step(inbox, time.time())
+    for make in steps:
+        o = nav.step(make(), time.time())
         given = o.path_cells is not None and len(o.path_cells) > 0
         out.append(([str(s.code) for s in o.statuses], [b.kind for b in o.belt], given))
     return out
