@@ -221,6 +221,12 @@ class Health(Message):
     users: list[str]
     backend: str
     rejected: int = Field(ge=0)
+    rejected_by_code: dict[str, int] = Field(
+        default_factory=dict, max_length=64, description="refused inputs by status code"
+    )
+    log_lines_suppressed: int = Field(
+        default=0, ge=0, description="bad-input log lines held back by the rate limit"
+    )
     stamp: float = Field(ge=0)
 
 

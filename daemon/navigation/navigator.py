@@ -40,6 +40,7 @@ from protocol.messages import (
 
 from .controls import BatteryPolicy, UserControls, Whereabouts
 from .inbox import Inbox, StepOutput
+from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .route import PlannerFactory, PlanReport, Route
@@ -121,6 +122,9 @@ class Navigator:
         self._last_path_flat = np.empty(0, np.int64)
         self.state = NavState.IDLE
         self.rejected = 0
+        self.rejected_by_code: dict[str, int] = {}
+        """Refused inputs by status code, for the daemon's health."""
+        self.log_limit = LogLimiter()
         self.steps = 0
         self.replans = 0
         self.last = StepReport()
@@ -329,11 +333,17 @@ class Navigator:
         self._held |= outcome.pattern in (PatternKind.STOP, PatternKind.WAIT)
         if rej.counted:
             self.rejected += 1
-        log.log(
-            logging.WARNING if rej.counted else logging.INFO,
-            "rejected" if rej.counted else rej.code,
-            extra={"fields": {"user": self.user, "code": rej.code, "reason": rej.reason}},
-        )
+            self.rejected_by_code[rej.code] = self.rejected_by_code.get(rej.code, 0) + 1
+        held = self.log_limit.allow(str(rej.code), time.monotonic())
+        if held is not None:
+            fields = {"user": self.user, "code": rej.code, "reason": rej.reason}
+            if held:
+                fields["suppressed"] = held  # lines of this code held back since the last
+            log.log(
+                logging.WARNING if rej.counted else logging.INFO,
+                "rejected" if rej.counted else rej.code,
+                extra={"fields": fields},
+            )
         g = self.guidance.event(outcome.pattern, now, reason=rej.code)
         out.belt.append(g.pattern)
         if g.cue is not None:

@@ -20,6 +20,7 @@ import time
 import zenoh
 
 from daemon.navigation import Navigator
+from daemon.navigation.log_limit import LogLimiter
 from daemon.navigation.warm import warm_up
 from daemon.planning import resolve_backend
 from protocol import codec
@@ -48,6 +49,7 @@ class Daemon:
         self.runners: dict[str, UserRunner] = {}
         self.settings = SettingsStore(config.settings_dir, config.intensity)
         self.rejected_unrouted = 0
+        self.log_limit = LogLimiter()
         """Messages refused before reaching a user (bad key, too many users)."""
         self.started = time.time()
         self._stop: asyncio.Event | None = None
@@ -189,7 +191,12 @@ class Daemon:
             user = T.user_of(key)
         except ValueError as exc:
             self.rejected_unrouted += 1
-            log.warning("rejected", extra={"fields": {"key": key, "reason": str(exc)}})
+            held = self.log_limit.allow("unrouted", time.monotonic())
+            if held is not None:
+                fields = {"key": key[:200], "reason": str(exc)[:200]}  # a peer's key: cut short
+                if held:
+                    fields["suppressed"] = held
+                log.warning("rejected", extra={"fields": fields})
             return
         if topic is T.BELT_HEALTH and user not in self.runners:
             return  # a belt that is merely on starts no session (nor keeps an idle one alive)
@@ -240,8 +247,20 @@ class Daemon:
             backend=self.config.backend,
             rejected=self.rejected_unrouted
             + sum(r.navigator.rejected for r in self.runners.values()),
+            rejected_by_code=self._rejected_by_code(),
+            log_lines_suppressed=self.log_limit.suppressed_total
+            + sum(r.navigator.log_limit.suppressed_total for r in self.runners.values()),
             stamp=time.time(),
         )
+
+    def _rejected_by_code(self) -> dict[str, int]:
+        totals: dict[str, int] = {}
+        if self.rejected_unrouted:
+            totals["unrouted"] = self.rejected_unrouted
+        for runner in self.runners.values():
+            for code, n in runner.navigator.rejected_by_code.items():
+                totals[str(code)] = totals.get(str(code), 0) + n
+        return totals
 
     def _on_query(self, topic: Topic, query: zenoh.Query) -> None:
         try:
