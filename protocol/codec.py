@@ -31,6 +31,27 @@ HEADER = struct.Struct("<4sHHIIIdI")
 """magic, version, flags, seq, height, width, stamp, count (delta) or nbytes (snapshot)."""
 
 MAX_SNAPSHOT_BYTES = 64 * 1024 * 1024
+MAX_JSON_BYTES = 64 * 1024
+"""The longest JSON message (a goal, a pose, a setting, …) taken: the largest real one is a
+few hundred bytes; a megabyte of JSON would cost the parser before pydantic could refuse it."""
+
+
+def max_bytes(kind: type[Message]) -> int:
+    """The most bytes a ``kind`` can take on the wire; more is refused before parsing."""
+    if kind is MapDelta:
+        return HEADER.size + 5 * MAX_DELTA_CELLS
+    if kind is MapSnapshot:
+        return HEADER.size + MAX_SNAPSHOT_BYTES
+    return MAX_JSON_BYTES
+
+
+def map_cells(data: bytes) -> int | None:
+    """Height × width a map message's header declares, read before anything is decoded or
+    allocated (None if it has no header): the caller's memory budget is checked on it."""
+    if len(data) < HEADER.size or data[:4] not in (DELTA_MAGIC, SNAPSHOT_MAGIC):
+        return None
+    _magic, _version, _flags, _seq, height, width, _stamp, _count = HEADER.unpack_from(data)
+    return int(height) * int(width)
 
 
 class DecodeError(ValueError):
@@ -52,6 +73,10 @@ def encode(msg: Message) -> bytes:
 
 def decode(kind: type[M], data: bytes) -> M:
     """Parse and validate ``data`` as a ``kind``; raise ``DecodeError`` if it is not one."""
+    if len(data) > max_bytes(kind):
+        raise DecodeError(
+            StatusCode.OVERSIZED, f"{len(data)} bytes exceeds {max_bytes(kind)} for {kind.__name__}"
+        )
     if kind is MapDelta:
         return _decode_delta(data)  # type: ignore[return-value]
     if kind is MapSnapshot:

@@ -60,6 +60,12 @@ class DaemonConfig(BaseSettings):
     )
     stale_pose_s: float = Field(default=1.0, gt=0, le=60, description="older poses are refused")
     max_users: int = Field(default=16, ge=1, le=10_000)
+    max_map_cells: int = Field(
+        default=2048 * 2048, ge=1, le=4096 * 4096, description="the largest map one user may have"
+    )
+    memory_budget_mb: float = Field(
+        default=2048, gt=0, le=1_000_000, description="all users' maps and planners together"
+    )
     user_idle_s: float = Field(
         default=600.0, gt=0, le=86_400, description="forget a silent, idle user"
     )

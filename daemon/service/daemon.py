@@ -39,6 +39,10 @@ from .user_settings import SettingsStore
 log = logging.getLogger("guidebelt.daemon")
 
 ACTIVE = (NavState.PLANNING, NavState.GUIDING, NavState.REROUTING)
+BYTES_PER_CELL = 64
+"""What one map cell costs a user, all told, for the memory budget: the map keeper's occupancy,
+cover and inflation (~8 B), the CPU planner's state (17 B at 2000²), the CUDA planner's host
+and device copies, with room for the copies a step makes."""
 STOP_BUDGET_S = 0.6
 
 
@@ -179,6 +183,7 @@ class Daemon:
             self._bridge.request,
             self.config.snapshot_timeout_s,
             store_settings=self.settings.save,
+            map_too_big=lambda cells: self._map_too_big(user, cells),
         )
         self.runners[user] = runner
         # The belt driver may have started first: it learns the user's intensity now.
@@ -205,6 +210,11 @@ class Daemon:
             self._refuse_user(user)
             return
         assert topic.model is not None
+        if topic is T.MAP_DELTA:
+            too_big = self._map_too_big(user, codec.map_cells(payload))
+            if too_big is not None:  # before decoding: nothing allocated for it
+                runner.reject(StatusCode.OVERSIZED, f"{topic.leaf}: {too_big}")
+                return
         try:
             msg = codec.decode(topic.model, payload)
         except codec.DecodeError as exc:
@@ -224,6 +234,26 @@ class Daemon:
             runner.put_belt_health(msg)
         else:
             runner.put_goal(msg)
+
+    def _map_too_big(self, user: str, cells: int | None) -> str | None:
+        """Why a map of ``cells`` cells may not be ``user``'s (None: it may): past the per-user
+        cap, or past the memory budget with every other user's map as it is now."""
+        if cells is None:
+            return None  # no header: the decoder says what is wrong with it
+        if cells > self.config.max_map_cells:
+            return f"a map of {cells} cells exceeds max_map_cells {self.config.max_map_cells}"
+        others = sum(
+            r.navigator.maps.map.shape[0] * r.navigator.maps.map.shape[1]
+            for u, r in self.runners.items()
+            if u != user and r.navigator.maps.map is not None
+        )
+        need_mb = (others + cells) * BYTES_PER_CELL / 2**20
+        if need_mb > self.config.memory_budget_mb:
+            return (
+                f"a map of {cells} cells would bring all users' maps to {need_mb:.0f} MB, "
+                f"past memory_budget_mb {self.config.memory_budget_mb:g}"
+            )
+        return None
 
     def _refuse_user(self, user: str) -> None:
         self.rejected_unrouted += 1

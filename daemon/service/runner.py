@@ -42,8 +42,10 @@ class UserRunner:
         request: Callable[[str, float, Callable[[bytes | None], None]], None],
         snapshot_timeout_s: float,
         store_settings: Callable[[str, UserSettings], None] | None = None,
+        map_too_big: Callable[[int | None], str | None] | None = None,
     ) -> None:
         self.navigator = navigator
+        self._map_too_big = map_too_big
         self._store_settings = store_settings
         self.user = navigator.user
         self._publish = publish
@@ -168,6 +170,10 @@ class UserRunner:
         self._snapshot_pending = False
         if payload is None:
             log.warning("no snapshot from the map source", extra={"fields": {"user": self.user}})
+            self._inbox.snapshot_failed = True
+        elif self._map_too_big is not None and (why := self._map_too_big(codec.map_cells(payload))):
+            rej = Rejection(StatusCode.OVERSIZED, f"snapshot: {why}")  # refused before decoding
+            self._inbox.rejections.append(rej)
             self._inbox.snapshot_failed = True
         else:
             try:
