@@ -29,7 +29,7 @@ def belt(
     import logging
     import signal
 
-    from drivers.belt.driver import serve
+    from drivers.belt.service import serve
     from protocol.session import ZenohSettings
     from protocol.topics import check_user
 

@@ -10,7 +10,8 @@ import time
 import pytest
 
 from drivers.belt import frames as F
-from drivers.belt.driver import BeltLink, BeltService
+from drivers.belt.driver import BeltLink
+from drivers.belt.service import BeltService
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
