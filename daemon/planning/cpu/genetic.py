@@ -245,6 +245,25 @@ def _no_path(t0: float, seg: Segments, evaluations: int = 0) -> GaResult:
                     seg.expanded, seg.max_open, (time.perf_counter() - t0) * 1e3)  # fmt: skip
 
 
+def _reach(
+    seg: Segments, start: Cell, goal: Cell, t0: float
+) -> GaResult | tuple[int, int, np.ndarray]:
+    """What both GAs check first: the answer when there is nothing to evolve (an end outside
+    or blocked, the goal cut off: no path; start at the goal: itself), else the padded ends and
+    the mask of cells reachable from the start (where waypoints are drawn)."""
+    if not _ends_ok(seg, start, goal):
+        return _no_path(t0, seg)
+    s, g = seg.padded(start), seg.padded(goal)
+    if s == g:
+        one = np.array([start], dtype=np.int32)
+        return GaResult(one, 0, 0.0, _EMPTY, 0, 0, 0, 0, (time.perf_counter() - t0) * 1e3)
+    mask = np.zeros(seg.blk.size, dtype=np.bool_)
+    reachable(seg.blk, seg.off, s, mask)
+    if not mask[g]:
+        return _no_path(t0, seg)
+    return s, g, mask
+
+
 def evolve(
     blocked: np.ndarray,
     start: Cell,
@@ -263,16 +282,10 @@ def evolve(
     seg = segments or Segments()
     seg.load(blocked)
     start, goal = (int(start[0]), int(start[1])), (int(goal[0]), int(goal[1]))
-    if not _ends_ok(seg, start, goal):
-        return _no_path(t0, seg)
-    s, g = seg.padded(start), seg.padded(goal)
-    if s == g:
-        one = np.array([start], dtype=np.int32)
-        return GaResult(one, 0, 0.0, _EMPTY, 0, 0, 0, 0, (time.perf_counter() - t0) * 1e3)
-    mask = np.zeros(seg.blk.size, dtype=np.bool_)
-    reachable(seg.blk, seg.off, s, mask)
-    if not mask[g]:
-        return _no_path(t0, seg)
+    ends = _reach(seg, start, goal, t0)
+    if isinstance(ends, GaResult):
+        return ends
+    s, g, mask = ends
     pool = np.flatnonzero(mask)
     genes = None
     if carried is not None and len(carried) == params.waypoints:
@@ -305,16 +318,10 @@ def evolve_straight(blocked: np.ndarray, start: Cell, goal: Cell, params: GaPara
     seg.load(blocked)
     free = ~np.asarray(blocked, dtype=bool)
     start, goal = (int(start[0]), int(start[1])), (int(goal[0]), int(goal[1]))
-    if not _ends_ok(seg, start, goal):
-        return _no_path(t0, seg)
-    s, g = seg.padded(start), seg.padded(goal)
-    if s == g:
-        one = np.array([start], dtype=np.int32)
-        return GaResult(one, 0, 0.0, _EMPTY, 0, 0, 0, 0, (time.perf_counter() - t0) * 1e3)
-    mask = np.zeros(seg.blk.size, dtype=np.bool_)
-    reachable(seg.blk, seg.off, s, mask)
-    if not mask[g]:
-        return _no_path(t0, seg)
+    ends = _reach(seg, start, goal, t0)
+    if isinstance(ends, GaResult):
+        return ends
+    s, g, mask = ends
     memo: dict[tuple[int, int], float] = {}
 
     def euclid_if_free(a: int, b: int) -> float:
