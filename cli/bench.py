@@ -13,18 +13,16 @@ from typing import Annotated
 
 import typer
 
-from cli.options import PLANNER_NAMES, comma_list
+from cli.options import PLANNER_NAMES, Backend, Scenarios, Unknowns, comma_list, walk_progress
 
 
 def bench(
-    scenario: Annotated[
-        str, typer.Option(help="Scenarios, comma separated: courtyard, explore, building, streets.")
-    ] = "courtyard",
+    scenario: Scenarios = "courtyard",
     grid: Annotated[str, typer.Option(help="Grid sides, comma separated (100: 10 cm).")] = (
         "100,200,400"
     ),
-    unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
-    backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
+    unknown: Unknowns = "0.2,0.4,0.6",
+    backend: Backend = "cpu",
     variant: Annotated[str, typer.Option(help="fast, or paper (its Figure 4 form).")] = "fast",
     planner: Annotated[
         str,
@@ -42,7 +40,6 @@ def bench(
     """Walk the simulated scenarios with each planner; print Steps, Iter_avg and ms per step."""
     from rich import box
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from sim.benchmark import TABLE1_HEADS, TABLE2_HEADS, BenchConfig, run_bench, table_rows
@@ -73,13 +70,7 @@ def bench(
     except ValueError as exc:
         raise typer.BadParameter(str(exc), param_hint="--grid") from exc
     console = Console()
-    columns = (
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-    )
-    with Progress(*columns, console=console) as progress:
+    with walk_progress(console) as progress:
         task = progress.add_task("walks", total=config.total_walks())
         result = run_bench(
             config,

@@ -11,21 +11,19 @@ from typing import Annotated
 
 import typer
 
-from cli.options import PLANNER_NAMES, comma_list
+from cli.options import PLANNER_NAMES, Backend, Scenarios, Unknowns, comma_list, walk_progress
 
 
 def compare(
     planners: Annotated[
         str, typer.Option(help=f"Planners, comma separated: {PLANNER_NAMES}.")
     ] = "eds,dss,astar,extended-astar",
-    scenario: Annotated[
-        str, typer.Option(help="Scenarios, comma separated: courtyard, explore, building, streets.")
-    ] = "courtyard",
+    scenario: Scenarios = "courtyard",
     grid: Annotated[str, typer.Option(help="Grid sides, comma separated (100: 10 cm).")] = (
         "100,200"
     ),
-    unknown: Annotated[str, typer.Option(help="Fractions of free area unknown.")] = "0.2,0.4,0.6",
-    backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
+    unknown: Unknowns = "0.2,0.4,0.6",
+    backend: Backend = "cpu",
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     repeats: Annotated[int, typer.Option(min=1, help="Walks per planner and world.")] = 1,
     max_steps: Annotated[
@@ -37,7 +35,6 @@ def compare(
     """Walk each planner on the same worlds: arrival, metres, turns, ms per step, work done."""
     from rich import box
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from sim.compare import COMPARE_HEADS, CompareConfig, plot_compare, run_compare, table_cells
@@ -60,13 +57,7 @@ def compare(
     console = Console()
     if not console.is_terminal:  # a log or a pipe: the whole table, not 80 clipped columns
         console = Console(width=160)
-    columns = (
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-    )
-    with Progress(*columns, console=console) as progress:
+    with walk_progress(console) as progress:
         task = progress.add_task("walks", total=config.total_walks())
         rows, device = run_compare(
             config, on_walk=lambda label: progress.update(task, advance=1, description=label)
