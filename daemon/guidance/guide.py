@@ -83,8 +83,6 @@ class Guidance:
         self.arrive_m = arrive_m
         self.reach_m = reach_m
         self.escape_m = min(escape_m, 0.9 * radius_m)
-        # Half the user's radius of the margin may be shaved by a line from the user.
-        self.shave_cells = int(0.5 * radius_m / cell_m)
         self.max_leg_cells = max_leg_m / cell_m
         self.turn_around = math.radians(turn_around_deg)
         self.smooth = smooth
@@ -118,6 +116,7 @@ class Guidance:
         else:
             self.cues.limiter = limiter or CueLimiter()
             self.sole = None
+            # Half the user's radius of the margin may be shaved by a line from the user.
             self.shave_cells = int(0.5 * self._radius_m / self.cell_m)
 
     def apply(

@@ -115,8 +115,8 @@ class UserControls:
         elif out.voice:
             self.last_instruction = out.voice[-1]
         if inbox.settings is not None:
+            # Voice, wording and units were applied as the step began (``Navigator.step``).
             asked = inbox.settings
-            guidance.apply(voice=asked.voice, wording=asked.wording, units=asked.units)
             intensity = self.intensity if asked.intensity is None else asked.intensity
             self._set_intensity(intensity, now, out, guidance)
         if inbox.battery_v is not None:

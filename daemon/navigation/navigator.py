@@ -121,9 +121,8 @@ class Navigator:
         self.pose_cell: Cell | None = None
         self._last_path_flat = np.empty(0, np.int64)
         self.state = NavState.IDLE
-        self.rejected = 0
         self.rejected_by_code: dict[str, int] = {}
-        """Refused inputs by status code, for the daemon's health."""
+        """Refused inputs by status code, for the daemon's health (``rejected``: their sum)."""
         self.log_limit = LogLimiter()
         self.steps = 0
         self.replans = 0
@@ -138,6 +137,11 @@ class Navigator:
             settings.intensity,
             settings.battery,
         )
+
+    @property
+    def rejected(self) -> int:
+        """Refused inputs, all codes."""
+        return sum(self.rejected_by_code.values())
 
     # -- the step -------------------------------------------------------------------------
 
@@ -334,7 +338,6 @@ class Navigator:
         outcome = OUTCOMES[rej.code]
         self._held |= outcome.pattern in (PatternKind.STOP, PatternKind.WAIT)
         if rej.counted:
-            self.rejected += 1
             self.rejected_by_code[rej.code] = self.rejected_by_code.get(rej.code, 0) + 1
         held = self.log_limit.allow(str(rej.code), time.monotonic())
         if held is not None:
