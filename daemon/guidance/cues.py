@@ -237,43 +237,34 @@ class CueMaker:
         self.wording: Wording = wording
         self.units: Units = units
 
+    def _say(self, text: str, priority: CuePriority, kind: str, now: float) -> VoiceCue | None:
+        """The cue, or None when the limiter holds it back."""
+        if not self.limiter.allow(text, priority, now):
+            return None
+        return VoiceCue(text=text, lang=self.lang, priority=priority, kind=kind, stamp=now)
+
     def direction(
         self, rel: float, metres: float, now: float, wait: bool = False
     ) -> VoiceCue | None:
         text = direction_text(rel, metres, self.lang, wait, self.wording, self.units)
-        if not self.limiter.allow(text, CuePriority.ROUTINE, now):
-            return None
-        return VoiceCue(
-            text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="direction", stamp=now
-        )
+        return self._say(text, CuePriority.ROUTINE, "direction", now)
 
     def route_change(self, change: str, rel: float, metres: float, now: float) -> VoiceCue | None:
         """ "new route, turn to 2 o'clock, then 3 metres" (or "off route, …"): said at once,
         as a safety cue is, since the way the user was walking is no longer the way."""
         way = direction_text(rel, metres, self.lang, False, self.wording, self.units)
         text = PHRASES[self.lang][change].format(way=way)
-        if not self.limiter.allow(text, CuePriority.SAFETY, now):
-            return None
-        return VoiceCue(
-            text=text, lang=self.lang, priority=CuePriority.SAFETY, kind=change, stamp=now
-        )
+        return self._say(text, CuePriority.SAFETY, change, now)
 
     def goal_in(self, metres: float, now: float) -> VoiceCue | None:
         """The distance left on the last leg ("goal in 5 metres"), a routine cue."""
         dist = say_distance(metres, self.lang, self.units)
         text = PHRASES[self.lang]["goal_in"].format(dist=dist)
-        if not self.limiter.allow(text, CuePriority.ROUTINE, now):
-            return None
-        return VoiceCue(
-            text=text, lang=self.lang, priority=CuePriority.ROUTINE, kind="countdown", stamp=now
-        )
+        return self._say(text, CuePriority.ROUTINE, "countdown", now)
 
     def event(self, kind: PatternKind, now: float) -> VoiceCue | None:
         if kind not in PHRASES[self.lang]:
             return None  # GUIDE and OFF have nothing to say
         # The daemon's reason (goal_off_map, stale_pose…) goes to the status, not the ear.
-        text = event_text(kind, self.lang)
         priority = CuePriority.SAFETY if kind in SAFETY_KINDS else CuePriority.ROUTINE
-        if not self.limiter.allow(text, priority, now):
-            return None
-        return VoiceCue(text=text, lang=self.lang, priority=priority, kind=str(kind), stamp=now)
+        return self._say(event_text(kind, self.lang), priority, str(kind), now)
