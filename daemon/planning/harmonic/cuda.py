@@ -34,10 +34,13 @@ def _module(real: str) -> cp.RawModule:
 @functools.cache
 def _blocks(real: str) -> int:
     """Blocks of the relaxation resident at once: a cooperative launch may not have more."""
+    from ..cuda.device import resident_blocks
+
     k = _module(real).get_function("harmonic_relax")
-    per_sm = cp.cuda.driver.occupancyMaxActiveBlocksPerMultiprocessor(k.ptr, THREADS, 0)
-    sms = cp.cuda.Device().attributes["MultiProcessorCount"]
-    return max(1, int(per_sm) * int(sms))
+    sms = int(cp.cuda.Device().attributes["MultiProcessorCount"])
+    # Four blocks of 256 a multiprocessor is enough to cover the grid's memory latency; the
+    # occupancy bound keeps the cooperative launch legal if the kernel ever needs more.
+    return max(1, min(resident_blocks(k, THREADS), 4 * sms))
 
 
 @numba.njit(cache=True, nogil=True)
