@@ -163,3 +163,36 @@ def loopback(listen_port: int | None = None, connect_port: int | None = None) ->
         connect=[f"tcp/127.0.0.1:{connect_port}"] if connect_port else [],
         multicast_scouting=False,
     )
+
+
+def load_node_settings(path: str | Path) -> ZenohSettings:
+    """A node's ``[zenoh]`` table from the TOML file ``guidebelt certs`` wrote for it, with
+    ``GUIDEBELT_ZENOH__…`` environment variables over it as for the daemon: a unit passes its
+    private key from systemd's credentials this way (``%d``), the file need not know where."""
+    from pydantic_settings import (
+        BaseSettings,
+        PydanticBaseSettingsSource,
+        SettingsConfigDict,
+        TomlConfigSettingsSource,
+    )
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"zenoh config {path} not found")
+
+    class NodeConfig(BaseSettings):
+        model_config = SettingsConfigDict(
+            env_prefix="GUIDEBELT_", env_nested_delimiter="__", extra="ignore", toml_file=path
+        )
+        zenoh: ZenohSettings
+
+        @classmethod
+        def settings_customise_sources(
+            cls,
+            settings_cls: type[BaseSettings],
+            init_settings: PydanticBaseSettingsSource,
+            env_settings: PydanticBaseSettingsSource,
+            **_: PydanticBaseSettingsSource,
+        ) -> tuple[PydanticBaseSettingsSource, ...]:
+            return (init_settings, env_settings, TomlConfigSettingsSource(settings_cls))
+
+    return NodeConfig().zenoh

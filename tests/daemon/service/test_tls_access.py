@@ -24,6 +24,7 @@ from protocol import codec  # noqa: E402
 from protocol import session as wire  # noqa: E402
 from protocol import topics as T  # noqa: E402
 from protocol.certificates import issue, make_ca  # noqa: E402
+from protocol.deployment import certify  # noqa: E402
 from protocol.messages import (  # noqa: E402
     BeltPattern,
     Goal,
@@ -34,7 +35,7 @@ from protocol.messages import (  # noqa: E402
     PatternKind,
     UserSettings,
 )
-from protocol.settings import AccessSettings, TlsSettings, ZenohSettings  # noqa: E402
+from protocol.settings import TlsSettings, ZenohSettings, load_node_settings  # noqa: E402
 from protocol.topics import Role  # noqa: E402
 
 USERS = ("ann", "bob")
@@ -42,25 +43,13 @@ USERS = ("ann", "bob")
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory):
-    """The deployment's CA and every node's certificate, once for the module; and a stranger's
-    CA with a certificate that also says ``user:ann``."""
+    """What ``guidebelt certs --user ann --user bob --service mapper`` writes, once for the
+    module; and a stranger's CA with a certificate that also says ``user:ann``."""
     root = tmp_path_factory.mktemp("tls")
-    ca = make_ca(root)
-    names = ["daemon", *(f"{r}:{u}" for u in USERS for r in ("user", "belt")), "mapper"]
-    pairs = {cn: issue(ca, cn, root, cn.replace(":", "-")) for cn in names}
+    nodes = {n.common_name: n for n in certify(root, list(USERS), [Role.MAPPER])}
     stranger_ca = make_ca(root / "stranger")
-    pairs["forged:user:ann"] = issue(stranger_ca, "user:ann", root / "stranger", "user-ann")
-    return ca, pairs
-
-
-def tls_of(certs, cn: str) -> TlsSettings:
-    ca, pairs = certs
-    pair = pairs[cn]
-    return TlsSettings(
-        root_ca=str(ca.certificate),
-        certificate=str(pair.certificate),
-        private_key=str(pair.private_key),
-    )
+    forged = issue(stranger_ca, "user:ann", root / "stranger", "user-ann")
+    return root, nodes, forged
 
 
 @pytest.fixture(scope="module")
@@ -69,24 +58,25 @@ def daemon(certs):
     from tests.conftest import warm_up
 
     warm_up()
+    _, nodes, _ = certs
+    written = load_node_settings(nodes["daemon"].toml)  # the [zenoh] table for guidebelt.toml
+    assert written.access is not None and written.access.users == list(USERS)
 
     def on(port: int) -> ZenohSettings:
-        return ZenohSettings(
-            listen=[f"tls/127.0.0.1:{port}"],
-            tls=tls_of(certs, "daemon"),
-            access=AccessSettings(users=list(USERS), services=[Role.MAPPER]),
-        )
+        return written.model_copy(update={"listen": [f"tls/127.0.0.1:{port}"]})
 
     with DaemonThread(zenoh_on=on, backend="cpu", snapshot_timeout_s=0.5) as d:
         yield d
 
 
+def as_client(settings: ZenohSettings, port: int) -> ZenohSettings:
+    # A client of the daemon, so the daemon routes between the nodes (see the module's doc).
+    return settings.model_copy(update={"mode": "client", "connect": [f"tls/127.0.0.1:{port}"]})
+
+
 def open_as(certs, daemon, cn: str) -> zenoh.Session:
-    return wire.open_session(
-        ZenohSettings(
-            mode="client", connect=[f"tls/127.0.0.1:{daemon.port}"], tls=tls_of(certs, cn)
-        )
-    )
+    _, nodes, _ = certs
+    return wire.open_session(as_client(load_node_settings(nodes[cn].toml), daemon.port))
 
 
 @pytest.fixture
@@ -136,16 +126,23 @@ def delta(seq: int) -> bytes:
 
 @pytest.mark.timeout(60)
 def test_a_peer_without_a_deployment_certificate_cannot_connect(certs, daemon):
-    ca, _ = certs
+    root, nodes, forged = certs
     port = daemon.port
+    stranger = nodes["user:ann"].settings.model_copy(
+        update={
+            "tls": TlsSettings(
+                root_ca=str(root / "ca.pem"),
+                certificate=str(forged.certificate),
+                private_key=str(forged.private_key),
+            )
+        }
+    )
     attempts = {
         "plain tcp to the TLS port": ZenohSettings(
             mode="client", connect=[f"tcp/127.0.0.1:{port}"]
         ),
         "TLS without a certificate": None,
-        "a certificate from another CA": ZenohSettings(
-            mode="client", connect=[f"tls/127.0.0.1:{port}"], tls=tls_of(certs, "forged:user:ann")
-        ),
+        "a certificate from another CA": as_client(stranger, port),
     }
     for what, settings in attempts.items():
         if settings is None:
@@ -159,7 +156,7 @@ def test_a_peer_without_a_deployment_certificate_cannot_connect(certs, daemon):
                         "connect": {"endpoints": [f"tls/127.0.0.1:{port}"]},
                         "scouting": {"multicast": {"enabled": False}},
                         "transport": {
-                            "link": {"tls": {"root_ca_certificate": str(ca.certificate)}}
+                            "link": {"tls": {"root_ca_certificate": str(root / "ca.pem")}}
                         },
                     }
                 )
@@ -269,3 +266,34 @@ def test_ann_cannot_answer_snapshot_queries_nor_write_maps(sessions):
     assert "ann" not in asked["mapper"], "ann's deltas reached the daemon"
     for q in queryables:
         q.undeclare()
+
+
+# -- what the daemon says at start --------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "zenoh_table, level, said",
+    [
+        ({"listen": ["tcp/127.0.0.1:7447"]}, "INFO", "no TLS: loopback only"),
+        ({}, "INFO", "no TLS: loopback only"),
+        ({"listen": ["tcp/0.0.0.0:7447"]}, "WARNING", "no TLS and endpoints beyond this host"),
+        ({"connect": ["tcp/192.168.1.10:7447"]}, "WARNING", "no TLS and endpoints beyond"),
+        ("tls", "WARNING", "mutual TLS without access control"),
+        ("tls+access", "INFO", "mutual TLS, access control by certificate name"),
+    ],
+)
+def test_the_daemon_says_at_start_who_may_connect(certs, caplog, zenoh_table, level, said):
+    from daemon.service.config import DaemonConfig
+    from daemon.service.daemon import Daemon
+
+    _, nodes, _ = certs
+    if zenoh_table == "tls+access":
+        settings = nodes["daemon"].settings
+    elif zenoh_table == "tls":
+        settings = nodes["daemon"].settings.model_copy(update={"access": None})
+    else:
+        settings = ZenohSettings(**zenoh_table)
+    caplog.set_level("INFO", logger="guidebelt.daemon")
+    Daemon(DaemonConfig(backend="cpu", zenoh=settings))._say_who_may_connect()
+    lines = [(r.levelname, r.getMessage()) for r in caplog.records]
+    assert len(lines) == 1 and lines[0][0] == level and lines[0][1].startswith(said), lines
