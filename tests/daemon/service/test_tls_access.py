@@ -297,3 +297,24 @@ def test_the_daemon_says_at_start_who_may_connect(certs, caplog, zenoh_table, le
     Daemon(DaemonConfig(backend="cpu", zenoh=settings))._say_who_may_connect()
     lines = [(r.levelname, r.getMessage()) for r in caplog.records]
     assert len(lines) == 1 and lines[0][0] == level and lines[0][1].startswith(said), lines
+
+
+@pytest.mark.timeout(60)
+def test_the_command_line_joins_with_the_table_certs_wrote(certs, daemon):
+    """``guidebelt goal --zenoh-config user-ann.toml`` reaches ann's session over TLS, and a
+    config naming a missing certificate is one line and exit 2."""
+    from typer.testing import CliRunner
+
+    from cli.app import app
+
+    _, nodes, _ = certs
+    endpoint = f"tls/127.0.0.1:{daemon.port}"
+    table = str(nodes["user:ann"].toml)
+    args = ["goal", "ann", "4", "4", "--cell", "--wait", "1", "--zenoh-config", table]
+    run = CliRunner().invoke(app, [*args, "--connect", endpoint])
+    assert "goal sent to ann" in run.output, run.output
+    assert len(run.output.strip().splitlines()) >= 2, "no status came back"
+    broken = nodes["user:ann"].toml.with_name("broken.toml")
+    broken.write_text(nodes["user:ann"].toml.read_text().replace("user-ann.key", "gone.key"))
+    run = CliRunner().invoke(app, ["goal", "ann", "4", "4", "--zenoh-config", str(broken)])
+    assert run.exit_code == 2 and "gone.key not found" in run.output, run.output
