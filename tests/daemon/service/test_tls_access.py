@@ -10,6 +10,7 @@ is what its rules refused, not a quirk of peer-to-peer routing.
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import numpy as np
@@ -43,10 +44,10 @@ USERS = ("ann", "bob")
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory):
-    """What ``guidebelt certs --user ann --user bob --service mapper`` writes, once for the
-    module; and a stranger's CA with a certificate that also says ``user:ann``."""
+    """What ``guidebelt certs --user ann --user bob --service mapper --service sim`` writes,
+    once for the module; and a stranger's CA with a certificate that also says ``user:ann``."""
     root = tmp_path_factory.mktemp("tls")
-    nodes = {n.common_name: n for n in certify(root, list(USERS), [Role.MAPPER])}
+    nodes = {n.common_name: n for n in certify(root, list(USERS), [Role.MAPPER, Role.SIM])}
     stranger_ca = make_ca(root / "stranger")
     forged = issue(stranger_ca, "user:ann", root / "stranger", "user-ann")
     return root, nodes, forged
@@ -65,7 +66,8 @@ def daemon(certs):
     def on(port: int) -> ZenohSettings:
         return written.model_copy(update={"listen": [f"tls/127.0.0.1:{port}"]})
 
-    with DaemonThread(zenoh_on=on, backend="cpu", snapshot_timeout_s=0.5) as d:
+    # cell_m: the 50-cell courtyard of the walk below is 10 m wide.
+    with DaemonThread(zenoh_on=on, backend="cpu", snapshot_timeout_s=0.5, cell_m=0.2) as d:
         yield d
 
 
@@ -266,6 +268,41 @@ def test_ann_cannot_answer_snapshot_queries_nor_write_maps(sessions):
     assert "ann" not in asked["mapper"], "ann's deltas reached the daemon"
     for q in queryables:
         q.undeclare()
+
+
+# -- what the rules let through ------------------------------------------------------------
+
+
+@pytest.mark.timeout(120)
+def test_guidance_works_end_to_end_under_the_rules(sessions):
+    """The legitimate flow, every hop through the access rules: the simulator (mapper,
+    localiser and walker) walks ann to her goal, set from her phone; her belt driver finds
+    the daemon's liveliness token and its settings query answered."""
+    from sim.courtyard import make_courtyard
+    from sim.node import SimNode
+
+    ann, sim, belt = sessions("user:ann"), sessions("sim"), sessions("belt:ann")
+    assert any(r.ok is not None for r in wire.alive(belt, T.ALIVE))
+    scenario = make_courtyard(50, 0.2, seed=3)
+    assert scenario.cell_m == 0.2  # the daemon fixture's cell
+    node = SimNode(sim, "ann", scenario)
+    result: dict = {}
+    stop = threading.Event()
+    walker = threading.Thread(target=lambda: result.setdefault("r", node.run(stop, 10**4, 60)))
+    walker.start()
+    try:
+        time.sleep(0.3)  # the map and the first poses before the goal
+        wire.put(ann, T.GOAL, "ann", goal_at(*scenario.goal))
+        walker.join(70)
+    finally:
+        stop.set()
+        walker.join(5)
+        node.close()
+    assert not walker.is_alive()
+    assert result["r"].arrived, result["r"].reason
+    # ann is a user of the daemon now: her belt driver's start-up query is answered.
+    settings = [r.ok for r in wire.get(belt, T.SETTINGS_QUERY, "ann") if r.ok is not None]
+    assert codec.decode(UserSettings, settings[0].payload.to_bytes()).intensity is not None
 
 
 # -- what the daemon says at start --------------------------------------------------------
