@@ -9,6 +9,7 @@ is what its rules refused, not a quirk of peer-to-peer routing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 import time
@@ -24,7 +25,7 @@ from zenoh.handlers import Callback  # noqa: E402
 from protocol import codec  # noqa: E402
 from protocol import session as wire  # noqa: E402
 from protocol import topics as T  # noqa: E402
-from protocol.certificates import issue, make_ca  # noqa: E402
+from protocol.certificates import issue, load_ca, make_ca  # noqa: E402
 from protocol.deployment import certify  # noqa: E402
 from protocol.messages import (  # noqa: E402
     BeltPattern,
@@ -50,6 +51,14 @@ def certs(tmp_path_factory):
     nodes = {n.common_name: n for n in certify(root, list(USERS), [Role.MAPPER, Role.SIM])}
     stranger_ca = make_ca(root / "stranger")
     forged = issue(stranger_ca, "user:ann", root / "stranger", "user-ann")
+    # Signed by the deployment's CA, but for a user the daemon's [zenoh.access] does not list:
+    # her table is ann's with carol's certificate.
+    unlisted = issue(load_ca(root), "user:carol", root, "user-carol")
+    carol = root / "user-carol.toml"
+    carol.write_text(nodes["user:ann"].toml.read_text().replace("user-ann.", "user-carol."))
+    nodes["user:carol"] = dataclasses.replace(
+        nodes["user:ann"], common_name="user:carol", pair=unlisted, toml=carol
+    )
     return root, nodes, forged
 
 
@@ -169,6 +178,22 @@ def test_a_peer_without_a_deployment_certificate_cannot_connect(certs, daemon):
         with pytest.raises(zenoh.ZError):
             opener().close()
         assert daemon.daemon.runners == {} or "ann" not in daemon.daemon.runners, what
+
+
+@pytest.mark.timeout(60)
+def test_a_certified_node_the_daemon_does_not_list_may_do_nothing(sessions, daemon):
+    """carol's certificate is the deployment's, but she is not in [zenoh.access]: she may
+    connect, and every message she sends is refused (no junk users in the daemon's table)."""
+    carol = sessions("user:carol")
+    status = Inbox(NavStatus)
+    sub = wire.declare_subscriber(carol, T.STATUS, Callback(status), "carol")
+    time.sleep(0.3)
+    wire.put(carol, T.GOAL, "carol", goal_at(5, 5))
+    wire.put(carol, T.POSE, "carol", b"junk")
+    time.sleep(0.5)
+    assert "carol" not in daemon.daemon.runners and status.got == []
+    assert [r for r in wire.alive(carol, T.ALIVE, timeout=0.5) if r.ok is not None] == []
+    sub.undeclare()
 
 
 # -- what a certified user may do ----------------------------------------------------------
