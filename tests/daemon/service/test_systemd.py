@@ -148,3 +148,16 @@ def test_every_unit_joins_with_its_own_certificate(unit):
     assert stem == Identity(role, "alice").stem.replace("alice", "%i")
     assert f"--zenoh-config /etc/guidebelt/tls/{stem}.toml" in text
     assert "--connect tcp/" not in text
+
+
+def test_the_units_credential_path_replaces_the_files_key_only(monkeypatch):
+    """What the units' Environment= line does: the key from systemd's credentials folder,
+    every other TLS setting still from the file (daemon and drivers alike)."""
+    from protocol.settings import load_node_settings
+
+    monkeypatch.setenv("GUIDEBELT_ZENOH__TLS__PRIVATE_KEY", "/run/credentials/x/daemon.key")
+    tls = load_config(ROOT / "systemd" / "guidebelt.toml").zenoh.tls
+    assert tls.private_key == "/run/credentials/x/daemon.key"
+    assert tls.root_ca == "/etc/guidebelt/tls/ca.pem"
+    node = load_node_settings(ROOT / "systemd" / "guidebelt.toml")
+    assert node.tls.private_key == "/run/credentials/x/daemon.key" and node.access is not None
