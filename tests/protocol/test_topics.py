@@ -107,7 +107,7 @@ def test_schema_command_writes_one_schema_per_topic_message(tmp_path):
     assert delta["x-wire"]["max_count"] == MAX_DELTA_CELLS
     assert delta["x-topics"] == [
         {"key": "guidebelt/*/map/delta", "kind": "publish/subscribe", "from": "mapper / sim",
-         "to": "daemon"}
+         "to": "daemon", "may_send": ["mapper", "sim"], "may_receive": ["daemon"]}
     ]  # fmt: skip
     pose = json.loads((tmp_path / "Pose.schema.json").read_text())
     assert set(pose["required"]) == {"x", "y", "heading", "stamp"}
