@@ -23,7 +23,7 @@ def belt(
     ] = None,
     multicast: Annotated[
         bool, typer.Option("--multicast/--no-multicast", help="Zenoh multicast scouting.")
-    ] = True,
+    ] = False,
     log_level: Annotated[str, typer.Option(help="DEBUG, INFO, WARNING or ERROR.")] = "INFO",
     zenoh_config: ZenohConfig = None,
 ) -> None:

@@ -38,6 +38,8 @@ def node_settings(
     from protocol.settings import ZenohSettings, load_node_settings
 
     if zenoh_config is None:
+        if not (connect or listen or scout):
+            connect = [DEFAULT_ENDPOINT]  # no way named to meet the daemon: its default one
         return ZenohSettings(connect=connect or [], listen=listen or [], multicast_scouting=scout)
     try:
         settings = load_node_settings(zenoh_config)
@@ -59,7 +61,4 @@ def open_peer(connect: list[str] | None, scout: bool, zenoh_config: Path | None 
     """A session with the daemon (-> zenoh.Session, imported lazily)."""
     from protocol.session import open_session
 
-    if zenoh_config is not None:
-        return open_session(node_settings(zenoh_config, connect))
-    endpoints = connect if connect else ([] if scout else [DEFAULT_ENDPOINT])
-    return open_session(node_settings(None, endpoints, scout=scout))
+    return open_session(node_settings(zenoh_config, connect, scout=scout))

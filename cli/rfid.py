@@ -98,7 +98,7 @@ def rfid(
     rate: Annotated[float, typer.Option(min=10.0, help="Poses per second.")] = 20.0,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh listen endpoint.")] = None,
     connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to join.")] = None,
-    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = True,
+    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = False,
     mock: Annotated[bool, typer.Option(help="A mock reader on a pty walks the sim.")] = False,
     duration: Annotated[float, typer.Option(help="Stop after this many s (0: never).")] = 0.0,
     zenoh_config: ZenohConfig = None,

@@ -23,7 +23,7 @@ def voice(
         list[str] | None, typer.Option(help="Zenoh endpoint to join, e.g. tcp/127.0.0.1:7447.")
     ] = None,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
-    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = True,
+    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = False,
     wav_dir: Annotated[
         Path | None, typer.Option(help="Write one WAV per cue here instead of playing it.")
     ] = None,
