@@ -138,7 +138,10 @@ class ZenohSettings(BaseModel):
                         "connect_private_key": key,
                         "verify_name_on_connect": True,
                     },
-                }
+                },
+                # Large payloads would otherwise travel through shared-memory segments
+                # beside the TLS link, outside what the certificates protect.
+                "shared_memory": {"enabled": False},
             }
         if self.access is not None:
             config["access_control"] = self.access.config()

@@ -100,3 +100,25 @@ def test_certificates_are_signed_by_the_ca_and_keys_private(tmp_path):
     assert [str(a) for a in san.get_values_for_type(x509.IPAddress)] == ["10.0.0.2"]
     for key in (ca.private_key, pair.private_key):
         assert stat.S_IMODE(key.stat().st_mode) == 0o600
+
+
+def test_a_tls_node_speaks_only_tls_with_its_certificate_and_no_shared_memory():
+    import json
+
+    from protocol.settings import TlsSettings, ZenohSettings
+
+    tls = TlsSettings(root_ca="/t/ca.pem", certificate="/t/n.pem", private_key="/t/n.key")
+    config = json.loads(ZenohSettings(connect=["tls/127.0.0.1:7447"], tls=tls).to_json5())
+    link = config["transport"]["link"]
+    assert link["protocols"] == ["tls"]
+    assert link["tls"]["enable_mtls"] is True and link["tls"]["verify_name_on_connect"] is True
+    assert link["tls"]["connect_private_key"] == "/t/n.key"
+    assert config["transport"]["shared_memory"]["enabled"] is False
+    assert config["scouting"]["multicast"]["enabled"] is False and "access_control" not in config
+    for bad in (
+        {"listen": ["tcp/127.0.0.1:7447"], "tls": tls},
+        {"connect": ["tls/h:1"], "tls": tls, "multicast_scouting": True},
+        {"connect": ["tcp/h:1"], "access": {"users": ["ann"]}},
+    ):
+        with pytest.raises(ValueError):
+            ZenohSettings(**bad)
