@@ -65,7 +65,7 @@ def certs(tmp_path_factory):
 @pytest.fixture(scope="module")
 def daemon(certs):
     from daemon.service.embedded import DaemonThread
-    from tests.conftest import warm_up
+    from tests.conftest import daemon_threads, warm_up
 
     warm_up()
     _, nodes, _ = certs
@@ -78,6 +78,10 @@ def daemon(certs):
     # cell_m: the 50-cell courtyard of the walk below is 10 m wide.
     with DaemonThread(zenoh_on=on, backend="cpu", snapshot_timeout_s=0.5, cell_m=0.2) as d:
         yield d
+    deadline = time.monotonic() + 3.0  # no leaks: the loop and every user's worker are gone
+    while daemon_threads() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not daemon_threads(), daemon_threads()
 
 
 def as_client(settings: ZenohSettings, port: int) -> ZenohSettings:
