@@ -40,12 +40,12 @@ from protocol.messages import (  # noqa: E402
 from protocol.settings import TlsSettings, ZenohSettings, load_node_settings  # noqa: E402
 from protocol.topics import Role  # noqa: E402
 
-USERS = ("ann", "bob")
+USERS = ("ann", "bob", "dan")
 
 
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory):
-    """What ``guidebelt certs --user ann --user bob --service mapper --service sim`` writes,
+    """What ``guidebelt certs`` writes for ann, bob and dan with the mapper and sim services,
     once for the module; and a stranger's CA with a certificate that also says ``user:ann``."""
     root = tmp_path_factory.mktemp("tls")
     nodes = {n.common_name: n for n in certify(root, list(USERS), [Role.MAPPER, Role.SIM])}
@@ -204,36 +204,37 @@ def test_a_certified_node_the_daemon_does_not_list_may_do_nothing(sessions, daem
 
 
 @pytest.mark.timeout(90)
-def test_ann_reaches_her_own_session_and_not_bobs(sessions, daemon):
-    ann, bob = sessions("user:ann"), sessions("user:bob")
-    ann_status, bob_status, ann_spying = (
+def test_ann_reaches_her_own_session_and_not_anothers(sessions, daemon):
+    """dan is no other test's victim: that the daemon never heard of him is this test's."""
+    ann, dan = sessions("user:ann"), sessions("user:dan")
+    ann_status, dan_status, ann_spying = (
         Inbox(NavStatus), Inbox(NavStatus), Inbox(NavStatus),
     )  # fmt: skip
     subs = [
         wire.declare_subscriber(ann, T.STATUS, Callback(ann_status), "ann"),
-        wire.declare_subscriber(bob, T.STATUS, Callback(bob_status), "bob"),
-        # Ann listens for every user's status, and for bob's by name: neither is granted.
+        wire.declare_subscriber(dan, T.STATUS, Callback(dan_status), "dan"),
+        # Ann listens for every user's status, and for dan's by name: neither is granted.
         wire.declare_subscriber(ann, T.STATUS, Callback(ann_spying), None),
-        wire.declare_subscriber(ann, T.STATUS, Callback(ann_spying), "bob"),
+        wire.declare_subscriber(ann, T.STATUS, Callback(ann_spying), "dan"),
     ]
     time.sleep(0.3)
-    wire.put(ann, T.GOAL, "bob", goal_at(5, 5))  # bob's goal, from ann's phone
-    wire.put(ann, T.SETTINGS_SET, "bob", codec.encode(UserSettings(intensity=1, stamp=time.time())))
+    wire.put(ann, T.GOAL, "dan", goal_at(5, 5))  # dan's goal, from ann's phone
+    wire.put(ann, T.SETTINGS_SET, "dan", codec.encode(UserSettings(intensity=1, stamp=time.time())))
     wire.put(ann, T.GOAL, "ann", goal_at(5, 5))  # her own: arrives
     assert ann_status.wait(), "ann's own goal never reached the daemon"
-    time.sleep(0.5)  # room for bob's forged goal to have arrived, had it been let through
-    assert "bob" not in daemon.daemon.runners, "the daemon saw a goal for bob from ann"
-    assert bob_status.got == []
-    # Ann's wildcard subscription hears her own status only; her subscription to bob's none.
+    time.sleep(0.5)  # room for dan's forged goal to have arrived, had it been let through
+    assert "dan" not in daemon.daemon.runners, "the daemon saw a goal for dan from ann"
+    assert dan_status.got == []
+    # Ann's wildcard subscription hears her own status only; her subscription to dan's none.
     assert ann_spying.got == [s for s in ann_spying.got if s in ann_status.got]
     # Bob's own goal still arrives, and ann hears nothing of it.
     heard_by_ann = len(ann_spying.got)
-    wire.put(bob, T.GOAL, "bob", goal_at(5, 5))
-    assert bob_status.wait()
+    wire.put(dan, T.GOAL, "dan", goal_at(5, 5))
+    assert dan_status.wait()
     time.sleep(0.3)
     assert len(ann_spying.got) == heard_by_ann
-    replies = list(wire.get(ann, T.STATUS_QUERY, "bob", timeout=1.0))
-    assert [r for r in replies if r.ok is not None] == [], "ann read bob's status by query"
+    replies = list(wire.get(ann, T.STATUS_QUERY, "dan", timeout=1.0))
+    assert [r for r in replies if r.ok is not None] == [], "ann read dan's status by query"
     for s in subs:
         s.undeclare()
 
