@@ -122,3 +122,10 @@ def test_a_tls_node_speaks_only_tls_with_its_certificate_and_no_shared_memory():
     ):
         with pytest.raises(ValueError):
             ZenohSettings(**bad)
+
+
+def test_every_row_of_the_table_names_who_may_send_and_receive():
+    """A topic added without roles would be silently unreachable under the access rules."""
+    for topic in T.TOPICS:
+        assert topic.writers and topic.readers, topic.name
+        assert not (topic.writers & topic.readers), topic.name
