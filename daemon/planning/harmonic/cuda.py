@@ -27,7 +27,9 @@ THREADS = 256
 
 @functools.cache
 def _module(real: str) -> cp.RawModule:
-    return cp.RawModule(code=SOURCE.read_text(), options=("--std=c++17", f"-DREAL={real}"),
+    eps = "1.1920929e-7f" if real == "float" else "2.220446049250313e-16"
+    return cp.RawModule(code=SOURCE.read_text(),
+                        options=("--std=c++17", f"-DREAL={real}", f"-DREAL_EPS={eps}"),
                         enable_cooperative_groups=True)  # fmt: skip
 
 
@@ -87,17 +89,16 @@ class CudaField:
         self.idx_view = np.frombuffer(self.idx_host, dtype=np.int8, count=w0.size)
         self.buf = np.empty(w0.size, dtype=np.int64)
         self.kernel = _module(self.real).get_function("harmonic_relax")
-        self.scatter = _module(self.real).get_function("harmonic_set")
         self.blocks = _blocks(self.real)
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         if cells.size == 0:
             return
+        # Plain cupy scatters: every function of the cooperative module launches
+        # cooperatively, and cupy trims such a grid to the resident blocks.
         dev = cp.asarray(np.ascontiguousarray(cells, dtype=np.int64))
-        grid = (cells.size + THREADS - 1) // THREADS
-        self.scatter((grid,), (THREADS,), (self.w, self.fixed, dev, np.int32(cells.size),
-                                           self.dtype.type(min(w, rx.BLOCKED_W)),
-                                           np.uint8(fixed)))  # fmt: skip
+        self.w[dev] = self.dtype.type(min(w, rx.BLOCKED_W))
+        self.fixed[dev] = np.uint8(fixed)
 
     def relax(self, sweeps: int, tol: float) -> tuple[int, float]:
         self.worst.fill(0)

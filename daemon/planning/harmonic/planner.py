@@ -13,8 +13,8 @@ Contract (not a cost-to-go: the field is not a distance, and its paths are not s
 - convergence: the field is relaxed until the residual, the largest change a sweep would
   make to any reachable cell's ``w`` (log units, i.e. the relative change of ``1 − u``), is
   below ``tol`` (1e-4), checked every 5 sweeps. If a descent still stops short from a
-  reachable cell, the planner relaxes with a 100 times tighter tolerance and tries once more,
-  and counts it in ``retries``.
+  reachable cell, the planner relaxes with a 10 times tighter tolerance (at most 2000
+  sweeps) and tries once more, and counts it in ``retries``.
 - ``cost_at(cell)`` is the 10/14 cost of ``path(cell)`` (INF if none), as for ``visgraph``;
   ``costs_within`` the same over a window (the escape from the margin reads it).
 
@@ -44,6 +44,7 @@ INIT_SLOPE = 0.05
 """``w`` per 8-connected step of the ``distance`` first guess."""
 COLD_SWEEPS = 400_000
 WARM_SWEEPS = 20_000
+RETRY_SWEEPS = 2_000
 _EMPTY = np.empty((0, 2), dtype=np.int32)
 
 
@@ -145,7 +146,7 @@ class HarmonicPlanner(GlobalPlanner):
         if flat is None and self.reach.reach[s]:
             # A shallow spot the tolerance left: relax further, once, then read again.
             self.retries += 1
-            self.engine.relax(WARM_SWEEPS, self.tol / 100)
+            self.engine.relax(RETRY_SWEEPS, self.tol / 10)
             flat = self.engine.descend(s)
         if flat is None:
             path = _EMPTY

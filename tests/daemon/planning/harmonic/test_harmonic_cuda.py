@@ -69,7 +69,7 @@ def test_cuda_warm_replans_equal_cold_plans(maps):
 
 
 def test_cuda_has_no_plateau_on_the_serpentine(maps):
-    blocked, start, goal = maps.serpentine(96)
+    blocked, start, goal = maps.serpentine(64)
     gpu = make_planner("harmonic", "cuda")
     gpu.plan(blocked, goal)
     assert gpu.field()[start] > 40
