@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "cli.settings",
     "cli.sim",
     "cli.schema",
+    "cli.load",
 ]
 
 for _name in COMMAND_MODULES:
