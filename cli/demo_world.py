@@ -36,15 +36,8 @@ def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
 
 
 def run_with_daemon(
-    grid: int,
-    unknown: float,
-    seed: int,
-    backend: str,
-    follow: str,
-    out: Path,
-    belt_kind: str = "none",
-    pace_s: float = 0.0,
-    planner: str = "eds",
+    grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
+    belt_kind: str = "none", pace_s: float = 0.0, planner: str = "eds",
 ) -> bool:
     """One user guided across the courtyard by the real daemon; True when they arrived.
 

@@ -39,15 +39,9 @@ def rfid_eval(
             tag_map = tags_for(scenario, layout, seed)
             for w, offset in enumerate(offsets):
                 for method in METHODS:
-                    res = evaluate(
-                        tag_map,
-                        route,
-                        method=method,
-                        lf_layout=layout,
-                        seed=seed * 1000 + w,
-                        speed_mps=speed,
-                        offset=(float(offset[0]), float(offset[1])),
-                    )
+                    res = evaluate(tag_map, route, method=method, lf_layout=layout,
+                                   seed=seed * 1000 + w, speed_mps=speed,
+                                   offset=(float(offset[0]), float(offset[1])))
                     pooled.setdefault((method, layout), []).append(res)
     rows = []
     for (method, layout), results in pooled.items():
@@ -55,32 +49,24 @@ def rfid_eval(
         n = max(1, errors.size)
         lf = sum(r.lf_fraction * r.errors.size for r in results) / n
         held = sum(r.held_fraction * r.errors.size for r in results) / n
-        rows.append(
-            {
-                "method": method,
-                "lf_tags": layout != "none",
-                "lf_layout": layout,
-                "median_m": round(float(np.median(errors)), 3),
-                "p95_m": round(float(np.percentile(errors, 95)), 3),
-                "samples": int(errors.size),
-                "lf_fraction": round(float(lf), 3),
-                "held_fraction": round(float(held), 3),
-            }
-        )
+        rows.append({
+            "method": method,
+            "lf_tags": layout != "none",
+            "lf_layout": layout,
+            "median_m": round(float(np.median(errors)), 3),
+            "p95_m": round(float(np.percentile(errors, 95)), 3),
+            "samples": int(errors.size),
+            "lf_fraction": round(float(lf), 3),
+            "held_fraction": round(float(held), 3),
+        })
     title = f"RFID position error, {seeds} courtyards x {walks} walks at {speed} m/s"
     table = Table(title=title)
     for col in ("method", "LF tags", "median m", "p95 m", "samples", "LF read", "LF held"):
         table.add_column(col)
     for r in rows:
-        table.add_row(
-            r["method"],
-            r["lf_layout"],
-            f"{r['median_m']:.3f}",
-            f"{r['p95_m']:.3f}",
-            str(r["samples"]),
-            f"{r['lf_fraction'] - r['held_fraction']:.0%}",
-            f"{r['held_fraction']:.0%}",
-        )
+        table.add_row(r["method"], r["lf_layout"], f"{r['median_m']:.3f}", f"{r['p95_m']:.3f}",
+                      str(r["samples"]), f"{r['lf_fraction'] - r['held_fraction']:.0%}",
+                      f"{r['held_fraction']:.0%}")
     console.print(table)
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)

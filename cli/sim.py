@@ -46,7 +46,6 @@ def sim(
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     node = SimNode(session, user, scenario, walker=follow, step_period_s=step_period)
     if send_goal:
-
         def goal_later() -> None:
             if not stop.wait(0.5):
                 row, col = scenario.goal

@@ -53,9 +53,8 @@ def voice(
             driver = VoiceDriver(session, speaker, user=user, stale_s=stale_s)
             typer.echo(f"speaking cues from {driver.key}")
             await driver.run(stop)
-            typer.echo(
-                f"spoke {len(driver.said)} cues, cut {len(driver.cut)}, rejected {driver.rejected}"
-            )
+            typer.echo(f"spoke {len(driver.said)} cues, cut {len(driver.cut)}, "
+                       f"rejected {driver.rejected}")
 
     asyncio.run(main())
 

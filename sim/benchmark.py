@@ -147,42 +147,40 @@ def run_bench(
             series[(name, grid, unknown, mode)] = np.median(
                 np.stack([r.step_ms for r in runs]), axis=0
             )
-            rows.append(
-                {
-                    "scenario": name,
-                    "grid": grid,
-                    "unknown": unknown,
-                    "coverage": round(scenario.coverage, 4),
-                    "seed": config.seed,
-                    "backend": backend,
-                    "variant": config.variant,
-                    "mode": mode,
-                    "planner": first.planner,
-                    "steps": first.steps,
-                    "arrived": first.arrived,
-                    "capped": config.max_steps is not None and first.reason == "step limit",
-                    "max_steps": config.max_steps,
-                    "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
-                    "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
-                    "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
-                    **spread("ms", step_ms),
-                    "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
-                    **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
-                    "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
-                    "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
-                    "inflate_ms_median": float(
-                        np.median(np.concatenate([r.inflate_ms for r in runs]))
-                    ),
-                    "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
-                    "init_ms": float(np.median([r.init_ms for r in runs])),
-                    # A*'s open list (issue 22); -1 for a planner that keeps a field.
-                    "max_open": int(first.max_open.max(initial=-1)),
-                    "max_open_median": float(np.median(first.max_open)) if first.steps else -1.0,
-                    "repeats": config.repeats,
-                    "fov_deg": config.fov_deg,
-                    "device": device,
-                }
-            )
+            rows.append({
+                "scenario": name,
+                "grid": grid,
+                "unknown": unknown,
+                "coverage": round(scenario.coverage, 4),
+                "seed": config.seed,
+                "backend": backend,
+                "variant": config.variant,
+                "mode": mode,
+                "planner": first.planner,
+                "steps": first.steps,
+                "arrived": first.arrived,
+                "capped": config.max_steps is not None and first.reason == "step limit",
+                "max_steps": config.max_steps,
+                "iter_avg": float(first.iterations.mean()) if first.steps else 0.0,
+                "touched_avg": float(first.cells_touched.mean()) if first.steps else 0.0,
+                "ms_mean": float(np.mean(step_ms)) if step_ms.size else 0.0,
+                **spread("ms", step_ms),
+                "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
+                **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
+                "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
+                "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
+                "inflate_ms_median": float(
+                    np.median(np.concatenate([r.inflate_ms for r in runs]))
+                ),
+                "guide_ms_median": float(np.median(np.concatenate([r.guide_ms for r in runs]))),
+                "init_ms": float(np.median([r.init_ms for r in runs])),
+                # A*'s open list (issue 22); -1 for a planner that keeps a field.
+                "max_open": int(first.max_open.max(initial=-1)),
+                "max_open_median": float(np.median(first.max_open)) if first.steps else -1.0,
+                "repeats": config.repeats,
+                "fov_deg": config.fov_deg,
+                "device": device,
+            })
         if "eds" in walked and "dss" in walked:  # the same field: the same cells
             same = bool(np.array_equal(walked["eds"], walked["dss"]))
             for row in rows[-len(walked) :]:
@@ -288,13 +286,8 @@ def plot_steps(result: BenchResult, out: Path | str) -> Path:
             for mode in ("dss", "eds"):
                 ms = result.series.get((name, grid, unknown, mode))
                 if ms is not None and ms.size:
-                    ax.plot(
-                        np.arange(1, ms.size + 1),
-                        ms,
-                        color=colours[mode],
-                        linewidth=0.9,
-                        label=f"{mode.upper()} (median {np.median(ms):.3g} ms)",
-                    )
+                    ax.plot(np.arange(1, ms.size + 1), ms, color=colours[mode], linewidth=0.9,
+                            label=f"{mode.upper()} (median {np.median(ms):.3g} ms)")
             ax.set_yscale("log")
             ax.set_title(f"{name} {grid}x{grid}, {unknown:.0%} unknown", fontsize=9)
             ax.set_xlabel("step")

@@ -134,11 +134,8 @@ def bfs_path(blocked: np.ndarray, start: int, goal: int) -> np.ndarray:
 def connected(blocked: np.ndarray, start: Cell, goal: Cell) -> bool:
     """True when an 8-connected path of unblocked cells joins start and goal."""
     w = blocked.shape[1]
-    path = bfs_path(
-        np.ascontiguousarray(blocked, dtype=np.bool_),
-        start[0] * w + start[1],
-        goal[0] * w + goal[1],
-    )
+    path = bfs_path(np.ascontiguousarray(blocked, dtype=np.bool_), start[0] * w + start[1],
+                     goal[0] * w + goal[1])
     return path.size > 0
 
 

@@ -78,13 +78,11 @@ def render_walk(scenario: Scenario, result: WalkPicture, out: Path | str, dpi: i
     handles += [
         Line2D([], [], color=(0.1, 0.35, 0.9), linewidth=1.8, label="path walked"),
         Line2D([], [], marker="o", linestyle="", color=(0.1, 0.6, 0.2), label="start"),
-        Line2D(
-            [], [], marker="*", linestyle="", color=(0.85, 0.1, 0.1), markersize=10, label="goal"
-        ),
+        Line2D([], [], marker="*", linestyle="", color=(0.85, 0.1, 0.1), markersize=10,
+               label="goal"),
     ]
-    ax.legend(
-        handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False
-    )
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+              frameon=False)
     status = "arrived" if result.arrived else result.reason
     ax.set_title(
         f"{scenario.name} {w}x{h} ({scenario.cell_m * 100:.3g} cm), "

@@ -99,9 +99,8 @@ class RfidSimNode(SimNode):
             self.sim_t += dt / n
             uhf = self._rounds % self.uhf_every == 0
             self._rounds += 1
-            reads = self.model.round(
-                x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, self.sim_t, int(self.sim_t * 1000), uhf=uhf
-            )
+            reads = self.model.round(x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, self.sim_t,
+                                     int(self.sim_t * 1000), uhf=uhf)
             for r in reads:
                 read = self.filter.feed(format_read(r.tag_id, r.rssi, r.reader_ms), self.sim_t)
                 if read is not None:

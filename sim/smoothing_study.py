@@ -94,12 +94,8 @@ def plot_study(study: dict, out: Path) -> None:
             share = 100.0 * counts / max(1.0, counts.sum())
             nz = counts > 0  # log axis: empty bins are left empty, not drawn
             offset = (k - (len(forms) - 1) / 2) * width
-            ax.bar(
-                x[nz] + offset,
-                share[nz],
-                width=width,
-                label=f"{NAMES[form]} ({int(counts.sum())} vertices)",
-            )
+            ax.bar(x[nz] + offset, share[nz], width=width,
+                   label=f"{NAMES[form]} ({int(counts.sum())} vertices)")
         ax.set_yscale("log")
         ax.set_ylabel("% of vertices (log)")
         ax.set_title(title, fontsize=10)
@@ -108,10 +104,8 @@ def plot_study(study: dict, out: Path) -> None:
     axes[1].set_xlabel("turning angle at a vertex (degrees)")
     runs = study["rows"][0]["runs"] if study["rows"] else 0
     grids = sorted({r["grid"] for r in study["rows"]})
-    fig.suptitle(
-        f"Turning angles with and without smoothing ({runs} courtyards per grid and "
-        f"density, grids {grids})"
-    )
+    fig.suptitle(f"Turning angles with and without smoothing ({runs} courtyards per grid and "
+                 f"density, grids {grids})")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

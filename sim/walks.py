@@ -45,7 +45,6 @@ if TYPE_CHECKING:
     from daemon.guidance.guide import Guidance
     from daemon.navigation import NavigatorSettings
 
-
 @dataclass(frozen=True)
 class BeltWalk:
     arrived: bool
@@ -265,18 +264,8 @@ def run_table(
     try:
         for name, grid, unknown in [(n, g, u) for n in scenarios for g in grids for u in unknowns]:
             tasks = [
-                (
-                    name,
-                    grid,
-                    unknown,
-                    first_seed + i,
-                    backend,
-                    smooth,
-                    params,
-                    planner,
-                    follow,
-                    voice_params,
-                )
+                (name, grid, unknown, first_seed + i, backend, smooth, params, planner,
+                 follow, voice_params)
                 for i in range(runs)
             ]
             results = list(pool.map(_one, tasks) if pool else map(_one, tasks))

@@ -102,7 +102,9 @@ class Bridge:
                     )
         pub.put(payload)
 
-    def request(self, key: str, timeout_s: float, on_reply: Callable[[bytes | None], None]) -> None:
+    def request(
+        self, key: str, timeout_s: float, on_reply: Callable[[bytes | None], None]
+    ) -> None:
         """Ask ``key``'s queryable; ``on_reply(payload)`` runs on the loop with the first
         good reply, or with None if none came within ``timeout_s``."""
         loop = self._loop
