@@ -27,9 +27,6 @@ from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
 from protocol.messages import (
     Goal,
-    GoalCell,
-    GoalLandmark,
-    GoalMetres,
     MapSnapshot,
     NavState,
     NavStatus,
@@ -39,11 +36,13 @@ from protocol.messages import (
 )
 
 from .controls import BatteryPolicy, UserControls, Whereabouts
+from .goals import goal_cell
 from .inbox import Inbox, StepOutput
 from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .route import PlannerFactory, PlanReport, Route
+from .session_state import SessionState
 
 log = logging.getLogger("guidebelt.navigation")
 
@@ -125,7 +124,7 @@ class Navigator:
         """When the daemon received ``pose`` (its clock): staleness is judged on this."""
         self.pose_cell: Cell | None = None
         self._last_path_flat = np.empty(0, np.int64)
-        self.state = NavState.IDLE
+        self.session = SessionState()
         self.rejected_by_code: dict[str, int] = {}
         """Refused inputs by status code, for the daemon's health (``rejected``: their sum)."""
         self.log_limit = LogLimiter()
@@ -136,7 +135,6 @@ class Navigator:
         self._last_status_at = 0.0
         self._distance_m: float | None = None
         self._turn_xy: tuple[float, float] | None = None
-        self._held = False
         self._taken_at = 0.0
         self._shed = False
         self.controls = UserControls(
@@ -144,6 +142,10 @@ class Navigator:
             settings.intensity,
             settings.battery,
         )
+
+    @property
+    def state(self) -> NavState:
+        return self.session.state
 
     @property
     def rejected(self) -> int:
@@ -155,7 +157,7 @@ class Navigator:
     def step(self, inbox: Inbox, now: float) -> StepOutput:
         t0 = time.perf_counter()
         self.last = StepReport()
-        self._held = False  # a STOP or WAIT of this step is not undone by a GUIDE of this step
+        self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
         self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
         self._shed = inbox.overloaded
         out = StepOutput()
@@ -191,7 +193,7 @@ class Navigator:
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)
-            elif not self._held:
+            elif self.session.may_guide():
                 self._guide(now, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
@@ -244,30 +246,12 @@ class Navigator:
 
     def _resolve_goal(self, now: float, out: StepOutput) -> None:
         assert self.maps.map is not None and self.goal is not None
-        target, shape, cell_m = self.goal.target, self.maps.map.shape, self.settings.cell_m
-        if isinstance(target, GoalCell):
-            cell = (target.row, target.col)
-        elif isinstance(target, GoalMetres):
-            cell = xy_to_cell(shape, target.x, target.y, cell_m)
-        elif isinstance(target, GoalLandmark):
-            where = self.settings.landmarks.get(target.name)
-            if where is None:
-                why = f"no landmark {target.name!r}"
-                return self._drop_goal(StatusCode.UNKNOWN_LANDMARK, why, now, out)
-            cell = xy_to_cell(shape, where[0], where[1], cell_m)
-        if not in_bounds(shape, cell):
-            why = f"goal cell {cell} is outside {shape}"
-            return self._drop_goal(StatusCode.GOAL_OFF_MAP, why, now, out)
-        if self.maps.map.blocked[cell]:
-            what = "an obstacle" if self.maps.map.occupancy[cell] == 1 else "too close to one"
-            why = f"goal cell {cell} is {what}"
-            return self._drop_goal(StatusCode.GOAL_IN_OBSTACLE, why, now, out)
-        self.goal_cell = (int(cell[0]), int(cell[1]))
-
-    def _drop_goal(self, code: StatusCode, reason: str, now: float, out: StepOutput) -> None:
-        self.goal, self.goal_cell = None, None
-        self.route.invalidate()
-        self._reject(Rejection(code, reason), now, out)
+        where = goal_cell(self.goal, self.maps.map, self.settings.cell_m, self.settings.landmarks)
+        if isinstance(where, Rejection):
+            self.goal, self.goal_cell = None, None
+            self.route.invalidate()
+            return self._reject(where, now, out)
+        self.goal_cell = where
 
     def _take_pose(self, pose: Pose, received: float, now: float, out: StepOutput) -> None:
         self.pose, self.pose_cell = None, None
@@ -297,7 +281,7 @@ class Navigator:
     def _wait_for_map(self, now: float, out: StepOutput) -> None:
         """Deltas are missing: the map is out of date, so the belt keeps saying WAIT (and its
         pattern keeps being refreshed) until a snapshot brings the map back."""
-        if self._held:
+        if not self.session.may_guide():
             return  # this step said WAIT or STOP already
         g = self.guidance.event(PatternKind.WAIT, now, reason="map out of date")
         out.belt.append(g.pattern)
@@ -360,7 +344,8 @@ class Navigator:
 
     def _reject(self, rej: Rejection, now: float, out: StepOutput) -> None:
         outcome = OUTCOMES[rej.code]
-        self._held |= outcome.pattern in (PatternKind.STOP, PatternKind.WAIT)
+        if outcome.pattern in (PatternKind.STOP, PatternKind.WAIT):
+            self.session.hold()
         if rej.counted:
             self.rejected_by_code[rej.code] = self.rejected_by_code.get(rej.code, 0) + 1
         held = self.log_limit.allow(str(rej.code), time.monotonic())
@@ -388,11 +373,10 @@ class Navigator:
         out: StepOutput,
         force: bool = False,
     ) -> None:
+        self.session.move(state)  # raises on a move the session does not allow
         key = (state, code, reason)
         if not force and key == self._last_status and now - self._last_status_at < STATUS_REFRESH_S:
-            self.state = state
             return
-        self.state = state
         self._last_status = key
         self._last_status_at = now
         out.statuses.append(self.status(now, code=code, reason=reason))
