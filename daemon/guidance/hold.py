@@ -111,7 +111,8 @@ def _direction(path: np.ndarray, user_rc: np.ndarray, ahead_cells: float) -> flo
     ``ahead_cells`` further along the path; None for a path too short to say."""
     if len(path) < 2:
         return None
-    angle = _direction_kernel(np.ascontiguousarray(path), user_rc.astype(np.float64), ahead_cells)
+    rc = np.ascontiguousarray(path, dtype=np.int64)
+    angle = _direction_kernel(rc, np.asarray(user_rc, dtype=np.float64), float(ahead_cells))
     return None if math.isnan(angle) else angle
 
 
