@@ -281,9 +281,15 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
         gen = LoadGenerator(session, spec)
         time.sleep(0.3)  # subscriptions meet the daemon's publishers
         cpu0, t0 = cpu_seconds(daemon.pid), time.monotonic()
+        own0 = time.process_time()
         gen.run()
-        cores = (cpu_seconds(daemon.pid) - cpu0) / (time.monotonic() - t0)
-        return summarise(gen, {"daemon_cores": round(cores, 2)})
+        took = time.monotonic() - t0
+        cores = (cpu_seconds(daemon.pid) - cpu0) / took
+        extra = {
+            "daemon_cores": round(cores, 2),
+            "generator_cores": round((time.process_time() - own0) / took, 2),
+        }
+        return summarise(gen, extra)
     finally:
         if gen is not None:
             gen.close()

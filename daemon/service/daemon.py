@@ -179,6 +179,7 @@ class Daemon:
                 extra={"fields": {
                     "shed": ",".join(shed), "guided_again": ",".join(back),
                     "lag_p95_ms": round(self.admission.last_p95_ms, 1),
+                    "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
                     "overloaded_now": len(self.admission.shed),
                 }},
             )  # fmt: skip
