@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "cli.settings",
     "cli.sim",
     "cli.schema",
+    "cli.certs",
     "cli.load",
 ]
 

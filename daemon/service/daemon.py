@@ -88,6 +88,7 @@ class Daemon:
             ),
         )
         self._warm_up()
+        self._say_who_may_connect()
         self._zenoh = open_session(self.config.zenoh)
         self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
         self._bridge.start()
@@ -114,6 +115,27 @@ class Daemon:
             if install_signals:
                 for sig in (signal.SIGTERM, signal.SIGINT):
                     loop.remove_signal_handler(sig)
+
+    def _say_who_may_connect(self) -> None:
+        """One line at start on who can reach the daemon: the first thing to read when a
+        phone cannot connect, or when the daemon is exposed more than meant."""
+        z = self.config.zenoh
+        where = {"listen": ",".join(z.listen) or "-", "connect": ",".join(z.connect) or "-"}
+        if z.tls is None and z.loopback_only():
+            log.info("no TLS: loopback only", extra={"fields": where})
+        elif z.tls is None:
+            log.warning(
+                "no TLS and endpoints beyond this host: whoever reaches them can steer any user",
+                extra={"fields": where},
+            )
+        elif z.access is None:
+            log.warning(
+                "mutual TLS without access control: any certified node may steer any user",
+                extra={"fields": where},
+            )
+        else:
+            fields = {**where, "users": len(z.access.users), "services": len(z.access.services)}
+            log.info("mutual TLS, access control by certificate name", extra={"fields": fields})
 
     def _warm_up(self) -> None:
         """Compile (or load) the configured planner's code before READY, so the first user's
