@@ -35,6 +35,7 @@ COMMAND_MODULES = [
     "cli.sim",
     "cli.schema",
     "cli.certs",
+    "cli.load",
 ]
 
 for _name in COMMAND_MODULES:

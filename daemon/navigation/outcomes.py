@@ -40,6 +40,9 @@ OUTCOMES: dict[StatusCode, Outcome] = {
     StatusCode.SEQUENCE_GAP: Outcome(NavState.STALE, PatternKind.WAIT),
     # The daemon itself.
     StatusCode.TOO_MANY_USERS: Outcome(NavState.ERROR, PatternKind.STOP),
+    # The daemon cannot keep up with everyone: this user is not guided for now. Said as it
+    # is (not a stale pose, not an obstacle); the belt asks the user to wait.
+    StatusCode.OVERLOADED: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.INTERNAL: Outcome(NavState.ERROR, PatternKind.STOP),
     StatusCode.SHUTDOWN: Outcome(NavState.IDLE, PatternKind.STOP),
     # Nothing heard from the user for long.

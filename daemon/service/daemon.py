@@ -13,6 +13,7 @@ import contextlib
 import dataclasses
 import gc
 import logging
+import os
 import signal
 import threading
 import time
@@ -30,9 +31,10 @@ from protocol.messages import Health, NavState, NavStatus, StatusCode
 from protocol.session import open_session
 from protocol.topics import Topic
 
+from .admission import Admission, AdmissionSettings
 from .bridge import Bridge
 from .config import DaemonConfig
-from .runner import UserRunner
+from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
 
@@ -61,6 +63,12 @@ class Daemon:
         self._zenoh: zenoh.Session | None = None
         self.ready = threading.Event()
         """Set once the daemon listens; for whoever started it on another thread."""
+        self.admission = Admission(
+            AdmissionSettings(
+                lag_budget_ms=config.lag_budget_ms, cpu_budget_ms=config.step_cpu_budget_ms
+            )
+        )
+        self._pacing: Pacing | None = None
 
     # -- lifecycle ------------------------------------------------------------------------
 
@@ -71,6 +79,14 @@ class Daemon:
     async def run(self, install_signals: bool = True) -> None:
         loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
+        self._pacing = Pacing(
+            slots=self.config.step_workers or os.cpu_count() or 1,
+            guide_hz=self.config.guide_hz,
+            shed_period_s=max(0.5, self.config.tick_s),
+            record=lambda user, lag_ms, cpu_ms: self.admission.record(
+                user, lag_ms, cpu_ms, time.monotonic()
+            ),
+        )
         self._warm_up()
         self._say_who_may_connect()
         self._zenoh = open_session(self.config.zenoh)
@@ -161,6 +177,7 @@ class Daemon:
         while True:
             await asyncio.sleep(period)
             self.notifier.watchdog()
+            self._review_load()
             now = asyncio.get_running_loop().time()
             for user, runner in list(self.runners.items()):
                 active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
@@ -169,9 +186,30 @@ class Daemon:
                 elif now - runner.last_input > self.config.user_idle_s:
                     self._forget(user)
 
+    def _review_load(self) -> None:
+        """Admission control's decision for this tick, applied: shed users step rarely and
+        hear ``overloaded``; readmitted ones are guided from their next input."""
+        shed, back = self.admission.review(time.monotonic())
+        for user, flag in [(u, True) for u in shed] + [(u, False) for u in back]:
+            runner = self.runners.get(user)
+            if runner is not None:
+                runner.shed = flag
+                runner.tick()  # told now, not at their next input
+        if shed or back:
+            log.warning(
+                "load",
+                extra={"fields": {
+                    "shed": ",".join(shed), "guided_again": ",".join(back),
+                    "lag_p95_ms": round(self.admission.last_p95_ms, 1),
+                    "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
+                    "overloaded_now": len(self.admission.shed),
+                }},
+            )  # fmt: skip
+
     def _forget(self, user: str) -> None:
         """A user silent for ``user_idle_s`` and not being guided: free the session."""
         runner = self.runners.pop(user)
+        self.admission.leave(user)
         log.info("idle user forgotten", extra={"fields": {"user": user}})
         bridge = self._bridge
         task = asyncio.get_running_loop().create_task(
@@ -206,7 +244,9 @@ class Daemon:
             self.config.snapshot_timeout_s,
             store_settings=self.settings.save,
             map_too_big=lambda cells: self._map_too_big(user, cells),
+            pacing=self._pacing,
         )
+        runner.shed = not self.admission.join(user, time.monotonic())
         self.runners[user] = runner
         # The belt driver may have started first: it learns the user's intensity now.
         self._bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
@@ -302,6 +342,8 @@ class Daemon:
             rejected_by_code=self._rejected_by_code(),
             log_lines_suppressed=self.log_limit.suppressed_total
             + sum(r.navigator.log_limit.suppressed_total for r in self.runners.values()),
+            overloaded=self.admission.shed,
+            lag_p95_ms=round(self.admission.last_p95_ms, 3),
             stamp=time.time(),
         )
 
