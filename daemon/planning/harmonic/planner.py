@@ -122,6 +122,9 @@ class HarmonicPlanner(GlobalPlanner):
         # gives it its neighbours' mean; relax_log never over-relaxes from BLOCKED_W).
         self.engine.set(lost, rx.BLOCKED_W, True)
         self.engine.set(gained, rx.BLOCKED_W, False)
+        g = self.reach.goal
+        if self.reach.reach[g]:  # the goal freed again holds u = 0, as in plan
+            self.engine.set(np.array([g], dtype=np.int64), 0.0, True)
         return self._relax(t0, WARM_SWEEPS)
 
     def _relax(self, t0: float, cap: int) -> UpdateStats:

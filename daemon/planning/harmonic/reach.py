@@ -145,6 +145,11 @@ class Reach:
         freed = cells[~values]
         before = self.reach.copy() if now_blocked.size else None
         self.blocked[cells] = values
+        if not self.blocked[self.goal] and not self.reach[self.goal]:
+            before = self.reach.copy()  # the goal itself freed: everything is found afresh
+            self._full()
+            changed = np.flatnonzero(before != self.reach)
+            return changed[~self.reach[changed]], changed[self.reach[changed]]
         if now_blocked.size:
             self.reach[now_blocked] = False
             if self.blocked[self.goal] or not _joined(
