@@ -11,6 +11,14 @@ therefore never cuts a blocked cell, at any iteration.
 
 Metrics (their Table I and Figure 6): path length, and the histogram of turning angles — the
 angle between consecutive segments at every vertex.
+
+One smoothing model per planner (``SMOOTHING``, ``smooth_path``): the ``harmonic`` planner's
+path is smoothed by the paper's own band (``daemon.planning.harmonic.rubber_band``: tension
+plus the harmonic force ``F = 1/(1 − u(x̂)) − 1/(1 − u(x_i))``, read from that planner's
+field); every other planner's by the band above (tension plus the push of nearby obstacles),
+which needs no field. Cost per call (``docs/notes/harmonic-fields.md``): the harmonic band
+1–3 ms on a 10 m path at 100² and 400²; the band above 14–45 ms there on this 2-core machine.
+Guidance smooths only when asked (``Guidance(smooth=True)``), with the band above.
 """
 
 from __future__ import annotations
@@ -160,3 +168,24 @@ def turning_histogram(points: np.ndarray, bins: np.ndarray | None = None) -> np.
         bins = np.append(np.arange(0, 95, 5), 180)
     counts, _ = np.histogram(turning_angles(points), bins=bins)
     return counts
+
+
+SMOOTHING = {"harmonic": "harmonic band (Hong & DeSouza eq. (2), the planner's field)"}
+"""The smoothing model of each planner; any planner not named here: the repulsion band."""
+DEFAULT_SMOOTHING = "repulsion band (tension + obstacle push)"
+
+
+def smoothing_model(planner: str) -> str:
+    return SMOOTHING.get(planner, DEFAULT_SMOOTHING)
+
+
+def smooth_path(
+    planner: str, path: np.ndarray, blocked: np.ndarray, cell_m: float, field: np.ndarray | None
+) -> np.ndarray:
+    """``path`` smoothed by ``planner``'s model (continuous cell units). The harmonic band
+    needs the planner's ``field()`` (``w``); without it the repulsion band is used."""
+    if planner == "harmonic" and field is not None:
+        from daemon.planning.harmonic.rubber_band import rubber_band as harmonic_band
+
+        return harmonic_band(path, field, blocked)
+    return rubber_band(path, blocked, cell_m=cell_m)
