@@ -19,29 +19,44 @@ MOTORS = ("front", "right", "back", "left")
 
 Intensity = Annotated[int, Field(ge=0, le=255)]
 
+# Every number on the wire is finite and bounded, so none can reach a conversion that raises
+# (an int64 cast, a float → cell index) however hostile the sender.
+MAX_STAMP = 1e10
+"""Seconds since the Unix epoch (the year 2286)."""
+Stamp = Annotated[float, Field(ge=0, le=MAX_STAMP, allow_inf_nan=False)]
+Metres = Annotated[float, Field(ge=-1e6, le=1e6, allow_inf_nan=False)]
+"""A position: a thousand kilometres from the map's origin is off any map guidebelt keeps."""
+Radians = Annotated[float, Field(ge=-1e3, le=1e3, allow_inf_nan=False)]
+Count = Annotated[int, Field(ge=0, le=2**53)]
+"""A counter: exact in a float64 (JSON readers in other languages)."""
+Amount = Annotated[float, Field(ge=0, le=1e9, allow_inf_nan=False)]
+"""A non-negative quantity: a duration, a distance."""
+MAX_SIDE = 4096
+"""Largest map side (cells) any message may describe."""
+
 
 class Message(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
 
 
 class Pose(Message):
-    x: float = Field(allow_inf_nan=False, description="metres east of the map origin")
-    y: float = Field(allow_inf_nan=False, description="metres north of the map origin")
-    heading: float = Field(allow_inf_nan=False, description="radians, 0 = east, CCW positive")
-    stamp: float = Field(ge=0, allow_inf_nan=False, description="seconds since the Unix epoch")
+    x: Metres = Field(description="metres east of the map origin")
+    y: Metres = Field(description="metres north of the map origin")
+    heading: Radians = Field(description="radians, 0 = east, CCW positive")
+    stamp: Stamp = Field(description="seconds since the Unix epoch")
     quality: float = Field(default=1.0, ge=0.0, le=1.0, description="1 = exact (sim, LF tag)")
 
 
 class GoalCell(Message):
     kind: Literal["cell"] = "cell"
-    row: int = Field(ge=0)
-    col: int = Field(ge=0)
+    row: int = Field(ge=0, lt=MAX_SIDE)
+    col: int = Field(ge=0, lt=MAX_SIDE)
 
 
 class GoalMetres(Message):
     kind: Literal["metres"] = "metres"
-    x: float = Field(allow_inf_nan=False)
-    y: float = Field(allow_inf_nan=False)
+    x: Metres
+    y: Metres
 
 
 class GoalLandmark(Message):
@@ -51,7 +66,7 @@ class GoalLandmark(Message):
 
 class Goal(Message):
     target: GoalCell | GoalMetres | GoalLandmark = Field(discriminator="kind")
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class PatternKind(StrEnum):
@@ -79,7 +94,7 @@ class BeltPattern(Message):
     ttl_ms: int = Field(
         ge=50, le=5000, description="the belt goes silent this long after the last pattern"
     )
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class BeltHealth(Message):
@@ -88,30 +103,30 @@ class BeltHealth(Message):
     port: str
     connected: bool
     belt_state: str = Field(description="boot, active, idle, watchdog, stopped or unknown")
-    frames_sent: int = Field(ge=0)
-    acks: int = Field(ge=0)
-    refused: int = Field(ge=0, description="acks saying the belt refused a frame's content")
-    dropped: int = Field(ge=0, description="frames not written: port full or gone")
-    reconnects: int = Field(ge=0)
-    rx_errors: int = Field(ge=0, description="bad frames from the belt seen by the driver")
-    belt_crc_errors: int = Field(ge=0, description="the firmware's counters, from heartbeats")
-    belt_oversized: int = Field(ge=0)
-    belt_truncated: int = Field(ge=0)
-    belt_malformed: int = Field(ge=0)
-    watchdog_trips: int = Field(ge=0)
-    latency_ms: float | None = Field(default=None, ge=0, description="median ack round trip")
-    heartbeat_age_s: float | None = Field(default=None, ge=0)
+    frames_sent: Count
+    acks: Count
+    refused: Count = Field(description="acks saying the belt refused a frame's content")
+    dropped: Count = Field(description="frames not written: port full or gone")
+    reconnects: Count
+    rx_errors: Count = Field(description="bad frames from the belt seen by the driver")
+    belt_crc_errors: Count = Field(description="the firmware's counters, from heartbeats")
+    belt_oversized: Count
+    belt_truncated: Count
+    belt_malformed: Count
+    watchdog_trips: Count
+    latency_ms: Amount | None = Field(default=None, description="median ack round trip")
+    heartbeat_age_s: Amount | None = None
     battery_v: float | None = Field(
         default=None, ge=0, le=20, description="the belt's battery, read by the Nano"
     )
     intensity: int | None = Field(
         default=None, ge=0, le=100, description="the intensity the firmware applies now"
     )
-    presses: int = Field(default=0, ge=0, description="button presses published")
-    presses_dropped: int = Field(
-        default=0, ge=0, description="presses the belt gave up on (never acknowledged)"
+    presses: Count = Field(default=0, description="button presses published")
+    presses_dropped: Count = Field(
+        default=0, description="presses the belt gave up on (never acknowledged)"
     )
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class BeltButton(Message):
@@ -120,7 +135,7 @@ class BeltButton(Message):
     press: int = Field(ge=1, lt=2**16, description="the belt's own press number")
     button: int = Field(ge=0, le=2, description="0 = D4, 1 = D7, 2 = D8 (PATTERNS.md)")
     kind: Literal["short", "long"]
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class UserSettings(Message):
@@ -141,7 +156,7 @@ class UserSettings(Message):
     units: Literal["metric", "imperial"] | None = Field(
         default=None, description="distances in metres or in feet"
     )
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class CuePriority(StrEnum):
@@ -154,7 +169,7 @@ class VoiceCue(Message):
     lang: Literal["en", "es"] = "en"
     priority: CuePriority = CuePriority.ROUTINE
     kind: str = Field(min_length=1, max_length=32, description="e.g. direction, arrived, stop")
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
 
 class NavState(StrEnum):
@@ -204,11 +219,11 @@ class StatusCode(StrEnum):
 class NavStatus(Message):
     state: NavState
     reason: str = ""
-    stamp: float = Field(ge=0, allow_inf_nan=False)
-    distance_m: float | None = Field(default=None, ge=0)
-    rejected: int = Field(default=0, ge=0, description="messages rejected for this user so far")
+    stamp: Stamp
+    distance_m: Amount | None = Field(default=None, description="metres left")
+    rejected: Count = Field(default=0, description="messages rejected for this user so far")
     backend: str = ""
-    replans: int = Field(default=0, ge=0, description="times a new obstacle cut the path")
+    replans: Count = Field(default=0, description="times a new obstacle cut the path")
     code: StatusCode = Field(
         default=StatusCode.OK,
         description="machine-readable cause, e.g. goal_off_map, stale_pose; empty when all is well",
@@ -218,47 +233,44 @@ class NavStatus(Message):
 
 class Health(Message):
     daemon_id: str
-    uptime_s: float = Field(ge=0)
+    uptime_s: Amount
     users: list[str]
     backend: str
-    rejected: int = Field(ge=0)
+    rejected: Count
     rejected_by_code: dict[str, int] = Field(
         default_factory=dict, max_length=64, description="refused inputs by status code"
     )
-    log_lines_suppressed: int = Field(
-        default=0, ge=0, description="bad-input log lines held back by the rate limit"
+    log_lines_suppressed: Count = Field(
+        default=0, description="bad-input log lines held back by the rate limit"
     )
     overloaded: list[str] = Field(
         default_factory=list, description="users not guided now: the daemon is at capacity"
     )
-    lag_p95_ms: float = Field(
-        default=0.0, ge=0, description="input-to-belt delay of the guided users, last second"
+    lag_p95_ms: Amount = Field(
+        default=0.0, description="input-to-belt delay of the guided users, last second"
     )
-    stamp: float = Field(ge=0)
+    stamp: Stamp
 
 
 class RfidStats(Message):
     """The RFID node's reader and localiser counters, once a second."""
 
-    accepted: int = Field(ge=0, description="reads of known tags")
-    garbage: int = Field(ge=0, description="lines refused: not a read")
-    checksum: int = Field(ge=0, description="lines refused: bad checksum")
-    impossible_rssi: int = Field(ge=0, description="lines refused: RSSI out of range")
-    unknown_tag: int = Field(ge=0, description="reads of tags not in the tag map")
-    info: int = Field(ge=0, description="reader info lines (# …)")
+    accepted: Count = Field(description="reads of known tags")
+    garbage: Count = Field(description="lines refused: not a read")
+    checksum: Count = Field(description="lines refused: bad checksum")
+    impossible_rssi: Count = Field(description="lines refused: RSSI out of range")
+    unknown_tag: Count = Field(description="reads of tags not in the tag map")
+    info: Count = Field(description="reader info lines (# …)")
     connected: bool
-    connects: int = Field(ge=0)
-    disconnects: int = Field(ge=0)
-    poses: int = Field(ge=0, description="poses published so far")
+    connects: Count
+    disconnects: Count
+    poses: Count = Field(description="poses published so far")
     source: Literal["lf", "lf-hold", "uhf"] | None = Field(
         default=None, description="what the last pose came from"
     )
     quality: float | None = Field(default=None, ge=0, le=1)
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
 
-
-MAX_SIDE = 4096
-"""Largest map side (cells) any message may describe."""
 
 MAX_DELTA_CELLS = 65536
 """A delta changing more cells than this is rejected whole; send a snapshot instead."""
@@ -277,7 +289,7 @@ class MapDelta(Message):
     seq: int = Field(ge=0, lt=2**32, description="consecutive per user, from 0")
     height: int = Field(ge=1, le=MAX_SIDE)
     width: int = Field(ge=1, le=MAX_SIDE)
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
     cells: bytes = Field(description="uint32 little-endian flat indices")
     values: bytes = Field(description="uint8 occupancy: 0 free, 1 occupied, 2 unknown")
 
@@ -320,7 +332,7 @@ class MapSnapshot(Message):
     seq: int = Field(ge=0, lt=2**32, description="the last delta this snapshot includes")
     height: int = Field(ge=1, le=MAX_SIDE)
     width: int = Field(ge=1, le=MAX_SIDE)
-    stamp: float = Field(ge=0, allow_inf_nan=False)
+    stamp: Stamp
     occupancy: bytes = Field(description="zlib-compressed uint8 occupancy, height * width bytes")
 
     @classmethod
@@ -354,10 +366,12 @@ class NavPath(Message):
     """The planned path of one user, from the cell of the pose it was planned for."""
 
     cells: list[tuple[int, int]] = Field(description="(row, col) from the user to the goal")
-    cost: int = Field(ge=0, description="sum of 10/14 step costs")
-    cell_m: float = Field(gt=0)
+    cost: Count = Field(description="sum of 10/14 step costs")
+    cell_m: float = Field(gt=0, le=100)
     height: int = Field(ge=1, le=MAX_SIDE)
     width: int = Field(ge=1, le=MAX_SIDE)
-    pose_stamp: float = Field(ge=0, description="stamp of the pose this path starts from")
-    stamp: float = Field(ge=0, allow_inf_nan=False)
-    map_seq: int = Field(default=-1, ge=-1, description="last map delta this path reflects")
+    pose_stamp: Stamp = Field(description="stamp of the pose this path starts from")
+    stamp: Stamp
+    map_seq: int = Field(
+        default=-1, ge=-1, lt=2**32, description="last map delta this path reflects"
+    )
