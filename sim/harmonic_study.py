@@ -19,6 +19,7 @@ The dynamic trials (``sim/movers.py``) are run by ``guidebelt walks --movers N``
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 
@@ -88,7 +89,7 @@ def plot(result: dict, out: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(KINDS), figsize=(4 * len(KINDS), 3.2), sharey=True)
-    labels = [f"{a}-{b}" for a, b in zip(BINS[:-1], BINS[1:], strict=True)]
+    labels = [f"{a}-{b}" for a, b in itertools.pairwise(BINS)]
     titles = {"harmonic": "harmonic path", "band": "rubber band (paper)",
               "eds": "EDS grid path", "eds_turning": "EDS turning points"}  # fmt: skip
     for ax, kind in zip(axes, KINDS, strict=True):

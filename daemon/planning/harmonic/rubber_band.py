@@ -37,11 +37,11 @@ from .relax import BLOCKED_W
 def _free_line(blocked: np.ndarray, r0: float, c0: float, r1: float, c1: float) -> bool:
     """True when the segment stays on free cells (sampled every 0.1 cell, both ends in)."""
     h, w = blocked.shape
-    n = max(1, int(math.ceil(10.0 * max(abs(r1 - r0), abs(c1 - c0)))))
+    n = max(1, math.ceil(10.0 * max(abs(r1 - r0), abs(c1 - c0))))
     for k in range(n + 1):
         t = k / n
-        r = int(math.floor(r0 + t * (r1 - r0)))
-        c = int(math.floor(c0 + t * (c1 - c0)))
+        r = math.floor(r0 + t * (r1 - r0))
+        c = math.floor(c0 + t * (c1 - c0))
         if r < 0 or r >= h or c < 0 or c >= w or blocked[r, c]:
             return False
     return True
@@ -52,7 +52,7 @@ def _w_at(w: np.ndarray, r: float, c: float, cap: float) -> float:
     """``w`` between cell centres, bilinear; a blocked or outside corner counts ``cap``."""
     h, width = w.shape
     y, x = r - 0.5, c - 0.5
-    r0, c0 = int(math.floor(y)), int(math.floor(x))
+    r0, c0 = math.floor(y), math.floor(x)
     fy, fx = y - r0, x - c0
     total = 0.0
     for dr in range(2):
@@ -95,7 +95,7 @@ def band_iterations(
             best_r, best_c, best = pr, pc, math.inf
             for d in range(9):
                 xr, xc = pr + delta * (d // 3 - 1), pc + delta * (d % 3 - 1)
-                r, c = int(math.floor(xr)), int(math.floor(xc))
+                r, c = math.floor(xr), math.floor(xc)
                 if r < 0 or r >= h or c < 0 or c >= width or blocked[r, c]:
                     continue
                 tr = pts[i - 1, 0] + pts[i + 1, 0] - 2.0 * xr
