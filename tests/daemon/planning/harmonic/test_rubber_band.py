@@ -1,0 +1,51 @@
+"""The paper's rubber band on the harmonic field: ends fixed, never a point or segment in a
+blocked cell, and the harmonic path's 45° and 90° turns spread into small ones."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from daemon.guidance.smoothing import path_length, smooth_path, smoothing_model, turning_angles
+from daemon.planning import make_planner
+from daemon.planning.harmonic.rubber_band import rubber_band
+
+
+def sample_free(blocked: np.ndarray, pts: np.ndarray) -> bool:
+    for a, b in itertools.pairwise(pts):
+        for t in np.linspace(0.0, 1.0, 50):
+            r, c = np.floor(a + t * (b - a)).astype(int)
+            if blocked[r, c]:
+                return False
+    return True
+
+
+def test_the_band_shortens_and_smooths_without_touching_an_obstacle(maps):
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        blocked = maps.random_map(rng, 50, 50, 0.06)
+        blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
+        goal, start = (3, 3), (46, 45)
+        blocked[goal] = blocked[start] = False
+        planner = make_planner("harmonic", "cpu")
+        planner.plan(blocked, goal)
+        path = planner.path(start)
+        if len(path) < 3:
+            continue
+        band = rubber_band(path, planner.field(), blocked)
+        assert np.allclose(band[0], path[0] + 0.5) and np.allclose(band[-1], path[-1] + 0.5)
+        assert sample_free(blocked, band)
+        assert path_length(band) <= path_length(path + 0.5) + 1e-9
+        assert (turning_angles(band) > 30).sum() < max(1, (turning_angles(path) > 30).sum())
+
+
+def test_one_smoothing_model_per_planner():
+    assert "harmonic" in smoothing_model("harmonic")
+    assert smoothing_model("eds") == smoothing_model("astar") != smoothing_model("harmonic")
+    blocked = np.zeros((20, 20), dtype=bool)
+    path = np.array([(1, 1), (2, 2), (3, 2), (4, 3), (5, 3)], dtype=np.int32)
+    planner = make_planner("harmonic", "cpu")
+    planner.plan(blocked, (5, 3))
+    out = smooth_path("harmonic", path, blocked, 0.1, field=planner.field())
+    assert out.shape == (5, 2)
