@@ -29,16 +29,17 @@ THREADS = 256
 def _module(real: str) -> cp.RawModule:
     eps = "1.1920929e-7f" if real == "float" else "2.220446049250313e-16"
     return cp.RawModule(code=SOURCE.read_text(),
-                        options=("--std=c++17", f"-DREAL={real}", f"-DREAL_EPS={eps}"),
+                        options=("--std=c++17", f"-DREAL={real}", f"-DREAL_EPS={eps}")
+                        + (("--use_fast_math",) if real == "float" else ()),
                         enable_cooperative_groups=True)  # fmt: skip
 
 
 @functools.cache
-def _blocks(real: str) -> int:
-    """Blocks of the relaxation resident at once: a cooperative launch may not have more."""
+def _blocks(real: str, function: str) -> int:
+    """Blocks of ``function`` resident at once: a cooperative launch may not have more."""
     from ..cuda.device import resident_blocks
 
-    k = _module(real).get_function("harmonic_relax")
+    k = _module(real).get_function(function)
     sms = int(cp.cuda.Device().attributes["MultiProcessorCount"])
     # Four blocks of 256 a multiprocessor is enough to cover the grid's memory latency; the
     # occupancy bound keeps the cooperative launch legal if the kernel ever needs more.
@@ -64,11 +65,14 @@ def _walk(idx: np.ndarray, width: int, start: int, goal: int, out: np.ndarray) -
 class CudaField:
     backend = "cuda"
 
-    def __init__(self, order: str = "rb", omega: float = 1.3, check_every: int = 5,
-                 dtype: type = np.float32) -> None:  # fmt: skip
-        if order not in ("rb", "jacobi"):
-            raise ValueError(f"the GPU sweeps rb or jacobi, not {order!r}")
+    def __init__(self, order: str = "tiles", omega: float = 1.3, check_every: int = 5,
+                 dtype: type = np.float32, local: int = 8) -> None:  # fmt: skip
+        if order not in ("tiles", "rb", "jacobi"):
+            raise ValueError(f"the GPU sweeps tiles, rb or jacobi, not {order!r}")
         self.jacobi = order == "jacobi"
+        self.tiles = order == "tiles"
+        self.local = int(local)
+        """Sweeps of a tile in shared memory per round (``tiles``)."""
         self.dtype = np.dtype(dtype)
         self.real = "double" if self.dtype == np.float64 else "float"
         self.omega = self.dtype.type(omega if order == "rb" else 1.0)
@@ -88,8 +92,9 @@ class CudaField:
         self.idx_host = cp.cuda.alloc_pinned_memory(w0.size)
         self.idx_view = np.frombuffer(self.idx_host, dtype=np.int8, count=w0.size)
         self.buf = np.empty(w0.size, dtype=np.int64)
-        self.kernel = _module(self.real).get_function("harmonic_relax")
-        self.blocks = _blocks(self.real)
+        function = "harmonic_tiles" if self.tiles else "harmonic_relax"
+        self.kernel = _module(self.real).get_function(function)
+        self.blocks = _blocks(self.real, function)
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         if cells.size == 0:
@@ -102,12 +107,24 @@ class CudaField:
 
     def relax(self, sweeps: int, tol: float) -> tuple[int, float]:
         self.worst.fill(0)
+        if self.tiles:
+            rounds = max(1, sweeps // self.local)
+            self.kernel(
+                (self.blocks,), (THREADS,),
+                (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.omega,
+                 np.int32(self.local), np.int32(rounds), np.float32(tol), self.worst,
+                 self.result, self.idx),
+            )  # fmt: skip
+            return self._read()
         self.kernel(
             (self.blocks,), (THREADS,),
             (self.w, self.fixed, self.prev, np.int32(self.height), np.int32(self.width),
              np.int32(self.jacobi), self.omega, np.int32(sweeps), np.int32(self.check_every),
              np.float32(tol), self.worst, self.result, self.idx),
         )  # fmt: skip
+        return self._read()
+
+    def _read(self) -> tuple[int, float]:
         self.launches += 1
         self.idx.get(out=self.idx_view)
         done, bits = (int(v) for v in self.result.get())

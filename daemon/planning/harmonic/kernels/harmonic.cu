@@ -40,6 +40,24 @@ __device__ __forceinline__ REAL moved(REAL old, REAL t, REAL omega, float* worst
     return v < (REAL)0 ? (REAL)0 : v;
 }
 
+// The paper's Idx of every cell: the neighbour (0..8) of lowest w, strictly below its own;
+// 4 (itself) where none is (the goal, a pocket's bottom, an obstacle's cells).
+__device__ void write_idx(const REAL* w, signed char* idx, int height, int width,
+                          long long first, long long stride) {
+    for (long long k = first; k < (long long)height * width; k += stride) {
+        int i = (int)k, r = i / width, c = i % width, best = 4;
+        if (r > 0 && r < height - 1 && c > 0 && c < width - 1) {
+            REAL wb = w[i];
+            for (int d = 0; d < 9; ++d) {
+                REAL v = w[i + (d / 3 - 1) * width + d % 3 - 1];
+                if (v < wb) { wb = v; best = d; }
+            }
+            if (wb >= BLOCKED_W) best = 4;
+        }
+        idx[i] = (signed char)best;
+    }
+}
+
 __device__ void reduce_max(float v, unsigned* slot) {
     // Non-negative floats order as their bit patterns do: an unsigned atomicMax is a max.
     __shared__ float s_max;
@@ -96,20 +114,83 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
             if (residual < tol) break;
         }
     }
-    for (long long k = first; k < (long long)height * width; k += stride) {
-        int i = (int)k, r = i / width, c = i % width, best = 4;
-        if (r > 0 && r < height - 1 && c > 0 && c < width - 1) {
-            REAL wb = w[i];
-            for (int d = 0; d < 9; ++d) {
-                REAL v = w[i + (d / 3 - 1) * width + d % 3 - 1];
-                if (v < wb) { wb = v; best = d; }
-            }
-            if (wb >= BLOCKED_W) best = 4;
-        }
-        idx[i] = (signed char)best;
-    }
+    write_idx(w, idx, height, width, first, stride);
     if (first == 0) {
         result[0] = done;
+        result[1] = (int)__float_as_uint(residual);
+    }
+}
+
+// Tiles: each block takes 32 x 32 tiles in turn, copies one (and its ring of neighbours)
+// into shared memory, sweeps it `local` times there (four colours, block barriers only),
+// and writes it back; one grid sync per round. Neighbouring tiles read each other's border
+// as it stands (old or new: either is an iterate of the same relaxation, which converges to
+// the same field, as block-asynchronous relaxation does). A round moves information up to
+// `local` cells for one grid barrier, where a global four-colour sweep pays four barriers
+// for one or two. The residual is the largest change of a round's first local sweep, taken
+// from the state as the round found it.
+#define TILE 32
+#define SIDE (TILE + 2)
+extern "C" __global__ void harmonic_tiles(REAL* w, const unsigned char* fixed, int height,
+                                          int width, REAL omega, int local, int max_rounds,
+                                          float tol, unsigned* worst, int* result,
+                                          signed char* idx) {
+    cg::grid_group grid = cg::this_grid();
+    __shared__ REAL s_w[SIDE * SIDE];
+    __shared__ unsigned char s_fixed[SIDE * SIDE];
+    const int ty_n = (height - 2 + TILE - 1) / TILE, tx_n = (width - 2 + TILE - 1) / TILE;
+    const int tiles = ty_n * tx_n;
+    int rounds = 0;
+    float residual = __int_as_float(0x7f800000);
+    while (rounds < max_rounds) {
+        float mine = 0.0f;
+        for (int t = blockIdx.x; t < tiles; t += gridDim.x) {
+            const int r0 = 1 + (t / tx_n) * TILE, c0 = 1 + (t % tx_n) * TILE;
+            for (int k = threadIdx.x; k < SIDE * SIDE; k += blockDim.x) {
+                int r = r0 - 1 + k / SIDE, c = c0 - 1 + k % SIDE;
+                bool inside = r < height && c < width;
+                s_w[k] = inside ? w[(long long)r * width + c] : BLOCKED_W;
+                // Only the tile's own cells move; its ring is read, never written.
+                bool ring = k / SIDE == 0 || k / SIDE == SIDE - 1 || k % SIDE == 0 ||
+                            k % SIDE == SIDE - 1;
+                s_fixed[k] = (!inside || ring || r >= height - 1 || c >= width - 1)
+                                 ? 1 : fixed[(long long)r * width + c];
+            }
+            __syncthreads();
+            for (int sweep = 0; sweep < local; ++sweep) {
+                float* track = sweep == 0 ? &mine : nullptr;
+                for (int colour = 0; colour < 4; ++colour) {
+                    for (int q = threadIdx.x; q < TILE * TILE / 4; q += blockDim.x) {
+                        int lr = 1 + 2 * (q / (TILE / 2)) + (colour >> 1);
+                        int lc = 1 + 2 * (q % (TILE / 2)) + (colour & 1);
+                        int k = lr * SIDE + lc;
+                        if (s_fixed[k]) continue;
+                        float scratch = 0.0f;
+                        s_w[k] = moved(s_w[k], target(s_w, k, SIDE), omega,
+                                       track ? track : &scratch);
+                    }
+                    __syncthreads();
+                }
+            }
+            for (int k = threadIdx.x; k < TILE * TILE; k += blockDim.x) {
+                int lr = 1 + k / TILE, lc = 1 + k % TILE;
+                if (!s_fixed[lr * SIDE + lc])
+                    w[(long long)(r0 - 1 + lr) * width + c0 - 1 + lc] = s_w[lr * SIDE + lc];
+            }
+            __syncthreads();
+        }
+        unsigned* slot = worst + (rounds & 1);
+        reduce_max(mine, slot);
+        grid.sync();
+        residual = __uint_as_float(*(volatile unsigned*)slot);
+        if (blockIdx.x == 0 && threadIdx.x == 0) worst[(rounds & 1) ^ 1] = 0u;
+        ++rounds;
+        if (residual < tol) break;
+    }
+    const long long stride = (long long)gridDim.x * blockDim.x;
+    write_idx(w, idx, height, width, (long long)blockIdx.x * blockDim.x + threadIdx.x, stride);
+    if (blockIdx.x == 0 && threadIdx.x == 0) {
+        result[0] = rounds * local;
         result[1] = (int)__float_as_uint(residual);
     }
 }
