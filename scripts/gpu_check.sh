@@ -14,7 +14,8 @@
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_check.sh
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed;
 # the last line names each step's exit status (124: it ran past its limit). PARTS (default
-# "tests bench dss"; also "scenarios": every scenario at 400 and 1000) picks steps.
+# "tests bench dss"; also "scenarios": every scenario at 400 and 1000, and "harmonic": issue 21's
+# scripts/harmonic_check.sh into $OUT/harmonic) picks steps.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${GPU_CHECK_OUT:-out/gpu_check}
@@ -56,6 +57,7 @@ step bench_2000_cuda 150 python3 -m cli.app bench --grid 2000 --unknown 0.4 \
 has scenarios && step bench_scen_cuda 240 python3 -m cli.app bench --grid 400,1000 \
     --unknown 0.4 --scenario courtyard,explore,building,streets --backend cuda \
     --json "$OUT/bench_scen_cuda.json"
+has harmonic && step harmonic 420 env GPU_CHECK_OUT="$OUT/harmonic" bash scripts/harmonic_check.sh
 has dss && step dss 70 python3 scripts/time_dss.py --variants fast,paper \
     --sizes 400,2000,4000 --paper-max 400 --json "$OUT/dss.json"
 has tests && sed -n '/slowest/,$p' "$OUT/pytest.log" | tail -n 14

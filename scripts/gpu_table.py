@@ -96,6 +96,18 @@ def main() -> None:
             print(f"{r['variant']:9} {r['grid']:5} {r['step_ms_median']:7.3f} "
                   f"{r['fused_ms_median']:7.3f} {r['fused_ms_max']:7.3f} {r['iterations']:6} "
                   f"{mb} {r['exact']}")  # fmt: skip
+    harmonic = load(out / "harmonic" / "replan.json")
+    if harmonic:
+        print("\nissue 21, harmonic beside EDS on the courtyard walk (scripts/harmonic_check.sh)")
+        print(f"{'planner':9} {'grid':>5} {'steps':>6} {'median':>8} {'p99':>8} {'max':>8} "
+              f"{'sweeps med':>10} {'target':>8}")  # fmt: skip
+        for r in harmonic:
+            s = r["step_ms"]
+            target = {400: 1.0, 2000: 10.0}.get(r["grid"]) if r["planner"] == "harmonic" else None
+            mark = "" if target is None else ("ok" if s["median"] <= target else "MISS")
+            print(f"{r['planner']:9} {r['grid']:5} {r['steps']:6} {s['median']:8.3f} "
+                  f"{s['p99']:8.3f} {s['max']:8.3f} {r['sweeps']['median']:10} "
+                  f"{(f'{target:g} ' + mark) if target else '':>8}")  # fmt: skip
 
 
 if __name__ == "__main__":
