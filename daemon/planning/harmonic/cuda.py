@@ -75,7 +75,7 @@ class CudaField:
         """Sweeps of a tile in shared memory per round (``tiles``)."""
         self.dtype = np.dtype(dtype)
         self.real = "double" if self.dtype == np.float64 else "float"
-        self.omega = self.dtype.type(omega if order == "rb" else 1.0)
+        self.omega = self.dtype.type(omega if order in ("rb", "tiles") else 1.0)
         self.check_every = int(check_every)
         self.width = self.height = self.goal = 0
         self.launches = 0
