@@ -65,8 +65,11 @@ def walks(
     ] = None,
     movers: Annotated[
         int | None,
-        typer.Option(min=0, help="Instead: Hong & DeSouza's room crossing with this many people "
-                     "wandering; --planner picks the planner, --trials the count."),
+        typer.Option(
+            min=0,
+            help="Instead: Hong & DeSouza's room crossing with this many people "
+            "wandering; --planner picks the planner, --trials the count.",
+        ),
     ] = None,
     trials: Annotated[int, typer.Option(min=1, help="Seeded crossings for --movers.")] = 100,
 ) -> None:
@@ -224,8 +227,10 @@ def _movers(console, planner: str, movers: int, trials: int, seed: int, backend:
         row = trials_row(planner, movers, trials, seed, backend)
     row["wall_s"] = round(time.perf_counter() - t0, 1)
     paper = PAPER_MOVERS.get(movers)
-    row["paper"] = None if paper is None else dict(
-        zip(("success_rate", "time_s", "length_m", "interruptions"), paper, strict=True)
+    row["paper"] = (
+        None
+        if paper is None
+        else dict(zip(("success_rate", "time_s", "length_m", "interruptions"), paper, strict=True))
     )
     table = Table(title=f"crossing a room while {movers} people wander ({trials} trials)")
     for name in ("", "success", "time to goal s", "length m", "interruptions", "collisions"):
