@@ -9,6 +9,11 @@ wait for the path planned on it, repeat. A pose is re-sent every ``pose_period_s
 nothing comes back, so the daemon never sees it go stale while it is merely waiting for a
 goal.
 
+With a ``goal`` the node is also the user's client: it sends the goal each time the daemon's
+liveliness token appears (``ALIVE``), the first time and again after a daemon restart, so a goal
+the daemon may have missed while it was down is not lost. A restarted map source
+(``restart_mapper``) starts a new epoch at sequence 0.
+
 Walkers are those of ``sim.world.WALKERS`` (``--follow``).
 """
 
@@ -28,7 +33,7 @@ from daemon.planning.grid import Cell
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, NavPath, NavState, NavStatus, PatternKind
+from protocol.messages import BeltPattern, Goal, NavPath, NavState, NavStatus, PatternKind
 
 from .courtyard import Scenario
 from .world import WALKERS, Walker, World
@@ -71,8 +76,13 @@ class SimNode:
         pose_period_s: float = 0.2,
         step_period_s: float = 0.0,
         seed: int = 0,
+        goal: Goal | None = None,
     ) -> None:
         self.session = session
+        self.goal = goal
+        self._goal_due = threading.Event()
+        """The daemon's token appeared: (re)send the goal from the walk's thread."""
+        self.goals_sent = 0
         self.user = T.check_user(user)
         self.scenario = scenario
         self.shape = scenario.shape
@@ -113,6 +123,22 @@ class SimNode:
             wire.declare_subscriber(s, T.STATUS, Callback(self._on_status, indirect=False), u),
             wire.declare_queryable(s, T.MAP_SOURCE, Callback(self._on_source, indirect=False), u),
         ]
+        if self.goal is not None:
+            self._pub_goal = wire.declare_publisher(s, T.GOAL, u)
+            self._entities += [
+                self._pub_goal,
+                wire.watch_liveliness(s, T.ALIVE, Callback(self._on_alive, indirect=False)),
+            ]
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._goal_due.set()  # sent by the walk, not on zenoh's thread
+
+    def _send_goal_if_due(self) -> None:
+        if self.goal is not None and self._goal_due.is_set():
+            self._goal_due.clear()
+            self._pub_goal.put(codec.encode(self.goal))
+            self.goals_sent += 1
 
     def _on_path(self, sample: zenoh.Sample) -> None:
         path = codec.decode(NavPath, sample.payload.to_bytes())
@@ -166,6 +192,13 @@ class SimNode:
         self._pub_pose.put(codec.encode(self.world.pose(stamp)))
         return stamp
 
+    def restart_mapper(self, epoch: int | None = None) -> None:
+        """The map source restarts: a new epoch, delta 0 again (``World.restart_mapper``)."""
+        with self._map_lock:
+            deltas = self.world.restart_mapper(time.time(), epoch)
+        for delta in deltas:
+            self._pub_delta.put(codec.encode(delta))
+
     def _start_map(self) -> None:
         """Delta 0 carries the known obstacles when they fit in one; else the daemon, seeing
         delta 1 first, asks ``MAP_SOURCE`` for a snapshot."""
@@ -196,6 +229,7 @@ class SimNode:
                 if time.monotonic() > deadline:
                     result.reason = "timeout"
                     break
+                self._send_goal_if_due()
                 t0 = time.perf_counter()
                 stamp = self._send_pose()
                 path = self._wait_for_path(stamp, stop)
