@@ -62,26 +62,34 @@ class MapKeeper:
         self.restored = False
         """The map came from the daemon's own store after a restart and the source has not
         confirmed it yet (``restore``)."""
+        self._restore_attempts = 0
         self._retired: deque[int | None] = deque(maxlen=RETIRED_EPOCHS)
         self._buffered: dict[int, MapDelta] = {}
 
-    def restore(self, occupancy: np.ndarray, seq: int, epoch: int | None) -> None:
+    def restore(
+        self, occupancy: np.ndarray, seq: int, epoch: int | None, attempts: int = 1
+    ) -> None:
         """Start from the map the daemon stored before it stopped. It may lag what the source
         published (the store writes at a bounded rate, and the source went on while the
-        daemon was down), so it is stale until the source's snapshot, asked for now, arrives;
-        if none comes the stored map is taken as it is and the next delta out of sequence
-        asks again, as for any gap."""
+        daemon was down), so it stays stale (the user waits) until the source's snapshot
+        arrives; after ``attempts`` snapshots that did not come the stored map is taken as it
+        is, and the next delta out of sequence asks again, as for any gap."""
         self.map = InflatedMap(occupancy, self.radius_cells)
         self.seq, self.epoch = seq, epoch
-        self.resyncing = self.stale = self.restored = True
+        self.stale = self.restored = True
+        self.resyncing = False
+        self._restore_attempts = max(1, attempts)
         self._buffered.clear()
 
     def snapshot_failed(self) -> None:
         """No snapshot came: let the next delta notice the gap again and ask once more."""
         self.resyncing = False
         self._buffered.clear()
-        if self.restored:  # the source is silent: the stored map is the best there is
-            self.restored = self.stale = False
+        if self.restored:
+            self._restore_attempts -= 1
+            if self._restore_attempts <= 0:  # the source is silent: the stored map it is
+                self.restored = self.stale = False
+                log.warning("stored map used unconfirmed: the map source did not answer")
 
     def take_snapshot(self, snap: MapSnapshot, user: str) -> MapUpdate:
         update = MapUpdate()

@@ -40,7 +40,10 @@ class DaemonThread:
     def __init__(self, config: DaemonConfig | None = None, **overrides: object) -> None:
         self.port = free_port()
         base = config or DaemonConfig(**overrides)
-        self.config = base.model_copy(update={"zenoh": loopback(listen_port=self.port)})
+        update: dict[str, object] = {"zenoh": loopback(listen_port=self.port)}
+        if "state_dir" not in base.model_fields_set:
+            update["state_dir"] = None  # a test or demo never writes the system's state
+        self.config = base.model_copy(update=update)
         self.daemon = Daemon(self.config)
         self._loop = uvloop.new_event_loop()
         self._error: BaseException | None = None

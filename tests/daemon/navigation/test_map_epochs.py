@@ -152,12 +152,25 @@ def test_restart_the_source_mid_walk_at_sequence_0_and_the_new_wall_reaches_the_
 def test_a_restored_map_waits_for_the_source_or_stands_when_it_is_silent():
     s = navigator()
     occ = np.full(SHAPE, 2, np.uint8)
-    s.maps.restore(occ, 7, A)
+    s.maps.restore(occ, 7, A, attempts=2)
     goal = Goal(target=GoalCell(row=3, col=15), stamp=time.time())
     out = s.step(Inbox(goal=goal, pose=pose((26, 15))), time.time())
     assert [p.kind for p in out.belt] == [PatternKind.WAIT] and out.path() is None
-    s.step(Inbox(snapshot_failed=True), time.time())  # no source: the stored map stands
+    s.step(Inbox(snapshot_failed=True), time.time())  # the source may not be back yet
+    out = s.step(Inbox(pose=pose((26, 15))), time.time())
+    assert [p.kind for p in out.belt] == [PatternKind.WAIT] and out.path() is None
+    s.step(Inbox(snapshot_failed=True), time.time())  # still none: the stored map stands
     out = s.step(Inbox(pose=pose((26, 15))), time.time())
     assert out.path() is not None and s.maps.seq == 7
     out = s.step(Inbox(deltas=[delta(8, [3], [1], A)]), time.time())
     assert s.maps.seq == 8 and not out.want_snapshot  # the same epoch goes on in sequence
+
+
+def test_a_restored_map_is_replaced_by_the_sources_snapshot():
+    s = navigator()
+    s.maps.restore(np.full(SHAPE, 2, np.uint8), 7, A, attempts=3)
+    occ = np.full(SHAPE, 0, np.uint8)
+    occ[12, :20] = 1
+    s.step(Inbox(snapshot=MapSnapshot.from_array(9, occ, time.time(), A)), time.time())
+    assert not s.maps.stale and not s.maps.restored and s.maps.seq == 9
+    assert np.array_equal(s.maps.map.occupancy, occ)
