@@ -103,6 +103,7 @@ def test_sigkill_mid_walk_restart_and_the_user_arrives_with_nothing_lost(tmp_pat
         time.sleep(0.2)  # the recorder's subscription reaches the daemon
         killed_at: list[int] = []
         kill_time: list[float] = []
+        kill_clock: list[float] = []
 
         def crash(result: SimResult) -> None:
             if result.steps == 10 and not killed_at:
@@ -110,6 +111,7 @@ def test_sigkill_mid_walk_restart_and_the_user_arrives_with_nothing_lost(tmp_pat
                 procs[0].wait(5)
                 killed_at.append(result.steps)
                 kill_time.append(time.time())
+                kill_clock.append(time.perf_counter())
                 obstacle_ahead(node, result)
                 procs.append(start_daemon(config, log))  # as systemd's Restart= would
 
@@ -131,6 +133,8 @@ def test_sigkill_mid_walk_restart_and_the_user_arrives_with_nothing_lost(tmp_pat
         # Never guided on a pre-crash pose: every path after the crash is planned from a newer.
         after = [r.msg for r in paths.received if r.msg.stamp > kill_time[0]]
         assert after and all(p.pose_stamp > kill_time[0] for p in after)
+        first = min(r.at for r in paths.received if r.msg.stamp > kill_time[0])
+        print(f"SIGKILL to the first path of the restarted daemon: {first - kill_clock[0]:.2f} s")
         text = log.read_text()
         assert "guidebelt.state: session restored" in text and "user=walker" in text
         # The map the daemon ends with is what the mapper published, the lost deltas too.
