@@ -2,8 +2,11 @@
 
 Kept (``state_db.StateDB``): the goal, the navigation state and the pause, each user's settings,
 and the latest map with its source's epoch and sequence. Not kept: the pose. A restored session
-has its map, goal and settings back before the daemon's liveliness token appears, and says
-``restored`` (WAIT) until a fresh pose comes, so no guidance is ever given on a pre-crash pose.
+has its map, goal and settings back before the daemon's liveliness token appears; one that had
+a goal says ``restored`` (WAIT) once a second until a fresh pose comes (the belt and the client
+reconnect after the daemon does and would miss a single word), and no guidance is ever given on
+a pre-crash pose. Clients learn of the restart from the token and resend what the daemon may
+have missed while it was down (the sim node its goal); the map source is asked for a snapshot.
 
 The map is written whole (compressed) at most every ``persist_map_s`` per user rather than as a
 log of deltas: the map source holds the truth and is asked for a snapshot on restore (the stored
@@ -151,9 +154,10 @@ class Persistence:
                     log.warning(
                         "stored goal skipped", extra={"fields": {"user": user, "err": exc.reason}}
                     )
-        _announce(runner)
         now = time.monotonic()
-        self._announce[user] = (now + RESTORE_RETRY_S, now + ANNOUNCE_S)
+        if nav.goal is not None:  # one being guided waits; one who was not stays quiet
+            _announce(runner)
+            self._announce[user] = (now + RESTORE_RETRY_S, now + ANNOUNCE_S)
         if nav.maps.restored:
             runner.resync()
             self._retry_at[user] = now + RESTORE_RETRY_S

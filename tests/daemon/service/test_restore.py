@@ -67,6 +67,9 @@ def test_a_restarted_daemon_restores_the_session_and_waits_for_a_fresh_pose(tmp_
         assert restored is not None and restored.msg.state == "stale"
         assert belt.wait_for(lambda r: r.msg.kind == "wait", 2.0) is not None
         assert not paths.received  # no pose since the restart: no guidance at all
+        deadline = time.monotonic() + 3.0  # asked again once a second until the source is back
+        while not asked and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert asked, "the restored map was not confirmed with the source"
         t_pose = time.time()
         wire.put(peer, T.POSE, "ann", codec.encode(pose()))  # no goal sent: it was kept
