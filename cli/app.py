@@ -34,6 +34,8 @@ COMMAND_MODULES = [
     "cli.settings",
     "cli.sim",
     "cli.schema",
+    "cli.certs",
+    "cli.load",
 ]
 
 for _name in COMMAND_MODULES:

@@ -6,6 +6,8 @@ from typing import Annotated
 
 import typer
 
+from .peer import ZenohConfig, node_settings
+
 
 def belt(
     port: Annotated[
@@ -21,8 +23,9 @@ def belt(
     ] = None,
     multicast: Annotated[
         bool, typer.Option("--multicast/--no-multicast", help="Zenoh multicast scouting.")
-    ] = True,
+    ] = False,
     log_level: Annotated[str, typer.Option(help="DEBUG, INFO, WARNING or ERROR.")] = "INFO",
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Drive the belt: follow the user's patterns, publish link health, STOP if the daemon dies."""
     import asyncio
@@ -30,7 +33,6 @@ def belt(
     import signal
 
     from drivers.belt.service import serve
-    from protocol.session import ZenohSettings
     from protocol.topics import check_user
 
     logging.basicConfig(level=log_level.upper(), format="%(levelname)s %(name)s: %(message)s")
@@ -38,9 +40,7 @@ def belt(
         check_user(user)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    settings = ZenohSettings(
-        connect=connect or [], listen=listen or [], multicast_scouting=multicast
-    )
+    settings = node_settings(zenoh_config, connect, listen, multicast)
 
     async def main() -> None:
         stop = asyncio.Event()

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout, open_peer
+from .peer import Connect, Scout, ZenohConfig, open_peer
 
 
 def goal(
@@ -18,6 +18,7 @@ def goal(
     wait: Annotated[float, typer.Option(help="seconds to print status updates")] = 2.0,
     connect: Connect = None,
     scout: Scout = False,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Send USER a goal at (X, Y)."""
     from zenoh.handlers import Callback
@@ -29,7 +30,7 @@ def goal(
 
     T.check_user(user)
     target = GoalCell(row=int(x), col=int(y)) if cell else GoalMetres(x=x, y=y)
-    session = open_peer(connect, scout)
+    session = open_peer(connect, scout, zenoh_config)
     final: list[NavStatus] = []
 
     def on_status(sample) -> None:

@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-PLANNER_NAMES = "eds, dss, astar, extended-astar, ga-astar, visgraph"
+PLANNER_NAMES = "eds, dss, astar, extended-astar, ga-astar, visgraph, harmonic"
 """The registry's planners (``daemon.planning.registry.PLANNERS``), for help texts: a
 command module does not import the registry at the top (``cli/app.py``);
 ``tests/cli`` checks the two agree."""

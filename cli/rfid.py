@@ -8,6 +8,8 @@ from typing import Annotated
 
 import typer
 
+from .peer import ZenohConfig, node_settings
+
 METHODS = ("centroid", "lsq")
 LAYOUTS = ("none", "corners", "floor")
 
@@ -96,9 +98,10 @@ def rfid(
     rate: Annotated[float, typer.Option(min=10.0, help="Poses per second.")] = 20.0,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh listen endpoint.")] = None,
     connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to join.")] = None,
-    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = True,
+    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = False,
     mock: Annotated[bool, typer.Option(help="A mock reader on a pty walks the sim.")] = False,
     duration: Annotated[float, typer.Option(help="Stop after this many s (0: never).")] = 0.0,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Run the RFID node: reader on PORT → localiser → Pose on zenoh."""
     import asyncio
@@ -109,7 +112,7 @@ def rfid(
 
     from drivers.rfid.node import RfidNode
     from drivers.rfid.tags import TagMap
-    from protocol.session import ZenohSettings, open_session
+    from protocol.session import open_session
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if port is None and not mock:
@@ -134,9 +137,7 @@ def rfid(
         ).start()
         port = mock_reader.path
         typer.echo(f"mock reader on {port}, walking the courtyard route")
-    session = open_session(
-        ZenohSettings(listen=listen or [], connect=connect or [], multicast_scouting=scouting)
-    )
+    session = open_session(node_settings(zenoh_config, connect, listen, scouting))
     node = RfidNode(session, user, tag_map, port, method=method, rate_hz=rate)
 
     async def main() -> None:

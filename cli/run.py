@@ -50,7 +50,13 @@ def _config_or_exit(load, path: Path | None, planner: str | None):
     from pydantic import ValidationError
 
     try:
-        return load(path, **({"planner": planner} if planner else {}))
+        cfg = load(path, **({"planner": planner} if planner else {}))
+        # The certificates are read when zenoh opens, deep in its start: say here which
+        # file is missing, in the same one line.
+        missing = cfg.zenoh.problems()
+        if not missing:
+            return cfg
+        reason = "; ".join(missing)
     except ValidationError as exc:
         problems = []
         for err in exc.errors():

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout, open_peer
+from .peer import Connect, Scout, ZenohConfig, open_peer
 
 
 def settings(
@@ -30,6 +30,7 @@ def settings(
     timeout: Annotated[float, typer.Option(help="seconds to wait for the daemon")] = 3.0,
     connect: Connect = None,
     scout: Scout = False,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Show USER's settings, or change them (--intensity, --voice, --wording, --units)."""
     from pydantic import ValidationError
@@ -49,7 +50,7 @@ def settings(
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
         raise typer.BadParameter(f"--{where}: {first['msg']}") from exc
-    session = open_peer(connect, scout)
+    session = open_peer(connect, scout, zenoh_config)
     got: list[UserSettings] = []
     done = threading.Event()
 

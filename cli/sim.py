@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout, open_peer
+from .peer import Connect, Scout, ZenohConfig, open_peer
 
 
 def sim(
@@ -24,6 +24,7 @@ def sim(
     out: Annotated[Path | None, typer.Option(help="save a picture of the walk here")] = None,
     connect: Connect = None,
     scout: Scout = False,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Play the world for one user: sensor deltas, poses, a walker; exit 0 once arrived."""
     import signal
@@ -38,7 +39,7 @@ def sim(
     if follow not in WALKERS:
         raise typer.BadParameter(f"choose one of {sorted(WALKERS)}", param_hint="--follow")
     scenario = make_courtyard(grid, unknown, seed)
-    session = open_peer(connect, scout)
+    session = open_peer(connect, scout, zenoh_config)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     goal = None

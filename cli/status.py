@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout, open_peer
+from .peer import Connect, Scout, ZenohConfig, open_peer
 
 
 def status(
@@ -14,6 +14,7 @@ def status(
     timeout: Annotated[float, typer.Option(help="seconds to wait for answers")] = 2.0,
     connect: Connect = None,
     scout: Scout = False,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Ask the daemon for USER's status; exit 1 when nobody answers."""
     from protocol import codec
@@ -23,7 +24,7 @@ def status(
 
     if user != "*":
         T.check_user(user)
-    session = open_peer(connect, scout)
+    session = open_peer(connect, scout, zenoh_config)
     try:
         answered = False
         for reply in wire.get(session, T.STATUS_QUERY, user, timeout=timeout):

@@ -12,6 +12,8 @@ from typing import Annotated
 
 import typer
 
+from .peer import ZenohConfig, node_settings
+
 
 def voice(
     user: Annotated[str | None, typer.Argument(help="User to speak for (default: every user).")] = (
@@ -21,7 +23,7 @@ def voice(
         list[str] | None, typer.Option(help="Zenoh endpoint to join, e.g. tcp/127.0.0.1:7447.")
     ] = None,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
-    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = True,
+    scouting: Annotated[bool, typer.Option(help="Zenoh multicast scouting.")] = False,
     wav_dir: Annotated[
         Path | None, typer.Option(help="Write one WAV per cue here instead of playing it.")
     ] = None,
@@ -29,20 +31,19 @@ def voice(
         165
     ),
     stale_s: Annotated[float, typer.Option(help="Drop routine cues older than this.")] = 5.0,
+    zenoh_config: ZenohConfig = None,
 ) -> None:
     """Subscribe to the user's voice cues and speak them, safety cues first."""
     from drivers.voice.driver import VoiceDriver
     from drivers.voice.espeak import EspeakSpeaker, SpeechError
-    from protocol.session import ZenohSettings, open_session
+    from protocol.session import open_session
 
     try:
         speaker = EspeakSpeaker(wav_dir=wav_dir, words_per_minute=wpm)
     except SpeechError as exc:
         typer.echo(str(exc), err=True)
         raise typer.Exit(2) from None
-    settings = ZenohSettings(
-        listen=listen or [], connect=connect or [], multicast_scouting=scouting
-    )
+    settings = node_settings(zenoh_config, connect, listen, scouting)
 
     async def main() -> None:
         stop = asyncio.Event()

@@ -63,6 +63,12 @@ def walks(
         Path | None,
         typer.Option(help="Also measure smoothing: turning-angle histograms saved here (PNG)."),
     ] = None,
+    movers: Annotated[
+        int | None,
+        typer.Option(min=0, help="Instead: Hong & DeSouza's room crossing with this many people "
+                     "wandering; --planner picks the planner, --trials the count."),
+    ] = None,
+    trials: Annotated[int, typer.Option(min=1, help="Seeded crossings for --movers.")] = 100,
 ) -> None:
     """Walk seeded worlds by feel or by ear; print success, length ratio, collisions, cues."""
     from rich.console import Console
@@ -80,6 +86,9 @@ def walks(
     if crossing and follow != "belt":
         raise typer.BadParameter("--crossing walks the belt walker only", param_hint="--follow")
     console = Console()
+    if movers is not None:
+        _movers(console, planner, movers, trials, seed, backend, json_out)
+        return
     if crossing:
         _crossing(console, runs, seed, json_out)
         return
@@ -197,6 +206,41 @@ def _crossing(console, runs: int, seed: int, json_out: Path | None) -> None:
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+PAPER_MOVERS = {3: (1.0, 18.33, 2.73, 0.42), 10: (0.87, 27.08, 3.85, 2.36)}
+"""Hong & DeSouza §V-A: success, time to goal (s), path length (m), interruptions."""
+
+
+def _movers(console, planner: str, movers: int, trials: int, seed: int, backend: str,
+            json_out: Path | None) -> None:  # fmt: skip
+    """The room crossing with wandering people (``sim/movers.py``), the paper's figures beside."""
+    from rich.table import Table
+
+    from sim.movers import trials_row
+
+    t0 = time.perf_counter()
+    with console.status(f"{trials} crossings, {movers} people, {planner}…"):
+        row = trials_row(planner, movers, trials, seed, backend)
+    row["wall_s"] = round(time.perf_counter() - t0, 1)
+    paper = PAPER_MOVERS.get(movers)
+    row["paper"] = None if paper is None else dict(
+        zip(("success_rate", "time_s", "length_m", "interruptions"), paper, strict=True)
+    )
+    table = Table(title=f"crossing a room while {movers} people wander ({trials} trials)")
+    for name in ("", "success", "time to goal s", "length m", "interruptions", "collisions"):
+        table.add_column(name, justify="right")
+    table.add_row(planner, f"{row['success_rate']:.0%}", str(row["time_s"]), str(row["length_m"]),
+                  str(row["interruptions"]), str(row["collisions"]))  # fmt: skip
+    if paper is not None:
+        table.add_row("paper (harmonic + band)", f"{paper[0]:.0%}", str(paper[1]), str(paper[2]),
+                      str(paper[3]), "-")  # fmt: skip
+    console.print(table)
+    console.print(f"{row['wall_s']} s on {platform.node()} ({platform.machine()})")
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(row, indent=1) + "\n")
+        console.print(f"row written to {json_out}")
 
 
 def register(app: typer.Typer) -> None:

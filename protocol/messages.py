@@ -199,6 +199,7 @@ class StatusCode(StrEnum):
     """A delta or snapshot of an epoch the source has left behind: refused."""
     # The daemon itself.
     TOO_MANY_USERS = "too_many_users"
+    OVERLOADED = "overloaded"
     INTERNAL = "internal"
     SHUTDOWN = "shutdown"
     IDLE = "idle"
@@ -232,6 +233,12 @@ class Health(Message):
     )
     log_lines_suppressed: int = Field(
         default=0, ge=0, description="bad-input log lines held back by the rate limit"
+    )
+    overloaded: list[str] = Field(
+        default_factory=list, description="users not guided now: the daemon is at capacity"
+    )
+    lag_p95_ms: float = Field(
+        default=0.0, ge=0, description="input-to-belt delay of the guided users, last second"
     )
     stamp: float = Field(ge=0)
 

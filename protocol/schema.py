@@ -35,7 +35,15 @@ def schemas() -> dict[str, dict]:
         sch["x-wire"] = BINARY_LAYOUT.get(model.__name__, {"encoding": "JSON, UTF-8"})
         # Where it travels, so a client in another language needs no other document.
         sch["x-topics"] = [
-            {"key": t.selector(None), "kind": str(t.kind), "from": t.producer, "to": t.consumers}
+            {
+                "key": t.selector(None),
+                "kind": str(t.kind),
+                "from": t.producer,
+                "to": t.consumers,
+                # The certificate roles the daemon's access rules let send and receive it.
+                "may_send": sorted(t.writers),
+                "may_receive": sorted(t.readers),
+            }
             for t in TOPICS
             if t.model is model
         ]
@@ -46,8 +54,9 @@ def schemas() -> dict[str, dict]:
 def topics_table() -> str:
     """The topic table as Markdown: one row per key, for people rather than programs."""
     rows = [
-        "| key | message | kind | from | to | reliability | congestion | priority | express |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| key | message | kind | from | to | may send | may receive | reliability | congestion "
+        "| priority | express |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for t in TOPICS:
         q = t.qos
@@ -55,7 +64,8 @@ def topics_table() -> str:
         qos = [q.reliability, q.congestion, q.priority, "yes" if q.express else "no"]
         if t.kind is Kind.LIVELINESS:
             qos = ["-"] * 4  # a token carries no samples: nothing to queue or drop
-        cells = [f"`{t.selector(None)}`", model, t.kind, t.producer, t.consumers, *qos]
+        roles = [", ".join(sorted(t.writers)), ", ".join(sorted(t.readers))]
+        cells = [f"`{t.selector(None)}`", model, t.kind, t.producer, t.consumers, *roles, *qos]
         rows.append("| " + " | ".join(map(str, cells)) + " |")
     return "\n".join(rows) + "\n"
 

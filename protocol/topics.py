@@ -108,6 +108,24 @@ BULK = QoS(priority=Priority.DATA_LOW)
 """Large and rare (snapshots): must arrive, but behind everything that steers."""
 
 
+class Role(StrEnum):
+    """Who a node is, as its certificate says (``protocol.access``): what it may send and
+    receive on each key is read from the table's ``writers`` and ``readers`` below."""
+
+    DAEMON = "daemon"
+    USER = "user"  # a user's phone or client: that user's goals and settings, status back
+    BELT = "belt"  # a user's belt driver
+    VOICE = "voice"  # a user's voice driver
+    RFID = "rfid"  # a user's RFID localiser
+    MAPPER = "mapper"  # the map source, every user's map
+    SIM = "sim"  # the simulator: mapper, localiser, user and belt for every user
+    MONITOR = "monitor"  # read-only tools: view, recorder, `guidebelt status`, health
+
+
+PER_USER_ROLES = frozenset({Role.USER, Role.BELT, Role.VOICE, Role.RFID})
+"""Roles bound to one user: their keys are that user's only."""
+
+
 @dataclass(frozen=True)
 class Topic:
     """One row of the wire: a key, what travels on it, who sends and who listens, and how."""
@@ -123,6 +141,10 @@ class Topic:
     consumers: str
     qos: QoS = field(default=MUST_ARRIVE)
     per_user: bool = True
+    writers: frozenset[Role] = frozenset({Role.DAEMON})
+    """Roles that may publish on it, answer its queries, or hold its token."""
+    readers: frozenset[Role] = frozenset()
+    """Roles that may subscribe to it, query it, or watch its token."""
 
     def key(self, user: str | None = None) -> str:
         """The concrete key, e.g. ``POSE.key("ann")`` → ``guidebelt/ann/pose``."""
@@ -160,40 +182,63 @@ class Topic:
         return (parts[1] == DAEMON_SCOPE) != self.per_user
 
 
-def _t(name: str, leaf: str, model, kind: Kind, producer: str, consumers: str, **kw) -> Topic:
-    return Topic(name, leaf, model, kind, producer, consumers, **kw)
+def _t(
+    name: str,
+    leaf: str,
+    model,
+    kind: Kind,
+    producer: str,
+    consumers: str,
+    by: tuple[Role, ...] = (Role.DAEMON,),
+    to: tuple[Role, ...] = (),
+    **kw,
+) -> Topic:
+    return Topic(
+        name, leaf, model, kind, producer, consumers, writers=frozenset(by), readers=frozenset(to),
+        **kw,
+    )  # fmt: skip
 
 
 PS, Q, LV = Kind.PUBSUB, Kind.QUERYABLE, Kind.LIVELINESS
+D, U, B, V, R, M, S, MON = (
+    Role.DAEMON, Role.USER, Role.BELT, Role.VOICE, Role.RFID, Role.MAPPER, Role.SIM, Role.MONITOR,
+)  # fmt: skip
 
-MAP_DELTA = _t("map_delta", "map/delta", MapDelta, PS, "mapper / sim", "daemon")
+MAP_DELTA = _t("map_delta", "map/delta", MapDelta, PS, "mapper / sim", "daemon",
+               by=(M, S), to=(D,))
 MAP_SNAPSHOT = _t("map_snapshot", "map/snapshot", MapSnapshot, Q, "daemon", "view, tools",
-                  qos=BULK)
+                  to=(U, S, MON), qos=BULK)
 MAP_SOURCE = _t("map_source", "map/source", MapSnapshot, Q, "mapper / sim",
-                "daemon (after a sequence gap)", qos=BULK)
-POSE = _t("pose", "pose", Pose, PS, "localiser / RFID node / sim", "daemon",
+                "daemon (after a sequence gap)", by=(M, S), to=(D,), qos=BULK)
+POSE = _t("pose", "pose", Pose, PS, "localiser / RFID node / sim", "daemon", by=(R, S), to=(D,),
           qos=QoS(congestion=Congestion.DROP, priority=Priority.INTERACTIVE_HIGH, express=True))
-GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI", "daemon")
-PATH = _t("path", "path", NavPath, PS, "daemon", "sim, view, recorder", qos=LATEST_WINS)
-STATUS = _t("status", "status", NavStatus, PS, "daemon", "client, CLI, sim, recorder")
-STATUS_QUERY = _t("status_query", "status", NavStatus, Q, "daemon", "CLI (`guidebelt status`)")
+GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI", "daemon", by=(U, S), to=(D,))
+PATH = _t("path", "path", NavPath, PS, "daemon", "sim, view, recorder", to=(U, S, MON),
+          qos=LATEST_WINS)
+STATUS = _t("status", "status", NavStatus, PS, "daemon", "client, CLI, sim, recorder",
+            to=(U, S, MON))
+STATUS_QUERY = _t("status_query", "status", NavStatus, Q, "daemon", "CLI (`guidebelt status`)",
+                  to=(U, S, MON))
 BELT = _t("belt", "belt", BeltPattern, PS, "daemon", "belt driver, sim, recorder",
-          qos=QoS(priority=Priority.REAL_TIME, express=True))
+          to=(B, S, MON), qos=QoS(priority=Priority.REAL_TIME, express=True))
 BELT_HEALTH = _t("belt_health", "belt/health", BeltHealth, PS, "belt driver", "view, tools",
-                 qos=LATEST_WINS)
-BELT_BUTTON = _t("belt_button", "belt/button", BeltButton, PS, "belt driver", "daemon")
+                 by=(B, S), to=(D, MON), qos=LATEST_WINS)
+BELT_BUTTON = _t("belt_button", "belt/button", BeltButton, PS, "belt driver", "daemon",
+                 by=(B, S), to=(D,))
 SETTINGS_SET = _t("settings_set", "settings/set", UserSettings, PS, "the user's client / phone",
-                  "daemon (on this user's key only)")
+                  "daemon (on this user's key only)", by=(U, S), to=(D,))
 SETTINGS = _t("settings", "settings", UserSettings, PS, "daemon",
-              "belt driver (intensity), client")
+              "belt driver (intensity), client", to=(B, U, S, MON))
 SETTINGS_QUERY = _t("settings_query", "settings", UserSettings, Q, "daemon",
-                    "belt driver (at start), client")
-VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder")
+                    "belt driver (at start), client", to=(B, U, S, MON))
+VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder",
+           to=(V, S, MON))
 RFID_STATS = _t("rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools",
-                qos=LATEST_WINS)
-HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", per_user=False)
+                by=(R, S), to=(MON,), qos=LATEST_WINS)
+HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", to=(S, MON),
+            per_user=False)
 ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)",
-           per_user=False)
+           to=(U, B, V, R, M, S, MON), per_user=False)
 
 TOPICS: tuple[Topic, ...] = (
     MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,

@@ -13,6 +13,10 @@ which names the last delta the step applied (``map_seq``): delta i's latency end
 pattern of the first step that applied it (exact even when deltas are coalesced).
 
 The daemon runs with ``tick_s`` and ``stale_pose_s`` long, so only deltas make it step.
+
+``--tls`` runs the same over zenoh's mutual TLS with the daemon's access rules on: the
+certificates (``guidebelt certs``' module) go in ``--tmp``/tls, the mapper and the belt
+subscriber join as the ``sim`` identity, so every message crosses the TLS link and the ACL.
 """
 
 from __future__ import annotations
@@ -42,7 +46,35 @@ from protocol.messages import Goal, GoalCell, MapDelta, NavPath, NavStatus, Pose
 USER = "bench"
 
 
-def subscriber(port: int, out: Path) -> None:
+def join(port: int, tls_dir: Path | None) -> zenoh.Session:
+    """A peer of the daemon: plain TCP, or TLS with the ``sim`` certificate."""
+    if tls_dir is None:
+        return open_peer(port)
+    from protocol.settings import load_node_settings
+
+    settings = load_node_settings(tls_dir / "sim.toml")
+    return wire.open_session(settings.model_copy(update={"connect": [tls_endpoint(port)]}))
+
+
+def tls_endpoint(port: int) -> str:
+    return f"tls/127.0.0.1:{port}"
+
+
+def tls_env(port: int, tls_dir: Path) -> dict[str, str]:
+    """The daemon's [zenoh] table as environment variables (GUIDEBELT_ZENOH__…)."""
+    from protocol.deployment import certify
+    from protocol.topics import Role
+
+    daemon = certify(tls_dir, [USER], [Role.SIM])[0].settings
+    assert daemon.tls is not None and daemon.access is not None
+    return {
+        "GUIDEBELT_ZENOH__LISTEN": json.dumps([tls_endpoint(port)]),
+        "GUIDEBELT_ZENOH__TLS": daemon.tls.model_dump_json(),
+        "GUIDEBELT_ZENOH__ACCESS": daemon.access.model_dump_json(),
+    }
+
+
+def subscriber(port: int, out: Path, tls_dir: Path | None = None) -> None:
     """Record the arrival of every belt pattern and of every path (with the map delta it
     reflects) until SIGTERM; then write them."""
     from zenoh.handlers import Callback
@@ -57,7 +89,7 @@ def subscriber(port: int, out: Path) -> None:
         t = time.perf_counter_ns()
         paths.append((t, codec.decode(NavPath, sample.payload.to_bytes()).map_seq))
 
-    session = open_peer(port)
+    session = join(port, tls_dir)
     subs = [
         wire.declare_subscriber(session, T.BELT, Callback(on_belt, indirect=False), USER),
         wire.declare_subscriber(session, T.PATH, Callback(on_path, indirect=False), USER),
@@ -130,23 +162,35 @@ def run(args: argparse.Namespace) -> dict:
         "GUIDEBELT_ZENOH__MULTICAST_SCOUTING": "false",
         "GUIDEBELT_BACKEND": args.backend,
         "GUIDEBELT_CELL_M": str(cell_m),
-        "GUIDEBELT_TICK_S": "3600",
-        "GUIDEBELT_STALE_POSE_S": "3600",
+        "GUIDEBELT_TICK_S": "60",  # the config's bounds: long enough for the deltas below
+        "GUIDEBELT_STALE_POSE_S": "60",
         "GUIDEBELT_LOG_LEVEL": "WARNING",
     }
+    tls_dir = tmp / "tls" if args.tls else None
+    if tls_dir is not None:
+        env.update(tls_env(port, tls_dir))
     # --daemon-fifo N runs the daemon alone at SCHED_FIFO priority N, as the systemd unit does.
     prefix = ["chrt", "-f", str(args.daemon_fifo)] if args.daemon_fifo else []
     daemon = subprocess.Popen([*prefix, sys.executable, "-m", "cli.app", "run"], cwd=ROOT, env=env)
     sub = subprocess.Popen(
-        [sys.executable, __file__, "--role", "sub", "--port", str(port), "--tmp", str(tmp)],
+        [sys.executable, __file__, "--role", "sub", "--port", str(port), "--tmp", str(tmp)]
+        + (["--tls"] if args.tls else []),
         cwd=ROOT,
-        env=env,
+        # The daemon's [zenoh] variables are its own: a node's table would read them too.
+        env={k: v for k, v in env.items() if not k.startswith("GUIDEBELT_ZENOH__")},
     )
     session = None
     try:
         time.sleep(1.0)
         wait_for(Path(str(arrivals_file) + ".ready"), 60)
-        session = open_peer(port)
+        session = join(port, tls_dir)
+        # The daemon compiles before it listens (longer on a busy machine): wait for its
+        # liveliness token, or the first delta and the goal go to no one.
+        end = time.monotonic() + 120
+        while not any(r.ok is not None for r in wire.alive(session, T.ALIVE, timeout=1.0)):
+            if time.monotonic() > end or daemon.poll() is not None:
+                raise TimeoutError("the daemon never came up")
+            time.sleep(0.2)
         statuses: list[NavStatus] = []
         st = wire.declare_subscriber(
             session, T.STATUS,
@@ -207,6 +251,7 @@ def run(args: argparse.Namespace) -> dict:
     lat = np.array(lat_ms)
     return {
         "grid": n,
+        "link": "tls+acl" if args.tls else "tcp",
         "backend": args.backend,
         "deltas": args.deltas,
         "warmup": args.warmup,
@@ -239,9 +284,11 @@ def main() -> None:
     ap.add_argument("--daemon-fifo", type=int, default=0, help="SCHED_FIFO priority, daemon only")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default="", help="also write the result here")
+    ap.add_argument("--tls", action="store_true", help="mutual TLS and the daemon's ACL")
     args = ap.parse_args()
     if args.role == "sub":
-        subscriber(args.port, Path(args.tmp) / "arrivals.json")
+        tls_dir = Path(args.tmp) / "tls" if args.tls else None
+        subscriber(args.port, Path(args.tmp) / "arrivals.json", tls_dir)
         return
     result = run(args)
     print(json.dumps(result, indent=2))

@@ -39,11 +39,37 @@ class Inbox:
     """A change the user asked for on their own ``settings/set`` key."""
     battery_v: float | None = None
     """The belt's battery, from its latest health."""
+    pose_received: float | None = None
+    """When the daemon received ``pose`` (its own clock, seconds since the epoch): a pose is
+    stale by this, never by how long the daemon took to get round to it. None: at ``now``."""
+    taken_at: float | None = None
+    """When the step's inputs were taken from the inbox (daemon clock). None: at ``now``."""
+    overloaded: bool = False
+    """The daemon is shedding this user: keep the map, goal and pose, guide nobody."""
+
+    def urgent(self) -> bool:
+        """Inputs that step the user at once; a pose alone (or a tick) may wait its turn."""
+        return bool(
+            self.rejections
+            or self.deltas
+            or self.snapshot
+            or self.snapshot_failed
+            or self.goal
+            or self.buttons
+            or self.settings
+        )
 
     def __bool__(self) -> bool:
         return bool(
-            self.rejections or self.deltas or self.snapshot or self.snapshot_failed
-            or self.goal or self.pose or self.tick or self.buttons or self.settings
+            self.rejections
+            or self.deltas
+            or self.snapshot
+            or self.snapshot_failed
+            or self.goal
+            or self.pose
+            or self.tick
+            or self.buttons
+            or self.settings
             or self.battery_v is not None
         )
 

@@ -27,9 +27,6 @@ from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
 from protocol.messages import (
     Goal,
-    GoalCell,
-    GoalLandmark,
-    GoalMetres,
     MapSnapshot,
     NavState,
     NavStatus,
@@ -39,16 +36,21 @@ from protocol.messages import (
 )
 
 from .controls import BatteryPolicy, UserControls, Whereabouts
+from .goals import goal_cell
 from .inbox import Inbox, StepOutput
 from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .route import PlannerFactory, PlanReport, Route
+from .session_state import SessionState
 
 log = logging.getLogger("guidebelt.navigation")
 
 OK = StatusCode.OK
 STATUS_REFRESH_S = 1.0
+FUTURE_SKEW_S = 0.5
+"""A pose stamped further ahead of the daemon's clock than this is refused: a clock that far
+off is no clock, and such a pose would never go stale."""
 ESCAPE_MARGIN_CELLS = 2
 """How far beyond the inflation radius a way out of the margin is looked for."""
 
@@ -118,9 +120,11 @@ class Navigator:
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None
         self.pose: Pose | None = None
+        self.pose_received = 0.0
+        """When the daemon received ``pose`` (its clock): staleness is judged on this."""
         self.pose_cell: Cell | None = None
         self._last_path_flat = np.empty(0, np.int64)
-        self.state = NavState.IDLE
+        self.session = SessionState()
         self.rejected_by_code: dict[str, int] = {}
         """Refused inputs by status code, for the daemon's health (``rejected``: their sum)."""
         self.log_limit = LogLimiter()
@@ -131,12 +135,17 @@ class Navigator:
         self._last_status_at = 0.0
         self._distance_m: float | None = None
         self._turn_xy: tuple[float, float] | None = None
-        self._held = False
+        self._taken_at = 0.0
+        self._shed = False
         self.controls = UserControls(
             settings.lang,  # type: ignore[arg-type]  # validated by the config
             settings.intensity,
             settings.battery,
         )
+
+    @property
+    def state(self) -> NavState:
+        return self.session.state
 
     @property
     def rejected(self) -> int:
@@ -148,8 +157,13 @@ class Navigator:
     def step(self, inbox: Inbox, now: float) -> StepOutput:
         t0 = time.perf_counter()
         self.last = StepReport()
-        self._held = False  # a STOP or WAIT of this step is not undone by a GUIDE of this step
+        self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
+        self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
+        self._shed = inbox.overloaded
         out = StepOutput()
+        if self._shed:  # said first: nothing later in this step may guide
+            why = "the daemon is at capacity: guidance paused"
+            self._reject(Rejection(StatusCode.OVERLOADED, why, counted=False), now, out)
         if inbox.settings is not None:  # this step's words already in the user's choice
             asked = inbox.settings
             self.guidance.apply(voice=asked.voice, wording=asked.wording, units=asked.units)
@@ -172,18 +186,20 @@ class Navigator:
         if self.goal is not None and self.goal_cell is None and self.maps.map is not None:
             self._resolve_goal(now, out)
         if inbox.pose is not None:
-            self._take_pose(inbox.pose, now, out)
+            received = inbox.pose_received if inbox.pose_received is not None else now
+            self._take_pose(inbox.pose, received, now, out)
         elif self.pose is not None and self.pose_cell is None and self.maps.map is not None:
-            self._take_pose(self.pose, now, out)  # the pose came before the map
+            self._take_pose(self.pose, self.pose_received, now, out)  # it came before the map
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)
-            elif not self._held:
+            elif self.session.may_guide():
                 self._guide(now, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
             self._set_state(self.state, OK, why, now, out, force=True)
-        self.route.settle()  # no path read this step: the planner still gets the changes
+        if not self._shed:  # a shed user's planner is rebuilt when they are guided again
+            self.route.settle()  # no path read this step: the planner still gets the changes
         self.steps += 1
         self.last.step_ms = (time.perf_counter() - t0) * 1e3
         return out
@@ -223,43 +239,33 @@ class Navigator:
             self.last.changed += int(update.flipped.size)
             if self.maps.map.blocked.reshape(-1)[self._last_path_flat].any():
                 self.replans += 1  # a newly seen obstacle cut the path the user was following
-            self.route.change(update.flipped, update.blocked_now)
+            if self._shed:
+                self.route.invalidate()  # no planning for a shed user: plan afresh later
+            else:
+                self.route.change(update.flipped, update.blocked_now)
 
     def _resolve_goal(self, now: float, out: StepOutput) -> None:
         assert self.maps.map is not None and self.goal is not None
-        target, shape, cell_m = self.goal.target, self.maps.map.shape, self.settings.cell_m
-        if isinstance(target, GoalCell):
-            cell = (target.row, target.col)
-        elif isinstance(target, GoalMetres):
-            cell = xy_to_cell(shape, target.x, target.y, cell_m)
-        elif isinstance(target, GoalLandmark):
-            where = self.settings.landmarks.get(target.name)
-            if where is None:
-                why = f"no landmark {target.name!r}"
-                return self._drop_goal(StatusCode.UNKNOWN_LANDMARK, why, now, out)
-            cell = xy_to_cell(shape, where[0], where[1], cell_m)
-        if not in_bounds(shape, cell):
-            why = f"goal cell {cell} is outside {shape}"
-            return self._drop_goal(StatusCode.GOAL_OFF_MAP, why, now, out)
-        if self.maps.map.blocked[cell]:
-            what = "an obstacle" if self.maps.map.occupancy[cell] == 1 else "too close to one"
-            why = f"goal cell {cell} is {what}"
-            return self._drop_goal(StatusCode.GOAL_IN_OBSTACLE, why, now, out)
-        self.goal_cell = (int(cell[0]), int(cell[1]))
+        where = goal_cell(self.goal, self.maps.map, self.settings.cell_m, self.settings.landmarks)
+        if isinstance(where, Rejection):
+            self.goal, self.goal_cell = None, None
+            self.route.invalidate()
+            return self._reject(where, now, out)
+        self.goal_cell = where
 
-    def _drop_goal(self, code: StatusCode, reason: str, now: float, out: StepOutput) -> None:
-        self.goal, self.goal_cell = None, None
-        self.route.invalidate()
-        self._reject(Rejection(code, reason), now, out)
-
-    def _take_pose(self, pose: Pose, now: float, out: StepOutput) -> None:
+    def _take_pose(self, pose: Pose, received: float, now: float, out: StepOutput) -> None:
         self.pose, self.pose_cell = None, None
-        age = now - pose.stamp
-        if abs(age) > self.settings.stale_pose_s:
-            # A pose from the future would never go stale: a clock that far off is no clock.
-            why = f"pose is {age:.2f} s old" if age > 0 else f"pose is {-age:.2f} s ahead"
+        age = received - pose.stamp
+        if age > self.settings.stale_pose_s or -age > FUTURE_SKEW_S:
+            # Judged when it arrived: a pose already old then, or from the future (it would
+            # never go stale), is no position to guide on.
+            why = (
+                f"pose was {age:.2f} s old when it arrived"
+                if age > 0
+                else f"pose is {-age:.2f} s ahead of the daemon's clock"
+            )
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
-        self.pose = pose
+        self.pose, self.pose_received = pose, received
         if self.maps.map is None:
             return
         cell = xy_to_cell(self.maps.map.shape, pose.x, pose.y, self.settings.cell_m)
@@ -275,7 +281,7 @@ class Navigator:
     def _wait_for_map(self, now: float, out: StepOutput) -> None:
         """Deltas are missing: the map is out of date, so the belt keeps saying WAIT (and its
         pattern keeps being refreshed) until a snapshot brings the map back."""
-        if self._held:
+        if not self.session.may_guide():
             return  # this step said WAIT or STOP already
         g = self.guidance.event(PatternKind.WAIT, now, reason="map out of date")
         out.belt.append(g.pattern)
@@ -284,8 +290,10 @@ class Navigator:
         grid = self.maps.map
         assert grid is not None and self.goal_cell is not None and self.pose_cell is not None
         assert self.pose is not None
-        age = now - self.pose.stamp
-        if abs(age) > self.settings.stale_pose_s:
+        # Against when the step's inputs were taken, on the daemon's clock: a step the daemon
+        # was slow to run does not make the user's localiser silent.
+        age = self._taken_at - self.pose_received
+        if age > self.settings.stale_pose_s:
             # No fresh position: never keep guiding on an old one.
             self.pose, self.pose_cell = None, None
             why = f"no pose for {age:.2f} s"
@@ -336,7 +344,8 @@ class Navigator:
 
     def _reject(self, rej: Rejection, now: float, out: StepOutput) -> None:
         outcome = OUTCOMES[rej.code]
-        self._held |= outcome.pattern in (PatternKind.STOP, PatternKind.WAIT)
+        if outcome.pattern in (PatternKind.STOP, PatternKind.WAIT):
+            self.session.hold()
         if rej.counted:
             self.rejected_by_code[rej.code] = self.rejected_by_code.get(rej.code, 0) + 1
         held = self.log_limit.allow(str(rej.code), time.monotonic())
@@ -364,18 +373,15 @@ class Navigator:
         out: StepOutput,
         force: bool = False,
     ) -> None:
+        self.session.move(state)  # raises on a move the session does not allow
         key = (state, code, reason)
         if not force and key == self._last_status and now - self._last_status_at < STATUS_REFRESH_S:
-            self.state = state
             return
-        self.state = state
         self._last_status = key
         self._last_status_at = now
         out.statuses.append(self.status(now, code=code, reason=reason))
 
-    def status(
-        self, now: float, code: StatusCode = StatusCode.OK, reason: str = ""
-    ) -> NavStatus:
+    def status(self, now: float, code: StatusCode = StatusCode.OK, reason: str = "") -> NavStatus:
         if self._last_status is not None and not code and not reason:
             _, code, reason = self._last_status
         guiding = self.state in (NavState.GUIDING, NavState.REROUTING)

@@ -42,6 +42,9 @@ OUTCOMES: dict[StatusCode, Outcome] = {
     StatusCode.OLD_EPOCH: Outcome(NavState.STALE, PatternKind.WAIT),
     # The daemon itself.
     StatusCode.TOO_MANY_USERS: Outcome(NavState.ERROR, PatternKind.STOP),
+    # The daemon cannot keep up with everyone: this user is not guided for now. Said as it
+    # is (not a stale pose, not an obstacle); the belt asks the user to wait.
+    StatusCode.OVERLOADED: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.INTERNAL: Outcome(NavState.ERROR, PatternKind.STOP),
     StatusCode.SHUTDOWN: Outcome(NavState.IDLE, PatternKind.STOP),
     # Back after a crash: the goal and map are restored, the pose is not (never guide on it).

@@ -8,6 +8,8 @@ import time
 import numpy as np
 
 from daemon.guidance.guide import forward_clearance_m
+from daemon.guidance.hold import _direction
+from daemon.guidance.route_watch import _nearest_m
 from daemon.guidance.turning_points import segment_clear, segment_free, turning_points
 from daemon.planning.registry import make_planner
 from daemon.planning.warm import exercise
@@ -27,6 +29,10 @@ def _warm_guidance() -> None:
     segment_free(blocked, a[0], a[1], b[0], b[1])
     segment_clear(blocked, a[0], a[1], b[0], b[1], 1)
     forward_clearance_m(blocked, a, 0.5, 0.1)
+    # The route watch's and the hold's distances, with the types the guide passes.
+    pts = np.array(path, dtype=np.float64)
+    _nearest_m(pts[:3], pts, 0.1)
+    _direction(np.array(path, dtype=np.int64), a, 5.0)
 
 
 def warm_up(planner: str, backend: str, variant: str = "fast") -> float:

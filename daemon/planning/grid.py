@@ -82,7 +82,7 @@ def path_cost(path: np.ndarray) -> int:
     return int(cost)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _path_cost(path: np.ndarray) -> int:  # pragma: no cover - compiled
     total = 0
     for i in range(1, path.shape[0]):

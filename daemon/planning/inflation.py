@@ -81,7 +81,7 @@ def dilate(occupied: np.ndarray, radius_cells: int) -> np.ndarray:
     return _disc_rows(occupied, radius_cells, _or, out)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _stamp(cover, blocked, seen, epoch, w, cells, signs, dr, dc, touched):  # pragma: no cover
     """Add ``signs[i]`` over the disc of each cell; return the flat cells whose state flipped.
 

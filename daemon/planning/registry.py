@@ -116,6 +116,15 @@ def _visgraph_planner(backend: str, variant: str) -> GlobalPlanner:
     return VisGraphPlanner()
 
 
+def _harmonic_planner(backend: str, variant: str) -> GlobalPlanner:
+    """Hong & DeSouza's harmonic potential field (``harmonic/``): the numba engine on ``cpu``
+    and ``reference``, the CuPy one on ``cuda``. Its field is not a distance
+    (``is_distance = False``): judged by its own contract, descent to the goal."""
+    from .harmonic import make_harmonic
+
+    return make_harmonic(backend, variant)
+
+
 PLANNERS: dict[str, PlannerFactory] = {
     "eds": _field_planner(False),
     "dss": _field_planner(True),
@@ -123,6 +132,7 @@ PLANNERS: dict[str, PlannerFactory] = {
     "extended-astar": _extended_astar_planner,
     "ga-astar": _ga_astar_planner,
     "visgraph": _visgraph_planner,
+    "harmonic": _harmonic_planner,
 }
 """The registered planners by name (iterate it for the names; ``register`` adds to it)."""
 

@@ -78,6 +78,30 @@ class DaemonConfig(BaseSettings):
         default=600.0, gt=0, le=86_400, description="forget a silent, idle user"
     )
     tick_s: float = Field(default=0.25, gt=0, le=60, description="staleness checks and watchdog")
+    guide_hz: float = Field(
+        default=10.0,
+        ge=1,
+        le=100,
+        description="a pose alone re-guides a user at most this often; a map change, goal, "
+        "refusal or button steps at once",
+    )
+    step_workers: int = Field(
+        default=0, ge=0, le=256, description="users stepped at once; 0: one per CPU core"
+    )
+    lag_budget_ms: float = Field(
+        default=50.0,
+        ge=5,
+        le=10_000,
+        description="input→belt delay every guided user should stay within; past it the "
+        "users admitted last are told 'overloaded' until the daemon keeps up again",
+    )
+    step_cpu_budget_ms: float = Field(
+        default=600.0,
+        ge=10,
+        le=1_000_000,
+        description="CPU ms per second all guided users' steps may take together (their "
+        "Python parts share one core; the compiled planners run beside it)",
+    )
     snapshot_timeout_s: float = Field(default=1.0, gt=0, le=60)
     landmarks: dict[LandmarkName, tuple[Metres, Metres]] = Field(
         default_factory=dict, max_length=1000, description="named goals: name = [x, y] in metres"

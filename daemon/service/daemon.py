@@ -13,6 +13,7 @@ import contextlib
 import dataclasses
 import gc
 import logging
+import os
 import signal
 import threading
 import time
@@ -30,10 +31,11 @@ from protocol.messages import Health, NavState, NavStatus, StatusCode
 from protocol.session import open_session
 from protocol.topics import Topic
 
+from .admission import Admission, AdmissionSettings
 from .bridge import Bridge
 from .config import DaemonConfig
 from .persistence import Persistence
-from .runner import UserRunner
+from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
 
@@ -64,6 +66,12 @@ class Daemon:
         self._zenoh: zenoh.Session | None = None
         self.ready = threading.Event()
         """Set once the daemon listens; for whoever started it on another thread."""
+        self.admission = Admission(
+            AdmissionSettings(
+                lag_budget_ms=config.lag_budget_ms, cpu_budget_ms=config.step_cpu_budget_ms
+            )
+        )
+        self._pacing: Pacing | None = None
 
     # -- lifecycle ------------------------------------------------------------------------
 
@@ -78,7 +86,16 @@ class Daemon:
         self.settings = SettingsStore(
             self.config.intensity, self.state.stored_settings, self.state.save_settings
         )
+        self._pacing = Pacing(
+            slots=self.config.step_workers or os.cpu_count() or 1,
+            guide_hz=self.config.guide_hz,
+            shed_period_s=max(0.5, self.config.tick_s),
+            record=lambda user, lag_ms, cpu_ms: self.admission.record(
+                user, lag_ms, cpu_ms, time.monotonic()
+            ),
+        )
         self._warm_up()
+        self._say_who_may_connect()
         self._zenoh = open_session(self.config.zenoh)
         self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
         self._restore()  # before the bridge hears anyone: a goal sent now finds its session
@@ -106,6 +123,27 @@ class Daemon:
             if install_signals:
                 for sig in (signal.SIGTERM, signal.SIGINT):
                     loop.remove_signal_handler(sig)
+
+    def _say_who_may_connect(self) -> None:
+        """One line at start on who can reach the daemon: the first thing to read when a
+        phone cannot connect, or when the daemon is exposed more than meant."""
+        z = self.config.zenoh
+        where = {"listen": ",".join(z.listen) or "-", "connect": ",".join(z.connect) or "-"}
+        if z.tls is None and z.loopback_only():
+            log.info("no TLS: loopback only", extra={"fields": where})
+        elif z.tls is None:
+            log.warning(
+                "no TLS and endpoints beyond this host: whoever reaches them can steer any user",
+                extra={"fields": where},
+            )
+        elif z.access is None:
+            log.warning(
+                "mutual TLS without access control: any certified node may steer any user",
+                extra={"fields": where},
+            )
+        else:
+            fields = {**where, "users": len(z.access.users), "services": len(z.access.services)}
+            log.info("mutual TLS, access control by certificate name", extra={"fields": fields})
 
     def _warm_up(self) -> None:
         """Compile (or load) the configured planner's code before READY, so the first user's
@@ -160,6 +198,7 @@ class Daemon:
         while True:
             await asyncio.sleep(period)
             self.notifier.watchdog()
+            self._review_load()
             if self.state is not None:
                 self.state.tick(self.runners)
             now = asyncio.get_running_loop().time()
@@ -170,9 +209,30 @@ class Daemon:
                 elif now - runner.last_input > self.config.user_idle_s:
                     self._forget(user)
 
+    def _review_load(self) -> None:
+        """Admission control's decision for this tick, applied: shed users step rarely and
+        hear ``overloaded``; readmitted ones are guided from their next input."""
+        shed, back = self.admission.review(time.monotonic())
+        for user, flag in [(u, True) for u in shed] + [(u, False) for u in back]:
+            runner = self.runners.get(user)
+            if runner is not None:
+                runner.shed = flag
+                runner.tick()  # told now, not at their next input
+        if shed or back:
+            log.warning(
+                "load",
+                extra={"fields": {
+                    "shed": ",".join(shed), "guided_again": ",".join(back),
+                    "lag_p95_ms": round(self.admission.last_p95_ms, 1),
+                    "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
+                    "overloaded_now": len(self.admission.shed),
+                }},
+            )  # fmt: skip
+
     def _forget(self, user: str) -> None:
         """A user silent for ``user_idle_s`` and not being guided: free the session."""
         runner = self.runners.pop(user)
+        self.admission.leave(user)
         log.info("idle user forgotten", extra={"fields": {"user": user}})
         if self.state is not None:
             self.state.forget(user)
@@ -209,8 +269,10 @@ class Daemon:
             self.config.snapshot_timeout_s,
             store_settings=self.settings.save,
             map_too_big=lambda cells: self._map_too_big(user, cells),
+            pacing=self._pacing,
             after_step=self.state.saver(user) if self.state is not None else None,
         )
+        runner.shed = not self.admission.join(user, time.monotonic())
         self.runners[user] = runner
         # The belt driver may have started first: it learns the user's intensity now.
         self._bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
@@ -306,6 +368,8 @@ class Daemon:
             rejected_by_code=self._rejected_by_code(),
             log_lines_suppressed=self.log_limit.suppressed_total
             + sum(r.navigator.log_limit.suppressed_total for r in self.runners.values()),
+            overloaded=self.admission.shed,
+            lag_p95_ms=round(self.admission.last_p95_ms, 3),
             stamp=time.time(),
         )
 

@@ -15,7 +15,7 @@ from typing import TypeVar
 import uvloop
 import zenoh
 
-from protocol.session import loopback, open_session
+from protocol.session import ZenohSettings, loopback, open_session
 
 from .config import DaemonConfig
 from .daemon import Daemon
@@ -37,10 +37,18 @@ def open_peer(port: int) -> zenoh.Session:
 class DaemonThread:
     """``with DaemonThread(config) as d:`` runs the daemon until the block ends."""
 
-    def __init__(self, config: DaemonConfig | None = None, **overrides: object) -> None:
+    def __init__(
+        self,
+        config: DaemonConfig | None = None,
+        zenoh_on: Callable[[int], ZenohSettings] | None = None,
+        **overrides: object,
+    ) -> None:
+        """``zenoh_on(port)`` gives the daemon's zenoh settings on its free port (default:
+        plain TCP on 127.0.0.1; the TLS tests pass certificates and access rules)."""
         self.port = free_port()
         base = config or DaemonConfig(**overrides)
-        update: dict[str, object] = {"zenoh": loopback(listen_port=self.port)}
+        zenoh_settings = (zenoh_on or (lambda p: loopback(listen_port=p)))(self.port)
+        update: dict[str, object] = {"zenoh": zenoh_settings}
         if "state_dir" not in base.model_fields_set:
             update["state_dir"] = None  # a test or demo never writes the system's state
         self.config = base.model_copy(update=update)

@@ -85,8 +85,6 @@ class Persistence:
         self.stored = Stored()
         self._retry_at: dict[str, float] = {}
         """Users whose restored map waits for its source: when to ask again (monotonic)."""
-        self._ask_at: dict[str, float] = {}
-        """Users with a goal and no map: when to ask their map source again (monotonic)."""
         self._announce: dict[str, tuple[float, float]] = {}
         """Restored users not yet heard from with a pose: when to say so again, and until."""
         if config.state_dir is None:
@@ -166,19 +164,8 @@ class Persistence:
     def tick(self, runners: dict[str, UserRunner]) -> None:
         """On the loop's tick: ask again for the maps restored and not yet confirmed (once a
         ``RESTORE_RETRY_S``; the runner sends no second query while one is out), and say
-        ``restored`` again to those still without a fresh pose. Users with a goal and no map at
-        all (a daemon that kept nothing, or a source that has sent nothing since) have their
-        source asked too: nothing else would, until its next delta."""
+        ``restored`` again to those still without a fresh pose."""
         now = time.monotonic()
-        for user, runner in runners.items():
-            nav = runner.navigator
-            if nav.goal is None or nav.maps.map is not None:
-                self._ask_at.pop(user, None)
-            elif now >= self._ask_at.get(user, 0.0):
-                runner.resync()
-                self._ask_at[user] = now + RESTORE_RETRY_S
-        for user in [u for u in self._ask_at if u not in runners]:
-            del self._ask_at[user]
         for user, (at, until) in list(self._announce.items()):
             runner = runners.get(user)
             if runner is None or runner.navigator.pose is not None or now > until:

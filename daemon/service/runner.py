@@ -10,6 +10,7 @@ coalesced into the next one.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import time
 from collections.abc import Callable
@@ -34,6 +35,27 @@ from protocol.messages import (
 log = logging.getLogger("guidebelt.runner")
 
 
+class Pacing:
+    """What the daemon's runners share: the step slots (one per core) and the lag record
+    admission control reads, with each user's step periods."""
+
+    def __init__(
+        self,
+        slots: int = 1,
+        guide_hz: float = 20.0,
+        shed_period_s: float = 0.5,
+        record: Callable[[str, float, float], None] | None = None,
+    ) -> None:
+        self.slots = asyncio.Semaphore(slots)
+        self.guide_period_s = 1.0 / guide_hz
+        self.shed_period_s = shed_period_s
+        self._record = record
+
+    def record(self, user: str, lag_ms: float, cpu_ms: float) -> None:
+        if self._record is not None:
+            self._record(user, lag_ms, cpu_ms)
+
+
 class UserRunner:
     def __init__(
         self,
@@ -43,11 +65,13 @@ class UserRunner:
         snapshot_timeout_s: float,
         store_settings: Callable[[str, UserSettings], None] | None = None,
         map_too_big: Callable[[int | None], str | None] | None = None,
+        pacing: Pacing | None = None,
         after_step: Callable[[Navigator], None] | None = None,
     ) -> None:
         """``after_step(navigator)`` runs on the worker once a step's output is published
         (the state store takes what changed there)."""
         self.navigator = navigator
+        self.pacing = pacing or Pacing()
         self._after_step = after_step
         self._map_too_big = map_too_big
         self._store_settings = store_settings
@@ -59,6 +83,11 @@ class UserRunner:
         self._inbox = Inbox()
         self._wake = asyncio.Event()
         self._snapshot_pending = False
+        self._urgent_at: float | None = None
+        """When the inbox's first urgent input arrived (monotonic): the step's lag starts."""
+        self._next_step_at = 0.0
+        self.shed = False
+        """Set by the daemon's admission control: step rarely, guide nobody, say overloaded."""
         self._closed = False
         self.last_status: bytes | None = None
         self._loop = asyncio.get_running_loop()
@@ -69,7 +98,7 @@ class UserRunner:
 
     def reject(self, code: StatusCode, reason: str, counted: bool = True) -> None:
         self._inbox.rejections.append(Rejection(code, reason, counted))
-        self._heard()
+        self._heard(urgent=True)
 
     def resync(self) -> None:
         """Ask the map source for a snapshot now (a map restored after a restart)."""
@@ -77,23 +106,24 @@ class UserRunner:
 
     def put_delta(self, delta: MapDelta) -> None:
         self._inbox.deltas.append(delta)
-        self._heard()
+        self._heard(urgent=True)
 
     def put_pose(self, pose: Pose) -> None:
         self._inbox.pose = pose  # the latest pose wins
+        self._inbox.pose_received = time.time()  # staleness is judged on the daemon's clock
         self._heard()
 
     def put_goal(self, goal: Goal) -> None:
         self._inbox.goal = goal
-        self._heard()
+        self._heard(urgent=True)
 
     def put_button(self, press: BeltButton) -> None:
         self._inbox.buttons.append(press)
-        self._heard()
+        self._heard(urgent=True)
 
     def put_settings(self, settings: UserSettings) -> None:
         self._inbox.settings = settings  # the latest wins
-        self._heard()
+        self._heard(urgent=True)
 
     def put_belt_health(self, health: BeltHealth) -> None:
         """The belt's battery. Health comes twice a second and steps nobody by itself,
@@ -109,8 +139,10 @@ class UserRunner:
     def settings(self, now: float) -> UserSettings:
         return self.navigator.controls.state(self.navigator.guidance, now)
 
-    def _heard(self) -> None:
+    def _heard(self, urgent: bool = False) -> None:
         self.last_input = self._loop.time()
+        if urgent and self._urgent_at is None:
+            self._urgent_at = time.monotonic()
         self._wake.set()
 
     def tick(self) -> None:
@@ -122,21 +154,49 @@ class UserRunner:
     async def _run(self) -> None:
         loop = asyncio.get_running_loop()
         while not self._closed:
-            await self._wake.wait()
-            self._wake.clear()
+            await self._gather()
             inbox, self._inbox = self._inbox, Inbox()
+            urgent_at, self._urgent_at = self._urgent_at, None
             if not inbox:
                 continue
-            try:
-                await loop.run_in_executor(self._executor, self._step, inbox)
-            except asyncio.CancelledError:
-                raise
-            except Exception:  # even the error report failed: log it, keep serving
-                log.exception("worker failed", extra={"fields": {"user": self.user}})
+            # One step per core at a time, first come first served: fifty users' threads
+            # fighting over the GIL would make every step slow instead of a few late.
+            async with self.pacing.slots:
+                started = time.monotonic()
+                inbox.taken_at = time.time()
+                inbox.overloaded = self.shed
+                self._next_step_at = loop.time() + (
+                    self.pacing.shed_period_s if self.shed else self.pacing.guide_period_s
+                )
+                cpu_ms = 0.0
+                try:
+                    cpu_ms = await loop.run_in_executor(self._executor, self._step, inbox)
+                except asyncio.CancelledError:
+                    raise
+                except Exception:  # even the error report failed: log it, keep serving
+                    log.exception("worker failed", extra={"fields": {"user": self.user}})
+            lag_ms = (time.monotonic() - (urgent_at or started)) * 1e3
+            self.pacing.record(self.user, lag_ms, cpu_ms)
 
-    def _step(self, inbox: Inbox) -> None:
+    async def _gather(self) -> None:
+        """Wait for inputs. Urgent ones (map, goal, refusal, button) step at once; a pose
+        alone waits for the user's guide period (later poses replace it meanwhile), and a
+        shed user steps only once per shed period."""
+        await self._wake.wait()
+        loop = asyncio.get_running_loop()
+        while (wait := self._next_step_at - loop.time()) > 0 and (
+            self.shed or not self._inbox.urgent()
+        ):
+            self._wake.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._wake.wait(), wait)
+        self._wake.clear()
+
+    def _step(self, inbox: Inbox) -> float:
         """On the worker: step, then publish straight away (zenoh publishers are
-        thread-safe), so the belt pattern does not wait for the loop to wake up."""
+        thread-safe), so the belt pattern does not wait for the loop to wake up. Returns the
+        CPU milliseconds the worker spent (admission control's measure of the user's cost)."""
+        cpu0 = time.thread_time()
         try:
             out = self.navigator.step(inbox, time.time())
         except Exception as exc:  # a bug must not take every user down with it
@@ -153,6 +213,7 @@ class UserRunner:
                 self._after_step(self.navigator)
             except Exception:  # the store is not worth a user's guidance
                 log.exception("state not saved", extra={"fields": {"user": self.user}})
+        return (time.thread_time() - cpu0) * 1e3
 
     def _emit(self, out: StepOutput) -> None:
         """Publish ``out`` (on the worker thread)."""

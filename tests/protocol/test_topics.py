@@ -107,7 +107,7 @@ def test_schema_command_writes_one_schema_per_topic_message(tmp_path):
     assert delta["x-wire"]["max_count"] == MAX_DELTA_CELLS
     assert delta["x-topics"] == [
         {"key": "guidebelt/*/map/delta", "kind": "publish/subscribe", "from": "mapper / sim",
-         "to": "daemon"}
+         "to": "daemon", "may_send": ["mapper", "sim"], "may_receive": ["daemon"]}
     ]  # fmt: skip
     pose = json.loads((tmp_path / "Pose.schema.json").read_text())
     assert set(pose["required"]) == {"x", "y", "heading", "stamp"}
@@ -133,7 +133,10 @@ def test_no_key_is_spelled_and_no_session_opened_outside_protocol():
         if rel.parts[0] == "protocol" or rel.parts[:2] == ("tests", "protocol"):
             continue  # the table and its own tests
         text = path.read_text()
-        if spelled.search(text) or "zenoh.open(" in text:
+        # The intruder with no certificate cannot be written as ZenohSettings (they always
+        # present one): that test opens zenoh on a config of its own.
+        raw_open_allowed = rel.as_posix() == "tests/daemon/service/test_tls_access.py"
+        if spelled.search(text) or ("zenoh.open(" in text and not raw_open_allowed):
             offenders.append(str(rel))
     assert offenders == []
     opens = [p for p in _sources("protocol") if "zenoh.open(" in p.read_text()]

@@ -43,7 +43,7 @@ STATS = 3
 EXPANDED, GENERATED, MAX_OPEN = range(STATS)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def heuristic(kind, v, goal_r, goal_c, width):
     """Estimated cost (10/14 units) from padded cell ``v`` to the goal at (goal_r, goal_c)."""
     r = v // width
@@ -63,7 +63,7 @@ def heuristic(kind, v, goal_r, goal_c, width):
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sift_up(hkey, hcell, pos, i):
     key = hkey[i]
     v = hcell[i]
@@ -80,7 +80,7 @@ def _sift_up(hkey, hcell, pos, i):
     pos[v] = i
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sift_down(hkey, hcell, pos, i, size):
     key = hkey[i]
     v = hcell[i]
@@ -101,7 +101,7 @@ def _sift_down(hkey, hcell, pos, i, size):
     pos[v] = i
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _push(hkey, hcell, pos, size, v, key):
     """Add v with key to a heap of ``size`` entries; returns the new size."""
     hkey[size] = key
@@ -110,7 +110,7 @@ def _push(hkey, hcell, pos, size, v, key):
     return size + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pop(hkey, hcell, pos, size):
     """Remove the entry of least key (size > 0); returns (cell, new size)."""
     v = hcell[0]
@@ -123,7 +123,7 @@ def _pop(hkey, hcell, pos, size):
     return v, size
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def search(
     blocked, g, stamp, pos, par, hkey, hcell, off, cost, width,
     start, goal, epoch, kind, kg, kh, stats, clear_d=0, skip_open=False,
@@ -194,7 +194,7 @@ def search(
     return found
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def near_blocked(blocked, v, d, width):
     """True when a blocked cell of the map lies within ``d`` cells (Chebyshev: ``d`` steps of
     the 8-connected grid) of padded cell ``v``. The window is clipped to the map: the padding
@@ -214,7 +214,7 @@ def near_blocked(blocked, v, d, width):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def trace(par, off, start, goal, out):
     """The cells from ``start`` to ``goal`` along ``par`` (padded indices into ``out``, start
     first); returns their count, -1 if ``out`` is too short."""
@@ -232,14 +232,14 @@ def trace(par, off, start, goal, out):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def field(g, stamp, epoch, out):
     """``out[v] = g[v]`` where this epoch's search reached v, else INF."""
     for v in range(out.size):
         out[v] = g[v] if stamp[v] == epoch else INF
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def window_search(
     blocked, g, stamp, pos, par, hkey, hcell, off, cost, width,
     goal, r0, r1, c0, c1, epoch, stats,
@@ -293,7 +293,7 @@ def window_search(
     return left
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _to_window(v, r0, r1, c0, c1, width):
     """Octile distance (10/14) from padded cell v to the nearest cell of the window."""
     r = v // width
@@ -303,7 +303,7 @@ def _to_window(v, r0, r1, c0, c1, width):
     return 10 * max(dr, dc) + 4 * min(dr, dc)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def window_field(g, stamp, pos, epoch, r0, r1, c0, c1, width, out):
     """``out[i, j]`` = g of padded cell (r0 + i, c0 + j) when this epoch's search closed it,
     else INF."""

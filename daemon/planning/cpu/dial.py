@@ -31,13 +31,13 @@ OVERFLOW = -2
 """Returned as the pop count when the queue's pool of entries ran out."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _new_queue():
     """Bucket heads (entry index or -1) and ``meta = [free list head, entries used]``."""
     return np.full(NB, -1, np.int64), np.array([-1, 0])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _push(pool, head, meta, v, key):
     """Push cell v with key; False when the pool is full."""
     e = meta[0]
@@ -55,7 +55,7 @@ def _push(pool, head, meta, v, key):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _pop(pool, head, meta, b):
     """Take a cell from bucket b (not empty)."""
     e = head[b]
@@ -65,7 +65,7 @@ def _pop(pool, head, meta, b):
     return pool[e, 0]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dss_field(blocked, g, off, cost, goal, pool):
     """DSS: g from scratch — INF everywhere, the goal 0, Dijkstra with Dial's buckets from it.
 
@@ -101,7 +101,7 @@ def dss_field(blocked, g, off, cost, goal, pool):
     return pops, pops
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def follow_path(blocked, g, off, cost, start, out):
     """Cells from ``start`` to g == 0: at each cell the first neighbour (in the fixed order)
     with ``g[n] + cost == g[cur]``. Writes padded indices to ``out``; returns their count,
@@ -124,7 +124,7 @@ def follow_path(blocked, g, off, cost, start, out):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def path_of(blocked, g, off, cost, start, width):
     """``follow_path`` from padded cell ``start`` as (row, column) pairs of the unpadded map
     (``width``: the padded row length), ``int32``; None if g is not a consistent field."""

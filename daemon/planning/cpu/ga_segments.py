@@ -99,7 +99,7 @@ class Segments:
         return hit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reachable(blk, off, start, out):  # pragma: no cover - compiled
     """``out[v] = True`` for every padded cell 8-connected to ``start`` through free cells
     (``start`` free); returns their count. A stack fill: each cell is pushed at most once."""

@@ -111,7 +111,7 @@ class GaResult:
     ms: float
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def bresenham(r0, c0, r1, c1, out):  # pragma: no cover - compiled
     """Cells of Bresenham's line from (r0, c0) to (r1, c1), both included, into ``out``
     ((max(|dr|, |dc|) + 1, 2)); consecutive cells are 8-adjacent."""

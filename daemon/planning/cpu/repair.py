@@ -63,7 +63,7 @@ OCTILE = DIAGONAL - STRAIGHT
 # -- the heap ------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sift_down(heap, size, i, entry):
     while True:
         c = 2 * i + 1
@@ -78,7 +78,7 @@ def _sift_down(heap, size, i, entry):
     heap[i] = entry
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _heap_push(heap, hs, entry):
     i = hs[0]
     hs[0] = i + 1
@@ -91,7 +91,7 @@ def _heap_push(heap, hs, entry):
     heap[i] = entry
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _heap_pop(heap, hs):
     top = heap[0]
     size = hs[0] - 1
@@ -101,7 +101,7 @@ def _heap_pop(heap, hs):
     return top
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _heap_room(heap, hs, qkey, need):
     """True when ``need`` more entries fit, after dropping the stale ones if they do not. False
     also when the live entries fill more than three quarters of the heap: compacting again
@@ -128,7 +128,7 @@ def live_entries(qkey: np.ndarray) -> int:
 # -- outside the hot loop ------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _lookahead(blk, g, nb, v):
     """rhs(v) from its free neighbours (not for the goal, whose rhs is 0)."""
     best = INF
@@ -141,7 +141,7 @@ def _lookahead(blk, g, nb, v):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
     """Queue v in the heap under its key if it is inconsistent; forget it if not."""
     if g[v] == rhs[v]:
@@ -155,12 +155,12 @@ def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
         _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _to_padded(flat, w):
     return (flat // w + 1) * (w + 2) + flat % w + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values, heap, hs):
     """Set ``blk[cells] = values`` (unpadded flat indices) and queue what became inconsistent:
     a newly blocked cell drops to INF at once (no neighbour reads a blocked cell) and its
@@ -213,7 +213,7 @@ def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values,
 # -- the repair ----------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, tie, ts):
     """Repair in key order until the smallest key exceeds ``bound``: -1 means the user's own
     key, ``g(start) + km`` (``h(start, start)`` is 0), as it stands; ``INF`` means until
@@ -355,7 +355,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
     return pops, touched
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def step(blk, g, rhs, qkey, nb, off, cost, goal, focus, w, n_cells, cells, values, budget, heap,
          hs, pool, tie, ts):  # fmt: skip
     """One replanning step in one call: ``apply_changes``, ``settle`` up to the user's key

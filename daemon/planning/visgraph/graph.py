@@ -52,13 +52,13 @@ UNKNOWN, SEEN, HIDDEN = 0, 1, 2
 EXPANDED, TESTS, STATS = 0, 1, 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _tile(x: float, ntiles: int) -> int:  # pragma: no cover - compiled
     t = int(np.floor((x + 1.0) / TILE))
     return min(max(t, 0), ntiles - 1)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build_index(px, py, pn, bbox, th, tw):  # pragma: no cover - compiled
     """CSR lists of the polygons whose box overlaps each tile: (starts, items)."""
     counts = np.zeros(th * tw + 1, dtype=np.int64)
@@ -77,7 +77,7 @@ def build_index(px, py, pn, bbox, th, tw):  # pragma: no cover - compiled
     return starts, items
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def conflicts(px, py, n, sx, sy, gx, gy):  # pragma: no cover - compiled
     """Eq. (4)/(5) test: does segment SG enter the open convex polygon (px, py)[:n]?"""
     lo, hi = 0.0, 1.0
@@ -105,7 +105,7 @@ def conflicts(px, py, n, sx, sy, gx, gy):  # pragma: no cover - compiled
     return (hi - lo) * length > 1e-7
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def segment_clear(
     sx, sy, gx, gy, px, py, pn, bbox, starts, items, th, tw, stamp, epoch
 ):  # pragma: no cover
@@ -138,7 +138,7 @@ def segment_clear(
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def facing(px, py, n, k, mx, my):  # pragma: no cover - compiled
     """§4.2 first phase: M on the outer side (or the line) of one of vertex k's two edges."""
     for i in ((k - 1) % n, k):
@@ -149,7 +149,7 @@ def facing(px, py, n, k, mx, my):  # pragma: no cover - compiled
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tangent(px, py, n, k, ux, uy):  # pragma: no cover - compiled
     """Is the line from U through vertex k a tangent of its polygon (both of k's neighbours
     on one side)? A shortest path bends only where it wraps a polygon, so it reaches a vertex
@@ -161,7 +161,7 @@ def tangent(px, py, n, k, ux, uy):  # pragma: no cover - compiled
     return not ((a > _EPS and b < -_EPS) or (a < -_EPS and b > _EPS))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def vertices_outside(px, py, pn, bbox, starts, items, th, tw, h, w):  # pragma: no cover
     """Mask over (polygon, vertex) of feature points in the map box and inside no other
     polygon (strictly): the graph's nodes."""
@@ -192,7 +192,7 @@ def vertices_outside(px, py, pn, bbox, starts, items, th, tw, h, w):  # pragma: 
     return keep
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _visible(
     u, v, vx, vy, vpoly, vk, vis, px, py, pn, bbox, starts, items, th, tw, stamp, epoch, stats
 ):  # pragma: no cover - compiled
@@ -214,7 +214,7 @@ def _visible(
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _push(heap_key, heap_node, pos, size, node, key):  # pragma: no cover - compiled
     i = pos[node]
     if i < 0:
@@ -235,7 +235,7 @@ def _push(heap_key, heap_node, pos, size, node, key):  # pragma: no cover - comp
     return size
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pop(heap_key, heap_node, pos, size):  # pragma: no cover - compiled
     top = heap_node[0]
     pos[top] = -2  # closed
@@ -261,7 +261,7 @@ def _pop(heap_key, heap_node, pos, size):  # pragma: no cover - compiled
     return top, size
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def search(
     vx,
     vy,
@@ -339,7 +339,7 @@ def search(
     return np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def full_graph(
     vx, vy, vpoly, vk, vis, px, py, pn, bbox, starts, items, th, tw, stamp, epoch, stats
 ):  # pragma: no cover - compiled

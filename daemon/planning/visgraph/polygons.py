@@ -54,7 +54,7 @@ class Piece:
     """Blocked cells this piece was cut to cover."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def label_components(blocked: np.ndarray) -> tuple[np.ndarray, int]:  # pragma: no cover
     """8-connected components of ``blocked``: labels (0 = free, 1..n) and n."""
     h, w = blocked.shape
@@ -87,12 +87,12 @@ def label_components(blocked: np.ndarray) -> tuple[np.ndarray, int]:  # pragma: 
     return labels, n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _cross(ox, oy, ax, ay, bx, by):  # pragma: no cover - compiled
     return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def convex_hull(points: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """Andrew's monotone chain; counter-clockwise in (row, col) as x, y; no collinear points."""
     order = np.argsort(points[:, 1], kind="mergesort")
@@ -119,7 +119,7 @@ def convex_hull(points: np.ndarray) -> np.ndarray:  # pragma: no cover - compile
     return hull[: max(k, 0)].copy()
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _line_meet(x1, y1, x2, y2, x3, y3, x4, y4):  # pragma: no cover - compiled
     """Where line 12 meets line 34: (found, x, y); not found if they are parallel."""
     d1x, d1y, d2x, d2y = x2 - x1, y2 - y1, x4 - x3, y4 - y3
@@ -130,7 +130,7 @@ def _line_meet(x1, y1, x2, y2, x3, y3, x4, y4):  # pragma: no cover - compiled
     return True, x1 + t * d1x, y1 + t * d1y
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reduce_edges(poly: np.ndarray, max_edges: int = MAX_EDGES) -> np.ndarray:  # pragma: no cover
     """A convex polygon with at most ``max_edges`` edges that contains ``poly``.
 
@@ -167,7 +167,7 @@ def reduce_edges(poly: np.ndarray, max_edges: int = MAX_EDGES) -> np.ndarray:  #
     return v[:n].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def offset(poly: np.ndarray, d: float) -> np.ndarray:  # pragma: no cover - compiled
     """The convex polygon with every edge moved outward by ``d`` (counter-clockwise input)."""
     n = poly.shape[0]
@@ -197,7 +197,7 @@ def covers(poly: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return inside
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _hull_of_cells(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:  # pragma: no cover
     """Hull of the squares of the cells: only each row's outermost cells can add corners."""
     r0 = rows.min()
@@ -221,7 +221,7 @@ def _hull_of_cells(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:  # pragma:
     return convex_hull(pts[:m])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _try_piece(free, rows, cols, grow):  # pragma: no cover - compiled
     """The enlarged convex polygon of these cells, or an empty one if it would cover a centre
     that ``free`` marks (or one beyond ``free``'s bounds, which is taken as free)."""

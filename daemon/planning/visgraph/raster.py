@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def segment_cells(r0, c0, r1, c1, out, n):  # pragma: no cover - compiled
     """Append the cells touched by segment (r0, c0)→(r1, c1) to ``out`` from index ``n``."""
     i, j = int(np.floor(r0 + 0.5)), int(np.floor(c0 + 0.5))

@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from daemon.guidance.guide import Guidance
-from daemon.guidance.hold import HoldPolicy
+from daemon.guidance.hold import HoldPolicy, _direction
 from daemon.planning.grid import cell_to_xy
 from daemon.planning.inflation import InflatedMap
 from daemon.planning.reference import ReferencePlanner
@@ -107,3 +109,25 @@ def test_moving_obstacle_scenario_hold_saves_the_detour() -> None:
     assert detoured.backtrack_m > 1.0  # turned round and walked back
     assert held.walked_m < 0.7 * detoured.walked_m
     assert held.time_s < detoured.time_s
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    steps=st.lists(st.tuples(st.integers(-1, 1), st.integers(-1, 1)), min_size=1, max_size=60),
+    user=st.tuples(st.floats(30, 70), st.floats(30, 70)),
+    ahead=st.floats(0, 40),
+)
+def test_the_compiled_direction_equals_numpys_to_the_bit(steps, user, ahead):
+    """The direction along a path, as numpy wrote it before it was compiled (same sums)."""
+    path = np.cumsum(np.array(steps, np.int64), axis=0) + 50
+    user_rc = np.array(user)
+    want = None
+    if len(path) >= 2:
+        centres = path.astype(np.float64) + 0.5
+        start = int(np.argmin(np.hypot(*(centres - user_rc).T)))
+        seg = np.hypot(*np.diff(centres[start:], axis=0).T)
+        if seg.size:
+            k = start + 1 + min(int(np.searchsorted(np.cumsum(seg), ahead)), seg.size - 1)
+            d = centres[k] - centres[start]
+            want = math.atan2(-d[0], d[1])
+    assert _direction(path, user_rc, ahead) == want

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from daemon.guidance.guide import Guidance
-from daemon.guidance.route_watch import RouteWatch
+from daemon.guidance.route_watch import RouteWatch, _nearest_m
 from protocol.messages import PatternKind, Pose
 from sim.closed_loop import route_departs
 
@@ -97,3 +99,15 @@ def test_a_long_leg_is_reassured_at_the_configured_interval_and_not_when_off() -
         texts = [c.text for c in again if c is not None and c.kind == "direction"]
         assert len(texts) == want, texts
         assert all(t.startswith("straight ahead") for t in texts)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    points=st.lists(st.tuples(st.floats(0, 100), st.floats(0, 100)), min_size=1, max_size=30),
+    route=st.lists(st.tuples(st.floats(0, 100), st.floats(0, 100)), min_size=1, max_size=80),
+)
+def test_the_compiled_nearest_distance_equals_numpys_to_the_bit(points, route):
+    p, r = np.array(points), np.array(route)
+    d = p[:, None, :] - r[None, :, :]
+    want = np.sqrt((d * d).sum(axis=2)).min(axis=1) * 0.05
+    assert np.array_equal(_nearest_m(p, r, 0.05), want)

@@ -84,3 +84,37 @@ def test_a_goal_or_a_pose_at_1e308_metres_is_off_the_map_not_a_crash():
     far_goal = Goal(target=GoalMetres(x=1e308, y=1e308), stamp=time.time())
     out = s.step(Inbox(goal=far_goal, pose=pose((25, 15))), time.time())
     assert out.statuses[-1].code == StatusCode.GOAL_OFF_MAP and s.goal is None
+
+
+def test_staleness_is_judged_on_the_daemons_receive_clock_not_on_a_slow_step():
+    s = guiding()
+    t = time.time()
+    s.step(Inbox(pose=pose((25, 15), stamp=t), pose_received=t, taken_at=t), t)
+    # The daemon got round to the next step 3 s late, but took its inputs 0.5 s after the
+    # pose arrived: the localiser was not silent, so no stale_pose.
+    out = s.step(Inbox(tick=True, taken_at=t + 0.5), t + 3.0)
+    assert kinds(out) == [PatternKind.GUIDE] and s.state == NavState.GUIDING
+    # Nothing received for 1.5 s when the inputs were taken: stale, whatever the step's clock.
+    out = s.step(Inbox(tick=True, taken_at=t + 1.5), t + 1.5)
+    assert kinds(out) == [PatternKind.STOP] and out.statuses[-1].code == StatusCode.STALE_POSE
+
+
+def test_a_pose_already_old_when_it_arrived_is_refused_and_a_fresh_one_guides():
+    s = guiding()
+    t = time.time()
+    out = s.step(Inbox(pose=pose((25, 15), stamp=t - 2.0), pose_received=t, taken_at=t), t)
+    assert kinds(out) == [PatternKind.STOP] and "old when it arrived" in out.statuses[-1].reason
+    out = s.step(Inbox(pose=pose((25, 15), stamp=t + 0.2), pose_received=t + 0.25), t + 0.3)
+    assert kinds(out) == [PatternKind.GUIDE]
+
+
+def test_a_shed_user_waits_and_hears_overloaded_and_keeps_map_goal_and_pose():
+    s = guiding()
+    wall = MapDelta.from_arrays(1, SHAPE, np.array([20 * 30 + 15]), np.array([1]), time.time())
+    out = s.step(Inbox(deltas=[wall], pose=pose((25, 15)), overloaded=True), time.time())
+    assert kinds(out) == [PatternKind.WAIT] and out.path_cells is None
+    assert out.statuses[-1].code == StatusCode.OVERLOADED
+    assert s.maps.map.occupancy.reshape(-1)[20 * 30 + 15] == 1 and s.goal_cell == (3, 15)
+    out = s.step(Inbox(pose=pose((25, 15))), time.time())  # guided again: from where it was
+    assert kinds(out) == [PatternKind.GUIDE] and out.path_cells is not None
+    assert (20, 15) not in map(tuple, out.path_cells.tolist())

@@ -6,7 +6,10 @@ sequence, snapshots, refusals and ticks in any order:
 1. a STOP or WAIT decided in a step is never followed by GUIDE (or a turn) in the same step;
 2. a pose stale or from the future is refused (``stale_pose``) and that step guides no one;
 3. while the map is out of date (a sequence gap, no snapshot yet) nothing guides: WAIT;
-4. never silence: a user with a goal, a map and a fresh pose gets a belt pattern every step.
+4. never silence: a user with a goal, a map and a fresh pose gets a belt pattern every step;
+5. a user the daemon sheds (``overloaded``) is never guided in that step, and hears why;
+6. every move of the session is one ``TRANSITIONS`` allows (a move outside it raises), and
+   guidance resumes only once its cause is cleared: after a stale pose, a fresh pose.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 from daemon.navigation import Inbox, Navigator, NavigatorSettings
 from daemon.navigation.outcomes import Rejection
+from daemon.navigation.session_state import GUIDED, TRANSITIONS
 from protocol.messages import (
     Goal,
     GoalCell,
@@ -46,6 +50,8 @@ class Session(RuleBasedStateMachine):
         self.gap = False
         self.fresh_pose = False
         self.stale_pose = False
+        self.shed = False
+        self.pose_fresh_since_stale = True
         self.out = None
         # A session under way: a map, a goal, a fresh pose; then anything may happen.
         self._step(Inbox(deltas=[self._delta(np.flatnonzero(self.truth), 1)],
@@ -61,13 +67,19 @@ class Session(RuleBasedStateMachine):
         return d
 
     def _step(self, inbox: Inbox) -> None:
-        self.fresh_pose = inbox.pose is not None and abs(self.now - inbox.pose.stamp) <= 1.0
-        self.stale_pose = inbox.pose is not None and not self.fresh_pose
+        age = None if inbox.pose is None else self.now - inbox.pose.stamp
+        self.fresh_pose = age is not None and -0.5 <= age <= 1.0
+        self.stale_pose = age is not None and not self.fresh_pose
+        self.shed = inbox.overloaded
         if inbox.snapshot is not None:
             self.gap = False
         self.out = self.nav.step(inbox, self.now)
         if self.out.want_snapshot:
             self.gap = True
+        if StatusCode.STALE_POSE in [st.code for st in self.out.statuses]:
+            self.pose_fresh_since_stale = False
+        elif self.fresh_pose:
+            self.pose_fresh_since_stale = True
 
     @rule(row=st.integers(5, 18), col=st.integers(5, 18))
     def goal(self, row, col):
@@ -98,6 +110,10 @@ class Session(RuleBasedStateMachine):
     def refusal(self, code):
         self._step(Inbox(rejections=[Rejection(code, "fuzzed")]))
 
+    @rule()
+    def shed(self):
+        self._step(Inbox(overloaded=True, tick=True))
+
     @rule(dt=st.sampled_from([0.1, 0.6, 2.0]))
     def tick(self, dt):
         self.now += dt
@@ -122,6 +138,18 @@ class Session(RuleBasedStateMachine):
     def no_guidance_on_a_map_out_of_date(self):
         if self.gap and self.nav.maps.stale:
             assert not MOVING & {b.kind for b in self.out.belt}
+
+    @invariant()
+    def a_shed_user_is_not_guided_and_hears_overloaded(self):
+        if self.shed:
+            assert not MOVING & {b.kind for b in self.out.belt}
+            assert StatusCode.OVERLOADED in [s.code for s in self.out.statuses]
+
+    @invariant()
+    def moves_are_the_machines_and_guidance_waits_for_a_fresh_pose(self):
+        assert all(b in TRANSITIONS[a] for a, b in self.nav.session.moves)
+        if self.nav.state in GUIDED and MOVING & {b.kind for b in self.out.belt}:
+            assert self.pose_fresh_since_stale
 
     @invariant()
     def never_silent_with_a_goal_a_map_and_a_fresh_pose(self):

@@ -53,6 +53,11 @@ def test_zenoh_endpoints_are_locators_and_few():
         ({"GUIDEBELT_STALE_POSE_S": "nan"}, None, "stale_pose_s: Input should be a finite number"),
         ({}, "bogus = 1\n", "bogus: Extra inputs are not permitted"),
         ({}, "cell_m = [\n", "bad config: "),
+        ({}, '[zenoh]\nlisten = ["tls/127.0.0.1:0"]\n[zenoh.tls]\nroot_ca = "/nope/ca.pem"\n'
+             'certificate = "/nope/d.pem"\nprivate_key = "/nope/d.key"\n',
+         "zenoh.tls.root_ca: /nope/ca.pem not found; zenoh.tls.certificate: /nope/d.pem not found"),
+        ({}, '[zenoh]\nlisten = ["tcp/127.0.0.1:0"]\n[zenoh.tls]\nroot_ca = "a"\n'
+             'certificate = "b"\nprivate_key = "c"\n', "every endpoint must be tls/"),
     ],
 )  # fmt: skip
 def test_a_bad_config_is_one_line_and_exit_status_2(tmp_path, env, file_text, said):

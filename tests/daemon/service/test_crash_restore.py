@@ -71,7 +71,7 @@ def obstacle_ahead(node: SimNode, result: SimResult) -> None:
     with node._map_lock:
         deltas = node.world.sense(time.time())
     for d in deltas:
-        node._pub_delta.put(codec.encode(d))
+        node._put_delta(d)
     result.actions["lost_deltas"] = len(deltas)
 
 
@@ -156,7 +156,8 @@ def test_sigkill_mid_walk_restart_and_the_user_arrives_with_nothing_lost(tmp_pat
 
 @pytest.mark.timeout(60)
 def test_a_goal_sender_resends_its_goal_when_the_daemon_comes_back(monkeypatch):
-    """A daemon that kept nothing (no state_dir) still gets the goal again from the client."""
+    """A daemon that kept nothing (no state_dir) still gets the goal again from the client, and
+    the map: the mapper's last delta sent again shows it a gap, and it asks for the snapshot."""
     port = free_port()
     monkeypatch.setattr(embedded, "free_port", lambda: port)  # both daemons on one port
     scenario = make_courtyard(100, 0.2, seed=2)

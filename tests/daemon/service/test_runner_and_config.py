@@ -134,3 +134,38 @@ def test_journal_lines_carry_priority_and_fields():
     line = JournalFormatter().format(rec)
     assert line == '<4>guidebelt.x: rejected user=ann reason="pose is 2 s old"'
 
+
+
+def test_a_pose_alone_waits_for_the_guide_period_and_a_map_change_steps_at_once():
+    from daemon.service.runner import Pacing
+
+    async def scenario():
+        steps: list[tuple[float, bool]] = []
+
+        class Counting(Navigator):
+            def step(self, inbox, now):
+                steps.append((time.monotonic(), bool(inbox.deltas)))
+                return super().step(inbox, now)
+
+        navigator = Counting("u", DaemonConfig(backend="cpu").navigator_settings())
+        pacing = Pacing(slots=1, guide_hz=5.0)  # a pose alone: at most every 0.2 s
+        runner = UserRunner(navigator, lambda k, b: None, lambda *a: None, 1.0, pacing=pacing)
+        runner.put_delta(delta(0, [], []))
+        runner.put_goal(goal(3, 15))
+        runner.put_pose(pose((20, 3)))
+        await asyncio.sleep(0.05)  # the first step ran
+        t0 = time.monotonic()
+        for _ in range(10):  # poses at 50 Hz for 0.2 s: coalesced into one later step
+            runner.put_pose(pose((20, 3)))
+            await asyncio.sleep(0.02)
+        runner.put_delta(delta(1, [5], [1]))  # a map change does not wait
+        sent = time.monotonic()
+        await asyncio.sleep(0.1)
+        await runner.close()
+        return steps, t0, sent
+
+    steps, t0, sent = asyncio.run(scenario())
+    pose_steps = [t for t, d in steps if not d and t > t0]
+    assert len(pose_steps) <= 2  # 0.2 s of 50 Hz poses: one or two steps, not ten
+    delta_steps = [t for t, d in steps if d and t >= sent]
+    assert len(delta_steps) == 1 and delta_steps[0] - sent < 0.1

@@ -1,0 +1,48 @@
+"""The harmonic field on the CPU: numba sweeps (``relax.py``) over padded flat arrays.
+
+The engine interface (the CUDA engine, ``cuda.py``, has the same): ``load`` the fixed cells
+(obstacles, cells the goal cannot reach, the goal) and a first field; ``set`` some cells'
+value and fixedness (the map's changes, as ``planner.py`` works them out); ``relax`` to the
+tolerance; ``descend`` from a cell; ``field``, a host copy of ``w``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import relax as rx
+
+
+class CpuField:
+    backend = "cpu"
+
+    def __init__(self, order: str = "rb", omega: float = 1.3, check_every: int = 5) -> None:
+        self.order = rx.ORDERS[order]
+        self.omega = float(omega) if order == "rb" else 1.0
+        self.check_every = int(check_every)
+        self.width = 0
+        self.goal = 0
+
+    def load(self, fixed: np.ndarray, w0: np.ndarray, width: int, goal: int) -> None:
+        """``fixed``: padded flat bool; ``w0``: the first field (padded flat)."""
+        self.width, self.goal = int(width), int(goal)
+        self.fixed = fixed.copy()
+        self.w = w0.astype(np.float64)
+        self.scratch = np.empty_like(self.w)
+        self.buf = np.empty(self.w.size, dtype=np.int64)
+
+    def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
+        self.w[cells] = w
+        self.fixed[cells] = fixed
+
+    def relax(self, sweeps: int, tol: float) -> tuple[int, float]:
+        return rx.relax_log(self.w, self.fixed, self.width, self.order, self.omega, sweeps,
+                            self.check_every, tol, self.scratch)  # fmt: skip
+
+    def descend(self, start: int) -> np.ndarray | None:
+        """Flat padded cells of the descent from ``start``; None if it stops short."""
+        k = rx.descend(self.w, self.width, start, self.goal, self.buf)
+        return None if k < 0 else self.buf[:k].copy()
+
+    def field(self) -> np.ndarray:
+        return self.w.copy()

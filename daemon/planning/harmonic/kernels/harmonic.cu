@@ -1,0 +1,115 @@
+// Hong & DeSouza's harmonic field on the GPU, kept as w = -ln(1 - u) (relax.py says why).
+//
+// One cooperative launch per relaxation: every thread strides over the cells of one colour
+// of the four-colour (row parity x column parity) ordering of the nine-point stencil, the
+// grid synchronises between colours, and every `check_every` sweeps the largest change of
+// the sweep (the residual, in log units) is reduced into a global word; all threads read it
+// after a grid sync and leave together once it is below `tol`. `jacobi` instead sweeps eq. (1)
+// as written, from a copy of the last sweep. At the end each cell gets the paper's Idx: the
+// neighbour (0..8, row-major in the 3 x 3 block) of lowest w when strictly below its own, 4
+// (itself) when none is; the host walks it. REAL is float or double (-DREAL=...).
+#include <cooperative_groups.h>
+namespace cg = cooperative_groups;
+
+#ifndef REAL
+#define REAL float
+#define REAL_EPS 1.1920929e-7f
+#endif
+#define BLOCKED_W ((REAL)1.0e30)
+#define ORTHO ((REAL)0.2)
+#define DIAG ((REAL)0.05)
+
+__device__ __forceinline__ REAL target(const REAL* w, int i, int width) {
+    REAL n = w[i - width], s = w[i + width], e = w[i + 1], o = w[i - 1];
+    REAL ne = w[i - width + 1], nw = w[i - width - 1], se = w[i + width + 1], sw = w[i + width - 1];
+    REAL m = fmin(fmin(fmin(n, s), fmin(e, o)), fmin(fmin(ne, nw), fmin(se, sw)));
+    if (m >= BLOCKED_W) return BLOCKED_W;
+    REAL t = ORTHO * (exp(m - n) + exp(m - s) + exp(m - e) + exp(m - o)) +
+             DIAG * (exp(m - ne) + exp(m - nw) + exp(m - se) + exp(m - sw));
+    return m - log(t);
+}
+
+// The change a cell takes, and the new value; BLOCKED_W "no value yet" takes its target.
+__device__ __forceinline__ REAL moved(REAL old, REAL t, REAL omega, float* worst) {
+    if (t >= BLOCKED_W) return BLOCKED_W;
+    if (old >= BLOCKED_W) return t;
+    // Changes within a few roundings of w are noise, not a residual: float32 holds w ~ 1000
+    // to 1e-4, the tolerance itself.
+    *worst = fmaxf(*worst, (float)(fabs(t - old) - 4 * REAL_EPS * old));
+    REAL v = old + omega * (t - old);
+    return v < (REAL)0 ? (REAL)0 : v;
+}
+
+__device__ void reduce_max(float v, unsigned* slot) {
+    // Non-negative floats order as their bit patterns do: an unsigned atomicMax is a max.
+    __shared__ float s_max;
+    if (threadIdx.x == 0) s_max = 0.0f;
+    __syncthreads();
+    atomicMax((unsigned*)&s_max, __float_as_uint(v));
+    __syncthreads();
+    if (threadIdx.x == 0 && s_max > 0.0f) atomicMax(slot, __float_as_uint(s_max));
+}
+
+extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, REAL* prev,
+                                          int height, int width, int jacobi, REAL omega,
+                                          int max_sweeps, int check_every, float tol,
+                                          unsigned* worst, int* result, signed char* idx) {
+    cg::grid_group grid = cg::this_grid();
+    const long long stride = (long long)gridDim.x * blockDim.x;
+    const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    const int ih = height - 2, iw = width - 2;  // the padded ring never moves
+    int done = 0, checks = 0;
+    float residual = __int_as_float(0x7f800000);  // +inf (NVRTC has no math.h)
+    while (done < max_sweeps) {
+        const bool check = (done + 1) % check_every == 0 || done + 1 == max_sweeps;
+        float mine = 0.0f;
+        if (jacobi) {
+            for (long long k = first; k < (long long)height * width; k += stride) prev[k] = w[k];
+            grid.sync();
+            for (long long k = first; k < (long long)ih * iw; k += stride) {
+                int i = (int)((k / iw + 1) * width + k % iw + 1);
+                if (fixed[i]) continue;
+                w[i] = moved(w[i], target(prev, i, width), (REAL)1, &mine);
+            }
+            grid.sync();
+        } else {
+            for (int colour = 0; colour < 4; ++colour) {
+                const int rp = colour >> 1, cp = colour & 1;
+                const int nr = (ih - rp + 1) / 2, nc = (iw - cp + 1) / 2;
+                for (long long k = first; k < (long long)nr * nc; k += stride) {
+                    int i = (int)((1 + rp + 2 * (k / nc)) * width + 1 + cp + 2 * (k % nc));
+                    if (fixed[i]) continue;
+                    w[i] = moved(w[i], target(w, i, width), omega, &mine);
+                }
+                grid.sync();
+            }
+        }
+        ++done;
+        if (check) {
+            unsigned* slot = worst + (checks & 1);
+            reduce_max(mine, slot);
+            grid.sync();
+            residual = __uint_as_float(*(volatile unsigned*)slot);
+            // The other slot is the next check's; nobody reads it until after two syncs.
+            if (first == 0) worst[(checks & 1) ^ 1] = 0u;
+            ++checks;
+            if (residual < tol) break;
+        }
+    }
+    for (long long k = first; k < (long long)height * width; k += stride) {
+        int i = (int)k, r = i / width, c = i % width, best = 4;
+        if (r > 0 && r < height - 1 && c > 0 && c < width - 1) {
+            REAL wb = w[i];
+            for (int d = 0; d < 9; ++d) {
+                REAL v = w[i + (d / 3 - 1) * width + d % 3 - 1];
+                if (v < wb) { wb = v; best = d; }
+            }
+            if (wb >= BLOCKED_W) best = 4;
+        }
+        idx[i] = (signed char)best;
+    }
+    if (first == 0) {
+        result[0] = done;
+        result[1] = (int)__float_as_uint(residual);
+    }
+}

@@ -1,0 +1,183 @@
+"""Hong & DeSouza's harmonic potential field behind guidebelt's planner interface.
+
+``plan`` builds the field of eq. (1) — goal 0, obstacles 1, free cells relaxed to their four
+neighbours' mean — kept as ``w = −ln(1 − u)`` (``relax.py`` says why: no plateau at any grid
+size); ``update`` applies the map's changes and relaxes again from the last field (warm
+start); ``path(start)`` is the paper's descent over Idx, the neighbour of lowest potential.
+
+Contract (not a cost-to-go: the field is not a distance, and its paths are not shortest):
+- the descent from every cell the goal reaches (8-connected, the nine-point stencil of
+  ``relax.py``) ends at the goal, and never enters a blocked cell;
+- a cell the goal does not reach gets no path (empty), never a wrong one: the descent only
+  ever steps to a strictly lower free cell, so it cannot climb into an obstacle or loop;
+- convergence: the field is relaxed until the residual, the largest change a sweep would
+  make to any reachable cell's ``w`` (log units, i.e. the relative change of ``1 − u``), is
+  below ``tol`` (1e-4), checked every 5 sweeps. If a descent still stops short from a
+  reachable cell, the planner relaxes with a 10 times tighter tolerance (at most 2000
+  sweeps) and tries once more, and counts it in ``retries``.
+- ``cost_at(cell)`` is the 10/14 cost of ``path(cell)`` (INF if none), as for ``visgraph``;
+  ``costs_within`` the same over a window (the escape from the margin reads it).
+
+First field of a cold plan (``init``): ``distance`` (default) starts from 0.05 per
+8-connected step from the goal, a field that already descends from every reachable cell;
+``paper`` from the paper's "median range" (u = 0.5). The relaxation (``order``): ``rb``,
+red–black SOR (omega 1.3), the GPU's; ``rows``, the paper's row-wise Gauss–Seidel (§II-A);
+``jacobi``, eq. (1) as written.
+
+``UpdateStats``: ``iterations`` = sweeps, ``cells_touched`` = sweeps × reachable cells.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..grid import INF, Cell, checked_plan_input, in_bounds, path_cost
+from ..interface import GlobalPlanner, UpdateStats
+from . import relax as rx
+from .reach import Reach
+
+TOL = 1e-4
+"""Residual (log units) below which the field counts as converged."""
+INIT_SLOPE = 0.05
+"""``w`` per 8-connected step of the ``distance`` first guess."""
+COLD_SWEEPS = 400_000
+WARM_SWEEPS = 20_000
+RETRY_SWEEPS = 2_000
+_EMPTY = np.empty((0, 2), dtype=np.int32)
+
+
+class HarmonicPlanner(GlobalPlanner):
+    is_distance = False
+    """The field is not a cost-to-go: compare and the property tests judge it by its own
+    contract (descent reaches the goal), not by the reference Dijkstra's costs."""
+
+    def __init__(self, engine, *, init: str = "distance", tol: float = TOL, name: str = "") -> None:
+        if init not in ("distance", "paper"):
+            raise ValueError(f"unknown init {init!r}; choose distance or paper")
+        self.engine = engine
+        self.backend = engine.backend
+        self.init = init
+        self.tol = float(tol)
+        self.name = name or f"harmonic-{engine.backend}"
+        self._shape: tuple[int, int] = (0, 0)
+        self._goal: Cell = (0, 0)
+        self.retries = 0
+        """Path reads that needed the tighter tolerance to reach the goal."""
+        self.residual = float("inf")
+        """The residual the last relaxation ended with."""
+        self._cache: tuple[tuple[Cell, int], np.ndarray] | None = None
+        self._version = 0
+
+    @property
+    def goal(self) -> Cell:
+        return self._goal
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._shape
+
+    def _flat(self, cell: Cell) -> int:
+        return (cell[0] + 1) * (self._shape[1] + 2) + cell[1] + 1
+
+    # -- the map ----------------------------------------------------------------------------
+
+    def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
+        t0 = time.perf_counter()
+        blocked, shape, goal = checked_plan_input(blocked, goal)
+        self._shape, self._goal = shape, goal
+        h, w = shape
+        padded = np.ones((h + 2, w + 2), dtype=np.bool_)
+        padded[1:-1, 1:-1] = blocked
+        flat = padded.reshape(-1)
+        g = self._flat(goal)
+        self.reach = Reach(flat, g, w + 2)
+        steps = self.reach._steps
+        if self.init == "distance":
+            w0 = np.where(steps >= 0, INIT_SLOPE * steps, rx.BLOCKED_W)
+        else:
+            w0 = np.where(self.reach.reach, rx.MID_W, rx.BLOCKED_W)
+        fixed = ~self.reach.reach
+        if not flat[g]:
+            w0[g] = 0.0
+            fixed[g] = True
+        self.engine.load(fixed, w0, w + 2, g)
+        return self._relax(t0, COLD_SWEEPS)
+
+    def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        t0 = time.perf_counter()
+        if self._shape == (0, 0):
+            raise RuntimeError("call plan(blocked, goal) before update")
+        cells = np.asarray(cells, dtype=np.int64).ravel()
+        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
+        h, w = self._shape
+        if cells.size and (cells.min() < 0 or cells.max() >= h * w):
+            raise IndexError(f"a cell index is outside the {h}x{w} map")
+        padded = (cells // w + 1) * (w + 2) + cells % w + 1
+        lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
+        if lost.size == 0 and gained.size == 0:
+            return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
+        # Cut off or blocked: u = 1, fixed. Newly reachable: no value yet (the next sweep
+        # gives it its neighbours' mean; relax_log never over-relaxes from BLOCKED_W).
+        self.engine.set(lost, rx.BLOCKED_W, True)
+        self.engine.set(gained, rx.BLOCKED_W, False)
+        g = self.reach.goal
+        if self.reach.reach[g]:  # the goal freed again holds u = 0, as in plan
+            self.engine.set(np.array([g], dtype=np.int64), 0.0, True)
+        return self._relax(t0, WARM_SWEEPS)
+
+    def _relax(self, t0: float, cap: int) -> UpdateStats:
+        sweeps, self.residual = self.engine.relax(cap, self.tol)
+        self._version += 1
+        touched = sweeps * self.reach.count
+        return UpdateStats(int(sweeps), int(touched), (time.perf_counter() - t0) * 1e3)
+
+    # -- paths ------------------------------------------------------------------------------
+
+    def _descent(self, start: Cell) -> np.ndarray:
+        start = (int(start[0]), int(start[1]))
+        if self._shape == (0, 0) or not in_bounds(self._shape, start):
+            return _EMPTY
+        key = (start, self._version)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        s = self._flat(start)
+        if self.reach.blocked[s]:
+            return _EMPTY
+        flat = self.engine.descend(s)
+        if flat is None and self.reach.reach[s]:
+            # A shallow spot the tolerance left: relax further, once, then read again.
+            self.retries += 1
+            self.engine.relax(RETRY_SWEEPS, self.tol / 10)
+            flat = self.engine.descend(s)
+        if flat is None:
+            path = _EMPTY
+        else:
+            w = self._shape[1] + 2
+            path = np.stack((flat // w - 1, flat % w - 1), axis=1).astype(np.int32)
+        self._cache = (key, path)
+        return path
+
+    def path(self, start: Cell) -> np.ndarray:
+        return self._descent(start).copy()
+
+    def cost_at(self, cell: Cell) -> int:
+        path = self._descent(cell)
+        return path_cost(path) if len(path) else int(INF)
+
+    def costs_within(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """The cost of each window cell's descent (``int32``, INF where none)."""
+        h, w = self._shape
+        r0, r1, c0, c1 = max(0, r0), min(h, r1), max(0, c0), min(w, c1)
+        out = np.full((max(0, r1 - r0), max(0, c1 - c0)), INF, dtype=np.int32)
+        for r in range(r0, r1):
+            for c in range(c0, c1):
+                out[r - r0, c - c0] = self.cost_at((r, c))
+        return out
+
+    def field(self) -> np.ndarray:
+        """``w`` of every cell, ``(h, w) float64`` (``rx.BLOCKED_W`` on obstacles and cells the
+        goal cannot reach); ``u = 1 − exp(−w)``."""
+        h, w = self._shape
+        return self.engine.field().reshape(h + 2, w + 2)[1:-1, 1:-1].copy()

@@ -1,0 +1,166 @@
+"""Which free cells the goal reaches, kept up to date on the host for either engine.
+
+The relaxation must hold every cell the goal cannot reach at ``u`` = 1 (``w`` = BLOCKED_W):
+a pocket left free drifts towards 1 for ever, and its residual never falls below the
+tolerance. Recomputing reachability (an 8-connected BFS, O(n)) at every change costs 10 ms
+and more at 2000², the whole step's budget, so a change is checked where it happened:
+
+- A blocked cell can cut a region off only if the free cells around the newly blocked ones
+  no longer connect to one another. If they all still join up inside a window around the
+  change (the change's bounding box widened by ``MARGIN``), every path the change crossed
+  can be rerouted round it and nothing was cut off (splice the old path at its first and
+  last contact with the change). Otherwise, one BFS over the whole map.
+- A freed cell joins the reachable set when it touches it, and brings with it the pocket it
+  opens: a BFS from there through cells not reached yet.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .relax import bfs_steps
+
+MARGIN = 16
+"""Cells the connectivity window extends past the change's bounding box."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
+    """True when the reached free neighbours of the newly blocked cells ``new`` all connect
+    inside the window around them (``mark``: scratch of zeros, left zeroed)."""
+    r0, r1, c0, c1 = height, -1, width, -1
+    for i in new:
+        r, c = i // width, i % width
+        r0, r1, c0, c1 = min(r0, r), max(r1, r), min(c0, c), max(c1, c)
+    r0, r1 = max(1, r0 - margin), min(height - 2, r1 + margin)
+    c0, c1 = max(1, c0 - margin), min(width - 2, c1 + margin)
+    first = -1
+    wanted = 0
+    for i in new:
+        for d in range(9):
+            j = i + (d // 3 - 1) * width + d % 3 - 1
+            if not blocked[j] and reach[j] and mark[j] == 0:
+                mark[j] = 2  # a contact, still to be met by the search
+                wanted += 1
+                if first < 0:
+                    first = j
+    if wanted <= 1:
+        for i in new:
+            for d in range(9):
+                mark[i + (d // 3 - 1) * width + d % 3 - 1] = 0
+        return True
+    head, tail = 0, 1
+    queue[0] = first
+    mark[first] = 1
+    wanted -= 1
+    while head < tail and wanted > 0:
+        cur = queue[head]
+        head += 1
+        for d in range(9):
+            j = cur + (d // 3 - 1) * width + d % 3 - 1
+            r, c = j // width, j % width
+            if blocked[j] or mark[j] == 1 or r < r0 or r > r1 or c < c0 or c > c1:
+                continue
+            if mark[j] == 2:
+                wanted -= 1
+            mark[j] = 1
+            queue[tail] = j
+            tail += 1
+    for k in range(tail):
+        mark[queue[k]] = 0
+    for i in new:
+        for d in range(9):
+            mark[i + (d // 3 - 1) * width + d % 3 - 1] = 0
+    return wanted == 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow(blocked, reach, freed, width, queue, out) -> int:
+    """Cells newly reached through the freed cells; written to ``out``, count returned."""
+    tail = 0
+    for i in freed:
+        if blocked[i] or reach[i]:
+            continue
+        for d in range(9):
+            j = i + (d // 3 - 1) * width + d % 3 - 1
+            if j != i and reach[j] and not blocked[j]:
+                reach[i] = True
+                queue[tail] = i
+                tail += 1
+                break
+    head = 0
+    while head < tail:
+        cur = queue[head]
+        head += 1
+        for d in range(9):
+            j = cur + (d // 3 - 1) * width + d % 3 - 1
+            if not blocked[j] and not reach[j]:
+                reach[j] = True
+                queue[tail] = j
+                tail += 1
+    out[:tail] = queue[:tail]
+    return tail
+
+
+class Reach:
+    """The padded map, its goal and the reached mask (``reach``: bool, padded flat)."""
+
+    def __init__(self, blocked: np.ndarray, goal: int, width: int) -> None:
+        self.blocked = blocked.copy()
+        self.goal, self.width = int(goal), int(width)
+        self.height = blocked.size // width
+        self.reach = np.zeros(blocked.size, dtype=np.bool_)
+        self._steps = np.empty(blocked.size, dtype=np.int64)
+        self._queue = np.empty(blocked.size, dtype=np.int64)
+        self._mark = np.zeros(blocked.size, dtype=np.int8)
+        self._out = np.empty(blocked.size, dtype=np.int64)
+        self.full_searches = 0
+        """Changes that needed the whole-map BFS."""
+        self._full()
+
+    def _full(self) -> None:
+        bfs_steps(self.blocked, self.goal, self.width, self._steps)
+        self.reach[:] = self._steps >= 0
+        self.full_searches += 1
+
+    @property
+    def count(self) -> int:
+        return int(self.reach.sum())
+
+    def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
+        reachability changed (newly blocked cells count as lost; newly freed ones that the goal
+        reaches as gained)."""
+        # A cell named twice takes its last value (the map's own rule for a delta).
+        _, last = np.unique(cells[::-1], return_index=True)
+        keep = cells.size - 1 - last
+        cells, values = cells[keep], values[keep]
+        old = self.blocked[cells]
+        flips = old != values
+        cells, values = cells[flips], values[flips]
+        if cells.size == 0:
+            return cells, cells
+        now_blocked = cells[values]
+        freed = cells[~values]
+        before = self.reach.copy() if now_blocked.size else None
+        self.blocked[cells] = values
+        if not self.blocked[self.goal] and not self.reach[self.goal]:
+            before = self.reach.copy()  # the goal itself freed: everything is found afresh
+            self._full()
+            changed = np.flatnonzero(before != self.reach)
+            return changed[~self.reach[changed]], changed[self.reach[changed]]
+        if now_blocked.size:
+            self.reach[now_blocked] = False
+            if self.blocked[self.goal] or not _joined(
+                self.blocked, self.reach, now_blocked, self.width, self.height, MARGIN,
+                self._mark, self._queue,
+            ):  # fmt: skip
+                self._full()
+                assert before is not None
+                changed = np.flatnonzero(before != self.reach)
+                return changed[~self.reach[changed]], changed[self.reach[changed]]
+        gained = self._out[: _grow(self.blocked, self.reach, freed, self.width, self._queue,
+                                   self._out)]  # fmt: skip
+        lost = now_blocked[before[now_blocked]] if before is not None else now_blocked
+        return lost, gained.copy()

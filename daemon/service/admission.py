@@ -1,0 +1,189 @@
+"""Who is guided now, when the daemon cannot guide everyone in time.
+
+Two budgets, both from measurements of the steps themselves:
+
+- **CPU**: each step's worker-thread CPU time is recorded per user; over the last window a
+  guided user costs ``cost`` ms of CPU per second. The guided users together may cost at most
+  ``cpu_budget_ms`` per second (a share of the one core Python's GIL gives the steps'
+  Python parts; the compiled planners run beside it on the other cores).
+- **Lag**: each step's delay from its first urgent input (a map delta, a goal, a refusal, a
+  button) arriving to its outputs being published; a pose alone counts from when its turn
+  came. This is what a user feels, whatever the cause (cores, GIL, GPU, the loop).
+
+Every review (the daemon's tick):
+
+- guided users over the CPU budget: the most recently admitted are shed until the rest fit
+  in 90 % of it; or the lag's p95 above ``shed_fraction`` × its budget for ``sustain_s``:
+  a tenth of them (at least one) are shed. Then no decision for ``settle_s``;
+- the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``, and room in 80 % of
+  the CPU budget: the user shed longest ago is guided again.
+
+A shed user hears ``overloaded`` and feels WAIT (never a false ``stale_pose``); their map,
+goal and pose are kept, so guidance resumes where it was. Users admitted first stay guided
+longest: someone half-way across a station keeps the guidance they are walking on. A new
+user joins behind those already waiting. A user stays shed at least ``min_shed_s``, so nobody
+is told "overloaded", "resumed", "overloaded" in a row.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class AdmissionSettings:
+    lag_budget_ms: float = 50.0
+    """The delay every guided user should stay within (the p99 the daemon promises)."""
+    cpu_budget_ms: float = 600.0
+    """CPU ms per second all guided users' steps may take together."""
+    window_s: float = 1.0
+    shed_fraction: float = 0.6
+    readmit_fraction: float = 0.3
+    sustain_s: float = 0.5
+    settle_s: float = 1.0
+    calm_s: float = 2.0
+    min_shed_s: float = 5.0
+    min_samples: int = 20
+    """Fewer lags than this in a window say nothing about the lag (a quiet daemon)."""
+
+
+class Admission:
+    def __init__(self, settings: AdmissionSettings | None = None) -> None:
+        self.s = settings or AdmissionSettings()
+        self._admitted: list[str] = []
+        """In order of admission: the last ones are shed first."""
+        self._shed: dict[str, float] = {}
+        """Shed user → when; in order of shedding."""
+        self._lags: deque[tuple[float, float]] = deque()
+        self._cpu: deque[tuple[float, str, float]] = deque()
+        self._cost: dict[str, float] = {}
+        """Each user's CPU ms per second over the last window (kept while shed)."""
+        self._quiet_until = 0.0
+        self._over_since: float | None = None
+        self._calm_since: float | None = None
+        self.sheddings = 0
+        self.last_p95_ms = 0.0
+        self.last_cpu_ms = 0.0
+
+    # -- users ----------------------------------------------------------------------------
+
+    def join(self, user: str, now: float) -> bool:
+        """A new user: guided (True) unless others wait already or there is no room."""
+        if user in self._admitted or user in self._shed:
+            return user in self._admitted
+        room = self.last_cpu_ms + self._typical_cost() <= self.s.cpu_budget_ms
+        if self._shed or not room:
+            self._shed[user] = now
+            return False
+        self._admitted.append(user)
+        return True
+
+    def leave(self, user: str) -> None:
+        if user in self._admitted:
+            self._admitted.remove(user)
+        self._shed.pop(user, None)
+        self._cost.pop(user, None)
+
+    def is_shed(self, user: str) -> bool:
+        return user in self._shed
+
+    @property
+    def shed(self) -> list[str]:
+        return list(self._shed)
+
+    # -- measurements ---------------------------------------------------------------------
+
+    def record(self, user: str, lag_ms: float, cpu_ms: float, now: float) -> None:
+        """One step of ``user``'s: its lag and its worker's CPU time."""
+        if user in self._shed:
+            return  # a shed user's steps are not the guided users' load
+        self._lags.append((now, lag_ms))
+        self._cpu.append((now, user, cpu_ms))
+
+    def _measure(self, now: float) -> None:
+        start = now - self.s.window_s
+        while self._lags and self._lags[0][0] < start:
+            self._lags.popleft()
+        while self._cpu and self._cpu[0][0] < start:
+            self._cpu.popleft()
+        spent: dict[str, float] = {}
+        for _, user, ms in self._cpu:
+            spent[user] = spent.get(user, 0.0) + ms
+        for user in self._admitted:
+            self._cost[user] = spent.get(user, 0.0) / self.s.window_s
+        self.last_cpu_ms = sum(self._cost.get(u, 0.0) for u in self._admitted)
+        if len(self._lags) < self.s.min_samples:
+            self.last_p95_ms = 0.0
+        else:
+            lags = np.fromiter((lag for _, lag in self._lags), float, len(self._lags))
+            self.last_p95_ms = float(np.percentile(lags, 95))
+
+    def _typical_cost(self) -> float:
+        costs = [self._cost[u] for u in self._admitted if u in self._cost]
+        return float(np.median(costs)) if costs else 0.0
+
+    # -- decisions ------------------------------------------------------------------------
+
+    def review(self, now: float) -> tuple[list[str], list[str]]:
+        """(users shed now, users guided again now)."""
+        self._measure(now)
+        lag_over = self.last_p95_ms > self.s.shed_fraction * self.s.lag_budget_ms
+        if not lag_over:
+            self._over_since = None
+        elif self._over_since is None:
+            self._over_since = now
+        if now < self._quiet_until:
+            return [], []
+        gone = self._to_shed(now)
+        if gone:
+            del self._admitted[-len(gone) :]
+            for user in gone:
+                self._shed[user] = now
+            self.sheddings += len(gone)
+            self._lags.clear()
+            self._quiet_until, self._over_since, self._calm_since = (
+                now + self.s.settle_s,
+                None,
+                None,
+            )
+            return gone, []
+        back = self._to_readmit(now)
+        if back is not None:
+            del self._shed[back]
+            self._admitted.append(back)
+            self._quiet_until, self._calm_since = now + self.s.settle_s, None
+            return [], [back]
+        return [], []
+
+    def _to_shed(self, now: float) -> list[str]:
+        """The newest guided users to shed (none: all fit)."""
+        if len(self._admitted) <= 1:
+            return []  # one user alone is guided however slow: there is no one to make room for
+        if self.last_cpu_ms > self.s.cpu_budget_ms:
+            total, n = self.last_cpu_ms, 0
+            while n < len(self._admitted) - 1 and total > 0.9 * self.s.cpu_budget_ms:
+                n += 1
+                total -= self._cost.get(self._admitted[-n], 0.0)
+            return self._admitted[-n:]
+        if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
+            n = min(len(self._admitted) - 1, max(1, math.ceil(len(self._admitted) / 10)))
+            return self._admitted[-n:]
+        return []
+
+    def _to_readmit(self, now: float) -> str | None:
+        calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms
+        if not self._shed or not calm:
+            self._calm_since = None
+            return None
+        if self._calm_since is None:
+            self._calm_since = now
+        user, since = next(iter(self._shed.items()))
+        cost = self._cost.get(user, self._typical_cost())
+        room = self.last_cpu_ms + cost <= 0.8 * self.s.cpu_budget_ms
+        if now - self._calm_since < self.s.calm_s or now - since < self.s.min_shed_s or not room:
+            return None
+        return user

@@ -1,0 +1,303 @@
+"""Many users at once against a real daemon: the delta→belt latency each user feels, and
+whether overload is reported as overload.
+
+The load generator (this module, one process, one zenoh session) plays ``users`` wearers
+against ``guidebelt run`` (another process): each has its own map (walls around a
+``grid``² courtyard), a goal at the top and stands at the bottom, sends a fresh pose at
+``pose_hz`` and a map delta at ``delta_hz`` that drops or lifts a small obstacle on the way
+(so every delta changes the path). It records when each delta was sent and when the belt
+pattern of the first step that applied it arrived (the step's path names the last delta
+it applied, ``map_seq``, and is published just after its belt pattern), and every status.
+
+Poses are always fresh here, so every ``stale_pose`` a user gets is a false safety signal;
+users the daemon cannot serve must hear ``overloaded`` instead.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import zenoh
+from zenoh.handlers import Callback
+
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import Goal, GoalCell, MapDelta, NavStatus, Pose, StatusCode
+
+_MAP_SEQ = re.compile(rb'"map_seq":\s*(-?\d+)')
+
+
+@dataclass
+class LoadSpec:
+    users: int = 50
+    grid: int = 200
+    pose_hz: float = 20.0
+    delta_hz: float = 10.0
+    seconds: float = 30.0
+    warmup_s: float = 5.0
+    """Deltas sent before this are not measured: the daemon is still starting sessions."""
+    blob: int = 3
+    seed: int = 0
+    join_hz: float = 20.0
+    """Users who start walking per second: a venue's wearers do not all arrive at once."""
+
+
+@dataclass
+class UserTrace:
+    sends: dict[int, int] = field(default_factory=dict)
+    """delta seq → send time (perf_counter_ns)."""
+    belts: list[int] = field(default_factory=list)
+    paths: list[tuple[int, int]] = field(default_factory=list)
+    """(arrival ns, map_seq) of each path."""
+    codes: Counter = field(default_factory=Counter)
+    """Status codes heard after the warm-up."""
+    first_measured: int = 1 << 62
+
+
+def _blob(rng: np.random.Generator, n: int, size: int) -> np.ndarray:
+    """Flat cells of a size × size obstacle somewhere on the straight way up the middle."""
+    r = int(rng.integers(n // 5, 4 * n // 5))
+    c = int(rng.integers(n // 2 - n // 10, n // 2 + n // 10))
+    rr, cc = np.mgrid[r : r + size, c : c + size]
+    return (rr * n + cc).ravel()
+
+
+class LoadGenerator:
+    """Publishes the users' poses and deltas on ``session`` and records what comes back."""
+
+    def __init__(self, session: zenoh.Session, spec: LoadSpec) -> None:
+        self.session, self.spec = session, spec
+        self.names = [f"load{i:03d}" for i in range(spec.users)]
+        self.traces = {u: UserTrace() for u in self.names}
+        self._lock = threading.Lock()
+        self._measuring_from = 1 << 62
+        self._measuring_until = 1 << 62
+        self._subs = [
+            wire.declare_subscriber(session, T.BELT, self._sink(self._on_belt)),
+            wire.declare_subscriber(session, T.PATH, self._sink(self._on_path)),
+            wire.declare_subscriber(session, T.STATUS, self._sink(self._on_status)),
+        ]
+        self._pose_pubs = {u: wire.declare_publisher(session, T.POSE, u) for u in self.names}
+        self._delta_pubs = {u: wire.declare_publisher(session, T.MAP_DELTA, u) for u in self.names}
+
+    def _sink(self, handle: Callable[[str, int, bytes], None]) -> Callback:
+        def on_sample(sample: zenoh.Sample) -> None:
+            t = time.perf_counter_ns()
+            key = str(sample.key_expr)
+            user = key.split("/")[1]
+            if user in self.traces:
+                handle(user, t, sample.payload.to_bytes())
+
+        return Callback(on_sample, indirect=False)
+
+    def _on_belt(self, user: str, t: int, payload: bytes) -> None:
+        self.traces[user].belts.append(t)
+
+    def _on_path(self, user: str, t: int, payload: bytes) -> None:
+        m = _MAP_SEQ.search(payload)  # a full decode per path would load this process
+        if m is not None:
+            self.traces[user].paths.append((t, int(m.group(1))))
+
+    def _on_status(self, user: str, t: int, payload: bytes) -> None:
+        # Until shortly after the last pose: then poses stop and stale_pose is the truth.
+        if self._measuring_from <= t <= self._measuring_until:
+            status = codec.decode(NavStatus, payload)
+            with self._lock:
+                self.traces[user].codes[str(status.code) or status.state] += 1
+
+    def run(self) -> None:
+        spec, n = self.spec, self.spec.grid
+        cell_m = 10.0 / n
+        walls = np.flatnonzero(np.pad(np.zeros((n - 2, n - 2), bool), 1, constant_values=True))
+        x, y = (n // 2 + 0.5) * cell_m, (n // 10 + 0.5) * cell_m
+        goal = codec.encode(Goal(target=GoalCell(row=n // 10, col=n // 2), stamp=time.time()))
+        for u in self.names:
+            first = MapDelta.from_arrays(0, (n, n), walls, np.ones(walls.size), time.time())
+            self._delta_pubs[u].put(codec.encode(first))
+            wire.put(self.session, T.GOAL, u, goal)
+        rngs = {u: np.random.default_rng([spec.seed, i]) for i, u in enumerate(self.names)}
+        placed: dict[str, np.ndarray | None] = dict.fromkeys(self.names)
+        seq = dict.fromkeys(self.names, 0)
+        # Users join one after another; each one's sends are offset within the period.
+        start = time.perf_counter()
+        joins = {u: start + i / spec.join_hz for i, u in enumerate(self.names)}
+        offsets = {u: i / spec.users for i, u in enumerate(self.names)}
+        next_pose = {u: joins[u] + offsets[u] / spec.pose_hz for u in self.names}
+        next_delta = {u: joins[u] + offsets[u] / spec.delta_hz for u in self.names}
+        ramp_s = spec.users / spec.join_hz
+        self._measuring_from = time.perf_counter_ns() + int((ramp_s + spec.warmup_s) * 1e9)
+        end = start + ramp_s + spec.warmup_s + spec.seconds
+        while (now := time.perf_counter()) < end:
+            for u in self.names:
+                if now >= next_pose[u]:
+                    next_pose[u] += 1.0 / spec.pose_hz
+                    pose = Pose(x=x, y=y, heading=1.57, stamp=time.time())
+                    self._pose_pubs[u].put(codec.encode(pose))
+                if now >= next_delta[u]:
+                    next_delta[u] += 1.0 / spec.delta_hz
+                    seq[u] += 1
+                    blob = placed[u]
+                    if blob is None:
+                        blob = placed[u] = _blob(rngs[u], n, spec.blob)
+                        values = np.ones(blob.size, np.uint8)
+                    else:
+                        values, placed[u] = np.zeros(blob.size, np.uint8), None
+                    data = codec.encode(
+                        MapDelta.from_arrays(seq[u], (n, n), blob, values, time.time())
+                    )
+                    sent = time.perf_counter_ns()
+                    self._delta_pubs[u].put(data)
+                    trace = self.traces[u]
+                    trace.sends[seq[u]] = sent
+                    if sent >= self._measuring_from:
+                        trace.first_measured = min(trace.first_measured, seq[u])
+            time.sleep(0.001)
+        self._measuring_until = time.perf_counter_ns() + int(0.5e9)
+        time.sleep(1.0)  # the last answers
+
+    def close(self) -> None:
+        for sub in self._subs:
+            sub.undeclare()
+        for pub in (*self._pose_pubs.values(), *self._delta_pubs.values()):
+            pub.undeclare()
+
+
+def user_latencies(trace: UserTrace) -> tuple[list[float], int]:
+    """Delta→belt latency (ms) of each measured delta, and how many got no answer.
+
+    Delta i is answered by the belt pattern published just before the first path whose
+    ``map_seq`` ≥ i: exact even when the daemon coalesced several deltas into one step."""
+    if not trace.paths:
+        measured = [s for s in trace.sends if s >= trace.first_measured]
+        return [], len(measured)
+    paths = np.array(sorted(trace.paths), dtype=np.int64)
+    belts = np.array(sorted(trace.belts), dtype=np.int64)
+    # The latest map_seq seen up to each path (paths can arrive with older seqs after a
+    # resync); searchsorted needs it non-decreasing.
+    seen = np.maximum.accumulate(paths[:, 1])
+    lat, unanswered = [], 0
+    for i, sent in trace.sends.items():
+        if i < trace.first_measured:
+            continue
+        k = int(np.searchsorted(seen, i))
+        if k >= len(paths):
+            unanswered += 1
+            continue
+        b = int(np.searchsorted(belts, paths[k, 0])) - 1
+        answered_at = belts[b] if b >= 0 and belts[b] >= sent else paths[k, 0]
+        lat.append((answered_at - sent) / 1e6)
+    return lat, unanswered
+
+
+def summarise(gen: LoadGenerator, cpu: dict[str, float] | None = None) -> dict:
+    """Latency over the users the daemon served, who was shed, and every false signal."""
+    overloaded_users = [
+        u for u, t in gen.traces.items() if t.codes.get(StatusCode.OVERLOADED.value, 0)
+    ]
+    served, all_lat, unanswered = [], [], 0
+    stale = sum(t.codes.get(StatusCode.STALE_POSE.value, 0) for t in gen.traces.values())
+    for u, trace in gen.traces.items():
+        if u in overloaded_users:
+            continue
+        lat, missed = user_latencies(trace)
+        served.append(u)
+        all_lat.extend(lat)
+        unanswered += missed
+    lat = np.array(all_lat) if all_lat else np.zeros(1)
+    codes: Counter = Counter()
+    for t in gen.traces.values():
+        codes.update(t.codes)
+    spec = gen.spec
+    return {
+        "users": spec.users,
+        "grid": spec.grid,
+        "pose_hz": spec.pose_hz,
+        "delta_hz": spec.delta_hz,
+        "seconds": spec.seconds,
+        "served": len(served),
+        "overloaded": len(overloaded_users),
+        "deltas_measured": len(all_lat),
+        "unanswered": unanswered,
+        "p50_ms": round(float(np.percentile(lat, 50)), 2),
+        "p99_ms": round(float(np.percentile(lat, 99)), 2),
+        "max_ms": round(float(lat.max()), 2),
+        "false_stale_pose": int(stale),
+        "status_codes": {k: v for k, v in sorted(codes.items())},
+        **(cpu or {}),
+        "machine": f"{os.cpu_count()} CPUs",
+        "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    }
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (from /proc)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = None) -> dict:
+    """Start ``guidebelt run`` as its own process on a free loopback port, load it, stop it.
+
+    ``env`` adds ``GUIDEBELT_…`` settings (e.g. a smaller step budget) to the daemon's."""
+    import json
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from daemon.service.embedded import free_port, open_peer
+
+    root = Path(__file__).resolve().parents[1]
+    port = free_port()
+    daemon_env = {
+        **os.environ,
+        "PYTHONPATH": str(root),
+        "GUIDEBELT_CONFIG": "",
+        "GUIDEBELT_ZENOH__LISTEN": json.dumps([f"tcp/127.0.0.1:{port}"]),
+        "GUIDEBELT_BACKEND": backend,
+        "GUIDEBELT_CELL_M": str(10.0 / spec.grid),
+        "GUIDEBELT_MAX_USERS": str(max(spec.users, 16)),
+        "GUIDEBELT_LOG_LEVEL": "WARNING",
+        **(env or {}),
+    }
+    daemon = subprocess.Popen([sys.executable, "-m", "cli.app", "run"], cwd=root, env=daemon_env)
+    session = gen = None
+    try:
+        session = open_peer(port)
+        deadline = time.monotonic() + 60
+        while not wire.alive(session, T.ALIVE, timeout=0.5):
+            if daemon.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError("the daemon did not come up")
+            time.sleep(0.2)
+        gen = LoadGenerator(session, spec)
+        time.sleep(0.3)  # subscriptions meet the daemon's publishers
+        cpu0, t0 = cpu_seconds(daemon.pid), time.monotonic()
+        own0 = time.process_time()
+        gen.run()
+        took = time.monotonic() - t0
+        cores = (cpu_seconds(daemon.pid) - cpu0) / took
+        extra = {
+            "daemon_cores": round(cores, 2),
+            "generator_cores": round((time.process_time() - own0) / took, 2),
+        }
+        return summarise(gen, extra)
+    finally:
+        if gen is not None:
+            gen.close()
+        if session is not None:
+            session.close()
+        daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(10)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+            daemon.wait(5)

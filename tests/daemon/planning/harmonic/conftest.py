@@ -1,0 +1,51 @@
+"""Fixtures the harmonic tests share (maps as functions): random blocks, and a serpentine
+corridor where ``1 − u`` falls below what a float holds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from daemon.planning.harmonic import relax as rx
+
+
+def random_map(rng: np.random.Generator, h: int, w: int, density: float) -> np.ndarray:
+    blocked = rng.random((h, w)) < density
+    # Blobs as well as single cells: pockets, corner-only gaps and dead ends all occur.
+    for _ in range(int(rng.integers(0, 4))):
+        r, c = int(rng.integers(0, h)), int(rng.integers(0, w))
+        blocked[r : r + int(rng.integers(1, 4)), c : c + int(rng.integers(1, 6))] = True
+    return blocked
+
+
+def serpentine(side: int, lane: int = 3, wall: int = 1) -> tuple[np.ndarray, tuple, tuple]:
+    """A corridor ``lane`` cells wide that winds from the bottom to the top of a ``side`` map:
+    walls across the map with a gap at alternate ends. Returns (blocked, start, goal)."""
+    blocked = np.zeros((side, side), dtype=bool)
+    blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
+    row, left = lane + 1, True
+    while row < side - 1:
+        blocked[row : row + wall, :] = True
+        gap = slice(1, 1 + lane) if left else slice(side - 1 - lane, side - 1)
+        blocked[row : row + wall, gap] = False
+        row += lane + wall
+        left = not left
+    return blocked, (side - 2, side // 2), (1, side // 2)
+
+
+def reachable(blocked: np.ndarray, goal: tuple) -> np.ndarray:
+    """8-connected reachability from the goal, (h, w) bool."""
+    h, w = blocked.shape
+    padded = np.ones((h + 2, w + 2), dtype=np.bool_)
+    padded[1:-1, 1:-1] = blocked
+    steps = np.empty(padded.size, dtype=np.int64)
+    rx.bfs_steps(padded.reshape(-1), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2, steps)
+    return steps.reshape(h + 2, w + 2)[1:-1, 1:-1] >= 0
+
+
+@pytest.fixture
+def maps():
+    """The map makers above, for tests (``--import-mode=importlib`` imports no sibling)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(random_map=random_map, serpentine=serpentine, reachable=reachable)

@@ -1,0 +1,76 @@
+"""The CuPy engine against the numba one: the same contract, fields within a stated
+tolerance, warm replans equal to cold plans (GPU machine only: ``pytest -m gpu``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from daemon.planning import cuda_available, make_planner
+
+pytestmark = [
+    pytest.mark.gpu,
+    pytest.mark.skipif(not cuda_available(), reason="no usable CUDA device"),
+    pytest.mark.timeout(120),
+]
+
+GPU_TOL = 1e-2
+"""CPU (float64) and GPU (float32) fields, each stopped at residual 1e-4, agree on ``w``
+within this (log units: 1 % of ``1 − u``); float32 rounds ``w`` ~ 300 to 3e-5."""
+
+
+def paths_hold(planner, blocked, reach) -> None:
+    for r, c in zip(*np.nonzero(~blocked), strict=True):
+        path = planner.path((r, c))
+        if not reach[r, c]:
+            assert len(path) == 0
+            continue
+        assert tuple(path[0]) == (r, c) and tuple(path[-1]) == planner.goal
+        assert not blocked[path[:, 0], path[:, 1]].any()
+        assert (np.abs(np.diff(path, axis=0)).max(axis=1) == 1).all()
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("variant", ["fast", "paper"])
+def test_cuda_and_cpu_fields_agree_and_descend(maps, seed, variant):
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(10, 60)), int(rng.integers(10, 60))
+    blocked = maps.random_map(rng, h, w, 0.25)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    blocked[goal] = False
+    cpu, gpu = make_planner("harmonic", "cpu", variant), make_planner("harmonic", "cuda", variant)
+    cpu.plan(blocked, goal)
+    gpu.plan(blocked, goal)
+    reach = maps.reachable(blocked, goal) & ~blocked
+    assert gpu.residual < 1e-4
+    assert np.abs(cpu.field()[reach] - gpu.field()[reach]).max() < GPU_TOL
+    paths_hold(gpu, blocked, maps.reachable(blocked, goal))
+
+
+def test_cuda_warm_replans_equal_cold_plans(maps):
+    rng = np.random.default_rng(11)
+    blocked = maps.random_map(rng, 80, 80, 0.1)
+    goal = (3, 3)
+    blocked[goal] = False
+    warm = make_planner("harmonic", "cuda")
+    warm.plan(blocked, goal)
+    for _ in range(8):
+        r, c = int(rng.integers(5, 75)), int(rng.integers(5, 75))
+        cells = (np.arange(r, r + 5)[:, None] * 80 + np.arange(c, c + 5)[None, :]).ravel()
+        values = rng.random(cells.size) < 0.7
+        values[cells == 3 * 80 + 3] = False
+        warm.update(cells, values)
+        blocked.reshape(-1)[cells] = values
+    cold = make_planner("harmonic", "cuda")
+    cold.plan(blocked, goal)
+    reach = maps.reachable(blocked, goal) & ~blocked
+    assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
+    paths_hold(warm, blocked, maps.reachable(blocked, goal))
+
+
+def test_cuda_has_no_plateau_on_the_serpentine(maps):
+    blocked, start, goal = maps.serpentine(64)
+    gpu = make_planner("harmonic", "cuda")
+    gpu.plan(blocked, goal)
+    assert gpu.field()[start] > 40
+    assert tuple(gpu.path(start)[-1]) == goal

@@ -1,0 +1,73 @@
+"""``kernels/harmonic.cu`` compiles with NVRTC (what CuPy uses) for the H100's sm_90, in both
+float types, on a machine without a GPU — as ``test_kernels_compile.py`` does for the
+cuda planner's kernels. (A name NVRTC lacks, ``INFINITY``, once reached the device.)"""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+
+import pytest
+
+SOURCE = (
+    Path(__file__).resolve().parents[4] / "daemon" / "planning" / "harmonic" / "kernels"
+    / "harmonic.cu"
+)  # fmt: skip
+
+
+def nvrtc() -> ctypes.CDLL:
+    try:
+        import nvidia.cuda_nvrtc as pkg
+    except ImportError:
+        pytest.skip("nvidia-cuda-nvrtc-cu12 is not installed (pip install -e '.[test]')")
+    libs = sorted(Path(next(iter(pkg.__path__))).glob("lib/libnvrtc.so*"))
+    if not libs:
+        pytest.skip("the nvrtc wheel holds no libnvrtc.so for this platform")
+    return ctypes.CDLL(str(libs[0]))
+
+
+def cuda_include(lib: ctypes.CDLL) -> Path:
+    """The CUDA headers (cooperative_groups.h): cupy passes its toolkit's; here the system's
+    toolkit or the nvidia-cuda-runtime wheel's."""
+    import glob
+    import sys
+
+    found = [Path("/usr/local/cuda/include")] + [
+        Path(p) for p in glob.glob(f"{sys.prefix}/lib/python3*/site-packages/nvidia/*/include")
+    ]
+    major, minor = ctypes.c_int(), ctypes.c_int()
+    lib.nvrtcVersion(ctypes.byref(major), ctypes.byref(minor))
+    for folder in found:
+        header = folder / "cuda.h"
+        if (folder / "cooperative_groups.h").exists() and header.exists():
+            # Headers of another major version than NVRTC's do not parse (CUDA 13's with
+            # NVRTC 12): only a matching pair says anything about the kernel.
+            text = header.read_text(errors="replace")
+            at = text.find("#define CUDA_VERSION")
+            if at >= 0 and int(text[at:].split()[2]) // 1000 == major.value:
+                return folder
+    pytest.skip(f"no CUDA {major.value}.x headers with cooperative_groups.h on this machine")
+
+
+@pytest.mark.parametrize("real,eps", [("float", "1.1920929e-7f"), ("double", "2.2e-16")])
+def test_the_harmonic_kernel_compiles_for_sm90(real, eps):
+    lib = nvrtc()
+    include = cuda_include(lib)
+    prog = ctypes.c_void_p()
+    rc = lib.nvrtcCreateProgram(ctypes.byref(prog), SOURCE.read_bytes(), b"harmonic.cu", 0,
+                                None, None)  # fmt: skip
+    assert rc == 0
+    try:
+        # -rdc: grid-wide sync (cooperative groups) needs relocatable device code, as cupy's
+        # enable_cooperative_groups compiles it.
+        opts = [b"--std=c++17", b"--gpu-architecture=sm_90", b"-rdc=true", f"-I{include}".encode(),
+                f"-I{include / 'cccl'}".encode(),
+                f"-DREAL={real}".encode(), f"-DREAL_EPS={eps}".encode()]  # fmt: skip
+        rc = lib.nvrtcCompileProgram(prog, len(opts), (ctypes.c_char_p * len(opts))(*opts))
+        size = ctypes.c_size_t()
+        lib.nvrtcGetProgramLogSize(prog, ctypes.byref(size))
+        log = ctypes.create_string_buffer(size.value)
+        lib.nvrtcGetProgramLog(prog, log)
+        assert rc == 0, log.value.decode(errors="replace")
+    finally:
+        lib.nvrtcDestroyProgram(ctypes.byref(prog))

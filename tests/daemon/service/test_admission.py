@@ -1,0 +1,137 @@
+"""Admission control: who is guided when the daemon cannot guide everyone in time. Shed users
+hear ``overloaded`` and feel WAIT, never a false ``stale_pose``; the first admitted stay guided."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from daemon.service.admission import Admission, AdmissionSettings
+from daemon.service.embedded import DaemonThread
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import (
+    BeltPattern,
+    Goal,
+    GoalCell,
+    Health,
+    MapDelta,
+    NavStatus,
+    PatternKind,
+    Pose,
+    StatusCode,
+)
+
+
+def steps(adm: Admission, users, now: float, cpu_ms: float, lag_ms: float, n: int = 10) -> None:
+    """``n`` steps of each user within the last second before ``now``."""
+    for i in range(n):
+        for u in users:
+            adm.record(u, lag_ms, cpu_ms, now - 0.9 + i * 0.9 / n)
+
+
+def test_over_the_cpu_budget_the_newest_users_are_shed_until_the_rest_fit():
+    adm = Admission(AdmissionSettings(cpu_budget_ms=100.0))
+    users = [f"u{i}" for i in range(8)]
+    assert all(adm.join(u, 0.0) for u in users)
+    steps(adm, users, 10.0, cpu_ms=2.0, lag_ms=5.0)  # 8 users × 20 ms/s = 160 ms/s
+    shed, back = adm.review(10.0)
+    assert shed == ["u4", "u5", "u6", "u7"] and back == []  # 4 × 20 = 80 ≤ 0.9 × 100
+    assert adm.shed == shed and adm.is_shed("u7") and not adm.is_shed("u0")
+    assert not adm.join("late", 10.0)  # a newcomer waits behind those shed before
+
+
+def test_a_sustained_lag_sheds_a_tenth_and_a_single_user_is_never_shed():
+    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+    users = [f"u{i}" for i in range(20)]
+    for u in users:
+        adm.join(u, 0.0)
+    steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=80.0)
+    assert adm.review(10.0) == ([], [])  # over, but not for sustain_s yet
+    steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=80.0)
+    shed, _ = adm.review(10.6)
+    assert shed == ["u18", "u19"]
+    alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
+    alone.join("only", 0.0)
+    steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
+    assert alone.review(10.0) == ([], []) and alone.review(11.0) == ([], [])
+
+
+def test_calm_brings_back_the_user_shed_longest_ago_one_at_a_time():
+    s = AdmissionSettings(cpu_budget_ms=100.0, calm_s=2.0, min_shed_s=5.0, settle_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i}" for i in range(4)]
+    for u in users:
+        adm.join(u, 0.0)
+    steps(adm, users, 10.0, cpu_ms=4.0, lag_ms=5.0)  # 4 × 40 = 160 ms/s
+    assert adm.review(10.0)[0] == ["u2", "u3"]
+    back = []
+    for t in np.arange(11.0, 30.0, 0.25):  # the two left now cost 20 ms/s each: calm, room
+        steps(adm, ["u0", "u1"], t, cpu_ms=0.5, lag_ms=2.0, n=4)
+        back += adm.review(t)[1]
+    assert back == ["u2", "u3"] and adm.shed == []
+
+
+# -- the daemon ---------------------------------------------------------------------------
+
+SHAPE = (40, 40)
+CELL_M = 0.1
+
+
+@pytest.mark.timeout(60)
+def test_a_daemon_over_its_budget_tells_the_last_users_overloaded_and_guides_the_first():
+    users = ["first", "second", "third", "fourth"]
+    heard: dict[str, list] = {u: [] for u in users}
+    # A CPU budget no step can fit: everyone but the first admitted is shed.
+    with DaemonThread(backend="cpu", step_cpu_budget_ms=10, tick_s=0.1) as d:
+        peer = d.peer()
+        try:
+
+            def keep(topic):
+                def on_sample(sample) -> None:
+                    msg = codec.decode(topic.model, sample.payload.to_bytes())
+                    heard[T.user_of(str(sample.key_expr))].append(msg)
+
+                return on_sample
+
+            subs = [
+                wire.declare_subscriber(peer, topic, keep(topic), u)
+                for u in users
+                for topic in (T.STATUS, T.BELT)
+            ]
+            walls = np.flatnonzero(np.pad(np.zeros((38, 38), bool), 1, constant_values=True))
+            for u in users:
+                now = time.time()
+                delta = MapDelta.from_arrays(0, SHAPE, walls, np.ones(walls.size), now)
+                wire.put(peer, T.MAP_DELTA, u, codec.encode(delta))
+                goal = Goal(target=GoalCell(row=4, col=20), stamp=now)
+                wire.put(peer, T.GOAL, u, codec.encode(goal))
+                time.sleep(0.1)  # joined one after another: "first" is admitted first
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline:
+                for u in users:  # poses at 20 Hz, always fresh
+                    pose = Pose(x=2.05, y=0.55, heading=1.57, stamp=time.time())
+                    wire.put(peer, T.POSE, u, codec.encode(pose))
+                time.sleep(0.05)
+                health = [r.ok for r in wire.get(peer, T.HEALTH) if r.ok is not None]
+                shed = codec.decode(Health, health[0].payload.to_bytes()).overloaded
+                if len(shed) == 3 and all(
+                    any(isinstance(m, NavStatus) and m.code == StatusCode.OVERLOADED
+                        for m in heard[u]) for u in shed
+                ):  # fmt: skip
+                    break
+            for sub in subs:
+                sub.undeclare()
+        finally:
+            peer.close()
+    assert sorted(shed) == ["fourth", "second", "third"]
+    for u in shed:
+        last_belt = [m for m in heard[u] if isinstance(m, BeltPattern)][-1]
+        assert last_belt.kind == PatternKind.WAIT
+    statuses = [m for u in users for m in heard[u] if isinstance(m, NavStatus)]
+    assert not [m for m in statuses if m.code == StatusCode.STALE_POSE]  # never a false one
+    first = [m for m in heard["first"] if isinstance(m, BeltPattern)]
+    assert first[-1].kind == PatternKind.GUIDE
