@@ -8,7 +8,8 @@ loses nothing committed, a power cut at most the last commits, and the file stay
 Nothing that steps a user waits for the disk. Callers hand rows to ``put_*``, which only store
 them in a coalescing table under a lock (the latest row per user and kind wins, so the queue is
 bounded by users × kinds and a put never blocks); one writer thread commits what is pending as
-one transaction at most every ``commit_s`` and each user's map at most every ``map_period_s``
+one transaction at most every ``commit_s`` (woken only when it would otherwise sleep past a new
+row's turn, not by every row) and each user's map at most every ``map_period_s``
 (compressing it there, not on the user's worker). ``close`` writes whatever is pending.
 
 A file that is not ours (another application id or schema version) or that SQLite finds corrupt
@@ -103,6 +104,8 @@ class StateDB:
         self._pending: dict[tuple[str, str], object] = {}
         self._map_written: dict[str, float] = {}
         self._last_commit = 0.0
+        self._sleep_until = float("inf")
+        """When the writer wakes by itself (monotonic); inf: not until a put wakes it."""
         self._closing = False
         self.commits = 0
         self.rows = 0
@@ -114,7 +117,7 @@ class StateDB:
 
     @classmethod
     def open(
-        cls, folder: Path, map_period_s: float = 2.0, commit_s: float = 0.1
+        cls, folder: Path, map_period_s: float = 2.0, commit_s: float = 0.25
     ) -> tuple[StateDB, Stored] | None:
         """The database in ``folder`` and what it holds, its writer started; None (said in one
         line) when the folder cannot be used at all, and the daemon runs without a store."""
@@ -171,7 +174,10 @@ class StateDB:
                 self.dropped += 1
                 return
             self._pending[key] = row
-            self._cond.notify()
+            # Woken only when it would sleep past this row's turn: a wake per put cost the
+            # steps' p99 in GIL hand-offs (docs/notes/state-and-epochs.md).
+            if self._sleep_until > time.monotonic() + self.commit_s:
+                self._cond.notify()
 
     # -- the writer -----------------------------------------------------------------------
 
@@ -197,10 +203,13 @@ class StateDB:
         while True:
             with self._cond:
                 while True:
-                    ready, wait = self._due(time.monotonic())
+                    now = time.monotonic()
+                    ready, wait = self._due(now)
                     if ready or (self._closing and not self._pending):
                         break
+                    self._sleep_until = float("inf") if wait is None else now + wait
                     self._cond.wait(wait)
+                self._sleep_until = 0.0  # busy: rows put now are taken on its next look
                 closing = self._closing and not self._pending
             if ready:
                 self._write(ready)
