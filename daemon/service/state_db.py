@@ -174,8 +174,8 @@ class StateDB:
                 self.dropped += 1
                 return
             self._pending[key] = row
-            # Woken only when it would sleep past this row's turn: a wake per put cost the
-            # steps' p99 in GIL hand-offs (docs/notes/state-and-epochs.md).
+            # Woken only when it would sleep past this row's turn: a wake per put (one a step
+            # per user) would only send it back to sleep, at the cost of a GIL hand-off.
             if self._sleep_until > time.monotonic() + self.commit_s:
                 self._cond.notify()
 
