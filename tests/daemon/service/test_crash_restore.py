@@ -83,6 +83,7 @@ def test_sigkill_mid_walk_restart_and_the_user_arrives_with_nothing_lost(tmp_pat
         'backend = "cpu"\n'
         f'state_dir = "{tmp_path / "state"}"\n'
         "persist_map_s = 0.5\n"
+        "guide_hz = 100\n"  # a pose re-guides at once: the lock-step walk is not paced to 10 Hz
         "snapshot_timeout_s = 1.0\n"
         "[zenoh]\n"
         f'listen = ["tcp/127.0.0.1:{port}"]\n'
@@ -162,7 +163,7 @@ def test_a_goal_sender_resends_its_goal_when_the_daemon_comes_back(monkeypatch):
     monkeypatch.setattr(embedded, "free_port", lambda: port)  # both daemons on one port
     scenario = make_courtyard(100, 0.2, seed=2)
     goal = Goal(target=GoalCell(row=scenario.goal[0], col=scenario.goal[1]), stamp=1.0)
-    first = DaemonThread(backend="cpu").__enter__()
+    first = DaemonThread(backend="cpu", guide_hz=100).__enter__()
     session = open_peer(port)
     node = SimNode(session, USER, scenario, pose_period_s=0.2, goal=goal)
     stop = threading.Event()
@@ -172,7 +173,7 @@ def test_a_goal_sender_resends_its_goal_when_the_daemon_comes_back(monkeypatch):
     def restart(result: SimResult) -> None:
         if result.steps == 8 and not restarted:
             first.stop()
-            restarted.append(DaemonThread(backend="cpu").__enter__())
+            restarted.append(DaemonThread(backend="cpu", guide_hz=100).__enter__())
 
     walk = threading.Thread(target=lambda: box.update(r=node.run(stop, 10**4, 40, restart)))
     try:

@@ -17,6 +17,22 @@ from sim.courtyard import make_courtyard
 from sim.node import SimNode, SimResult
 
 
+@pytest.fixture
+def daemon():
+    """Its own daemon: a pose re-guides at once (the lock-step walk is not paced to 10 Hz)."""
+    from daemon.service.embedded import DaemonThread
+
+    with DaemonThread(backend="cpu", guide_hz=100) as d:
+        yield d
+
+
+@pytest.fixture
+def peer(daemon):
+    session = daemon.peer()
+    yield session
+    session.close()
+
+
 @pytest.mark.timeout(90)
 def test_a_mapper_restarted_mid_walk_at_sequence_0_still_reaches_the_map(daemon, peer):
     scenario = make_courtyard(100, 0.2, seed=4)
