@@ -37,6 +37,7 @@ def _default_state_dir() -> Path:
     named = os.environ.get("STATE_DIRECTORY", "").split(":")[0]
     return Path(named) if named else DEFAULT_STATE_DIR
 
+
 Metres = Annotated[float, Field(ge=-100_000, le=100_000, allow_inf_nan=False)]
 LandmarkName = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_ -]+$")]
 
@@ -113,6 +114,11 @@ class DaemonConfig(BaseSettings):
         default_factory=_default_state_dir,
         description="goals, maps, sessions and users' settings survive restarts here "
         "(state.db); default $STATE_DIRECTORY or /var/lib/guidebelt; empty: nothing kept",
+    )
+    settings_dir: Path | None = Field(
+        default=None,
+        description="no longer used (settings live in state_dir): its <user>.json files are "
+        "imported once into the state database",
     )
     persist_map_s: float = Field(
         default=2.0, ge=0.1, le=3600, description="each user's map written at most this often"

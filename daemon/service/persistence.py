@@ -20,11 +20,13 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 from pydantic import ValidationError
 
 from daemon.navigation import Navigator
 from protocol import codec
+from protocol import topics as T
 from protocol.messages import Goal, StatusCode, UserSettings
 
 from .config import DaemonConfig
@@ -93,11 +95,36 @@ class Persistence:
         opened = StateDB.open(config.state_dir, map_period_s=config.persist_map_s)
         if opened is not None:
             self.db, self.stored = opened
+            if config.settings_dir is not None:
+                self._import_settings(config.settings_dir)
             log.info(
                 "state database open",
                 extra={"fields": {"path": str(self.db.path), "sessions": len(self.stored.sessions),
                                   "maps": len(self.stored.maps)}},
             )  # fmt: skip
+
+    def _import_settings(self, folder: Path) -> None:
+        """The JSON files of the old ``settings_dir`` (one per user), for users the database
+        has no settings of; a file that does not validate is left out, said."""
+        assert self.db is not None
+        taken = 0
+        for path in sorted(folder.glob("*.json"))[:10_000]:
+            user = path.stem
+            if user in self.stored.settings or not T.USER_RE.match(user):
+                continue
+            try:
+                text = UserSettings.model_validate_json(path.read_text()).model_dump_json()
+            except (OSError, ValidationError) as exc:
+                fields = {"path": str(path), "err": str(exc)[:200]}
+                log.warning("old settings file not imported", extra={"fields": fields})
+                continue
+            self.stored.settings[user] = text
+            self.db.put_settings(user, text)
+            taken += 1
+        log.warning(
+            "settings_dir is no longer used: settings live in state_dir; remove it from the config",
+            extra={"fields": {"settings_dir": str(folder), "imported": taken}},
+        )
 
     def saver(self, user: str) -> Callable[[Navigator], None] | None:
         return None if self.db is None else SessionSaver(self.db, user)

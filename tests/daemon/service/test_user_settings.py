@@ -38,3 +38,18 @@ def test_a_broken_row_gives_the_defaults_and_no_store_keeps_them_in_memory(tmp_p
     memory = SettingsStore(60)
     memory.save("ann", UserSettings(intensity=10, stamp=time.time()))
     assert memory.load("ann").intensity == 10
+
+
+def test_the_old_settings_dir_is_imported_once(tmp_path, caplog):
+    old = tmp_path / "settings"
+    old.mkdir()
+    (old / "ann.json").write_text('{"intensity": 45, "stamp": 1}')
+    (old / "bob.json").write_text('{"intensity": 900, "stamp": 1}')  # refused, said
+    state = Persistence(DaemonConfig(state_dir=tmp_path / "state", settings_dir=old))
+    assert store_in(state).load("ann").intensity == 45
+    assert store_in(state).load("bob").intensity == 80
+    state.close()
+    assert "settings_dir is no longer used" in caplog.text
+    again = Persistence(DaemonConfig(state_dir=tmp_path / "state"))
+    assert sorted(again.stored.settings) == ["ann"]  # in the database now
+    again.close()
