@@ -31,9 +31,6 @@ def sim(
     import threading
     import time
 
-    from protocol import codec
-    from protocol import session as wire
-    from protocol import topics as T
     from protocol.messages import Goal, GoalCell
     from sim.courtyard import make_courtyard
     from sim.node import SimNode, SimResult
@@ -45,15 +42,11 @@ def sim(
     session = open_peer(connect, scout, zenoh_config)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    node = SimNode(session, user, scenario, walker=follow, step_period_s=step_period)
-    if send_goal:
-        def goal_later() -> None:
-            if not stop.wait(0.5):
-                row, col = scenario.goal
-                g = Goal(target=GoalCell(row=row, col=col), stamp=time.time())
-                wire.put(session, T.GOAL, user, codec.encode(g))
-
-        threading.Thread(target=goal_later, daemon=True).start()
+    goal = None
+    if send_goal:  # sent when the daemon's token appears, and again after a restart
+        row, col = scenario.goal
+        goal = Goal(target=GoalCell(row=row, col=col), stamp=time.time())
+    node = SimNode(session, user, scenario, walker=follow, step_period_s=step_period, goal=goal)
 
     def progress(r: SimResult) -> None:
         if r.steps % 10 == 0:

@@ -4,9 +4,13 @@ Map deltas and snapshots are a fixed little-endian header and raw arrays, so a
 400 × 400 map update costs a ``memcpy``, not a JSON list of numbers:
 
     MapDelta     "GBMD" u16 version, u16 flags, u32 seq, u32 height, u32 width,
-                 f64 stamp, u32 count | count × u32 flat cell index | count × u8 value
+                 f64 stamp, u32 count | [u64 epoch] | count × u32 flat cell index
+                 | count × u8 value
     MapSnapshot  "GBMS" u16 version, u16 flags, u32 seq, u32 height, u32 width,
-                 f64 stamp, u32 nbytes | nbytes of zlib-compressed uint8 occupancy
+                 f64 stamp, u32 nbytes | [u64 epoch] | nbytes of zlib-compressed occupancy
+
+The epoch is there only when bit 0 of ``flags`` (``FLAG_EPOCH``) is set: a sender that predates
+epochs (flags 0) still decodes, as a source without one. Other flag bits are refused.
 
 ``decode`` never lets an exception other than ``DecodeError`` out; its ``code`` says
 which kind of bad input it was (a ``StatusCode``: ``malformed``, ``unknown_field``,
@@ -29,6 +33,9 @@ SNAPSHOT_MAGIC = b"GBMS"
 VERSION = 1
 HEADER = struct.Struct("<4sHHIIIdI")
 """magic, version, flags, seq, height, width, stamp, count (delta) or nbytes (snapshot)."""
+EPOCH = struct.Struct("<Q")
+FLAG_EPOCH = 0x0001
+"""``flags`` bit: a u64 epoch follows the header."""
 
 MAX_SNAPSHOT_BYTES = 64 * 1024 * 1024
 MAX_JSON_BYTES = 64 * 1024
@@ -39,9 +46,9 @@ few hundred bytes; a megabyte of JSON would cost the parser before pydantic coul
 def max_bytes(kind: type[Message]) -> int:
     """The most bytes a ``kind`` can take on the wire; more is refused before parsing."""
     if kind is MapDelta:
-        return HEADER.size + 5 * MAX_DELTA_CELLS
+        return HEADER.size + EPOCH.size + 5 * MAX_DELTA_CELLS
     if kind is MapSnapshot:
-        return HEADER.size + MAX_SNAPSHOT_BYTES
+        return HEADER.size + EPOCH.size + MAX_SNAPSHOT_BYTES
     return MAX_JSON_BYTES
 
 
@@ -104,23 +111,36 @@ def _classify(exc: ValidationError) -> DecodeError:
     return DecodeError(StatusCode.INVALID, reason)
 
 
+def _epoch_part(epoch: int | None) -> tuple[int, bytes]:
+    """The header's flags and the bytes that follow it, for ``epoch``."""
+    return (0, b"") if epoch is None else (FLAG_EPOCH, EPOCH.pack(epoch))
+
+
 def _encode_delta(msg: MapDelta) -> bytes:
     n = len(msg.values)
-    head = HEADER.pack(
-        DELTA_MAGIC, VERSION, 0, msg.seq, msg.height, msg.width, msg.stamp, n
-    )
-    return b"".join((head, msg.cells, msg.values))
+    flags, epoch = _epoch_part(msg.epoch)
+    head = HEADER.pack(DELTA_MAGIC, VERSION, flags, msg.seq, msg.height, msg.width, msg.stamp, n)
+    return b"".join((head, epoch, msg.cells, msg.values))
 
 
-def _header(data: bytes, magic: bytes) -> tuple[int, int, int, float, int]:
+def _header(data: bytes, magic: bytes) -> tuple[int, int | None, int, int, float, int, int]:
+    """seq, epoch, height, width, stamp, count or nbytes, and where the body starts."""
     if len(data) < HEADER.size:
         raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes is shorter than the header")
-    got_magic, version, _flags, seq, height, width, stamp, count = HEADER.unpack_from(data)
+    got_magic, version, flags, seq, height, width, stamp, count = HEADER.unpack_from(data)
     if got_magic != magic:
         raise DecodeError(StatusCode.MALFORMED, f"bad magic {got_magic!r}, expected {magic!r}")
     if version != VERSION:
         raise DecodeError(StatusCode.MALFORMED, f"unsupported version {version}")
-    return seq, height, width, stamp, count
+    if flags & ~FLAG_EPOCH:
+        raise DecodeError(StatusCode.MALFORMED, f"unknown header flags {flags:#06x}")
+    epoch, body = None, HEADER.size
+    if flags & FLAG_EPOCH:
+        if len(data) < HEADER.size + EPOCH.size:
+            raise DecodeError(StatusCode.MALFORMED, "header says an epoch follows; none does")
+        (epoch,) = EPOCH.unpack_from(data, HEADER.size)
+        body += EPOCH.size
+    return seq, epoch, height, width, stamp, count, body
 
 
 def _validated(kind: type[M], fields: dict) -> M:
@@ -131,15 +151,16 @@ def _validated(kind: type[M], fields: dict) -> M:
 
 
 def _decode_delta(data: bytes) -> MapDelta:
-    seq, height, width, stamp, n = _header(data, DELTA_MAGIC)
+    seq, epoch, height, width, stamp, n, start = _header(data, DELTA_MAGIC)
     # Before touching the body: an oversized delta is refused whatever it holds.
     if n > MAX_DELTA_CELLS:
         raise DecodeError(StatusCode.OVERSIZED, f"delta of {n} cells exceeds {MAX_DELTA_CELLS}")
-    if len(data) != HEADER.size + 5 * n:
+    if len(data) != start + 5 * n:
         raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes for {n} cells")
-    body = memoryview(data)[HEADER.size :]
+    body = memoryview(data)[start:]
     fields = dict(
         seq=seq,
+        epoch=epoch,
         height=height,
         width=width,
         stamp=stamp,
@@ -150,22 +171,24 @@ def _decode_delta(data: bytes) -> MapDelta:
 
 
 def _encode_snapshot(msg: MapSnapshot) -> bytes:
+    flags, epoch = _epoch_part(msg.epoch)
     head = HEADER.pack(
-        SNAPSHOT_MAGIC, VERSION, 0, msg.seq, msg.height, msg.width, msg.stamp, len(msg.occupancy)
-    )
-    return head + msg.occupancy
+        SNAPSHOT_MAGIC, VERSION, flags, msg.seq, msg.height, msg.width, msg.stamp,
+        len(msg.occupancy),
+    )  # fmt: skip
+    return b"".join((head, epoch, msg.occupancy))
 
 
 def _decode_snapshot(data: bytes) -> MapSnapshot:
-    seq, height, width, stamp, nbytes = _header(data, SNAPSHOT_MAGIC)
+    seq, epoch, height, width, stamp, nbytes, start = _header(data, SNAPSHOT_MAGIC)
     if nbytes > MAX_SNAPSHOT_BYTES:
         raise DecodeError(
             StatusCode.OVERSIZED, f"snapshot of {nbytes} bytes exceeds {MAX_SNAPSHOT_BYTES}"
         )
-    if len(data) != HEADER.size + nbytes:
+    if len(data) != start + nbytes:
         raise DecodeError(StatusCode.MALFORMED, f"{len(data)} bytes for a {nbytes}-byte body")
     fields = dict(
-        seq=seq, height=height, width=width, stamp=stamp, occupancy=data[HEADER.size :]
+        seq=seq, epoch=epoch, height=height, width=width, stamp=stamp, occupancy=data[start:]
     )
     snap = _validated(MapSnapshot, fields)
     try:

@@ -208,12 +208,18 @@ class StatusCode(StrEnum):
     OVERSIZED = "oversized"
     SHAPE_MISMATCH = "shape_mismatch"
     SEQUENCE_GAP = "sequence_gap"
+    NEW_EPOCH = "new_epoch"
+    """The map source restarted (a new epoch): the map is resynchronised from its snapshot."""
+    OLD_EPOCH = "old_epoch"
+    """A delta or snapshot of an epoch the source has left behind: refused."""
     # The daemon itself.
     TOO_MANY_USERS = "too_many_users"
     OVERLOADED = "overloaded"
     INTERNAL = "internal"
     SHUTDOWN = "shutdown"
     IDLE = "idle"
+    RESTORED = "restored"
+    """The daemon restarted and restored the session: it waits for a fresh pose."""
 
 
 class NavStatus(Message):
@@ -272,6 +278,19 @@ class RfidStats(Message):
     stamp: Stamp
 
 
+MAX_EPOCH = 2**64
+"""Epochs are unsigned 64-bit: a random session id, or a start counter, chosen by the source."""
+
+Epoch = Annotated[
+    int | None,
+    Field(
+        default=None,
+        ge=0,
+        lt=MAX_EPOCH,
+        description="the map source's epoch, new each time it starts (None: an older sender)",
+    ),
+]
+
 MAX_DELTA_CELLS = 65536
 """A delta changing more cells than this is rejected whole; send a snapshot instead."""
 
@@ -286,7 +305,8 @@ class MapDelta(Message):
     ``values`` one ``uint8`` occupancy per cell. A delta is applied whole or not at all.
     """
 
-    seq: int = Field(ge=0, lt=2**32, description="consecutive per user, from 0")
+    seq: int = Field(ge=0, lt=2**32, description="consecutive per user and epoch, from 0")
+    epoch: Epoch = None
     height: int = Field(ge=1, le=MAX_SIDE)
     width: int = Field(ge=1, le=MAX_SIDE)
     stamp: Stamp
@@ -314,10 +334,17 @@ class MapDelta(Message):
 
     @classmethod
     def from_arrays(
-        cls, seq: int, shape: tuple[int, int], cells: np.ndarray, values: np.ndarray, stamp: float
+        cls,
+        seq: int,
+        shape: tuple[int, int],
+        cells: np.ndarray,
+        values: np.ndarray,
+        stamp: float,
+        epoch: int | None = None,
     ) -> MapDelta:
         return cls(
             seq=seq,
+            epoch=epoch,
             height=shape[0],
             width=shape[1],
             stamp=stamp,
@@ -330,16 +357,20 @@ class MapSnapshot(Message):
     """The whole occupancy map as of delta ``seq``, zlib-compressed ``uint8`` in C order."""
 
     seq: int = Field(ge=0, lt=2**32, description="the last delta this snapshot includes")
+    epoch: Epoch = None
     height: int = Field(ge=1, le=MAX_SIDE)
     width: int = Field(ge=1, le=MAX_SIDE)
     stamp: Stamp
     occupancy: bytes = Field(description="zlib-compressed uint8 occupancy, height * width bytes")
 
     @classmethod
-    def from_array(cls, seq: int, occupancy: np.ndarray, stamp: float) -> MapSnapshot:
+    def from_array(
+        cls, seq: int, occupancy: np.ndarray, stamp: float, epoch: int | None = None
+    ) -> MapSnapshot:
         occ = np.ascontiguousarray(occupancy, dtype=np.uint8)
         return cls(
             seq=seq,
+            epoch=epoch,
             height=occ.shape[0],
             width=occ.shape[1],
             stamp=stamp,

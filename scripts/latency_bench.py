@@ -154,6 +154,11 @@ def run(args: argparse.Namespace) -> dict:
     arrivals_file = tmp / "arrivals.json"
     for f in (arrivals_file, Path(str(arrivals_file) + ".ready")):
         f.unlink(missing_ok=True)
+    # The daemon keeps its state as in production, in a fresh database of its own each run:
+    # never the system's /var/lib/guidebelt, nothing restored from an earlier run.
+    state = tmp / "state"
+    for f in state.glob("state.db*"):
+        f.unlink()
     env = {
         **os.environ,
         "PYTHONPATH": str(ROOT),
@@ -165,6 +170,7 @@ def run(args: argparse.Namespace) -> dict:
         "GUIDEBELT_TICK_S": "60",  # the config's bounds: long enough for the deltas below
         "GUIDEBELT_STALE_POSE_S": "60",
         "GUIDEBELT_LOG_LEVEL": "WARNING",
+        "GUIDEBELT_STATE_DIR": str(state) if args.state else "",
     }
     tls_dir = tmp / "tls" if args.tls else None
     if tls_dir is not None:
@@ -257,6 +263,7 @@ def run(args: argparse.Namespace) -> dict:
         "warmup": args.warmup,
         "gap_ms": args.gap_ms,
         "blob_cells": args.blob**2,
+        "state": args.state,
         "answered": int(lat.size),
         "unanswered": unanswered,
         "p50_ms": round(float(np.percentile(lat, 50)), 3),
@@ -279,6 +286,10 @@ def main() -> None:
     ap.add_argument("--deltas", type=int, default=1000)
     ap.add_argument("--warmup", type=int, default=50)
     ap.add_argument("--gap-ms", type=float, default=20.0)
+    ap.add_argument(
+        "--state", action=argparse.BooleanOptionalAction, default=True,
+        help="the daemon keeps its state (a fresh state.db under --tmp); --no-state: none",
+    )  # fmt: skip
     ap.add_argument("--blob", type=int, default=3, help="obstacle side in cells")
     ap.add_argument("--backend", default="cpu")
     ap.add_argument("--daemon-fifo", type=int, default=0, help="SCHED_FIFO priority, daemon only")

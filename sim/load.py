@@ -249,9 +249,11 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
 
     ``env`` adds ``GUIDEBELT_…`` settings (e.g. a smaller step budget) to the daemon's."""
     import json
+    import shutil
     import signal
     import subprocess
     import sys
+    import tempfile
     from pathlib import Path
 
     from daemon.service.embedded import free_port, open_peer
@@ -267,6 +269,9 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
         "GUIDEBELT_CELL_M": str(10.0 / spec.grid),
         "GUIDEBELT_MAX_USERS": str(max(spec.users, 16)),
         "GUIDEBELT_LOG_LEVEL": "WARNING",
+        # The daemon keeps its state as in production, in a database of its own for this run:
+        # never the system's /var/lib/guidebelt, nothing restored from an earlier run.
+        "GUIDEBELT_STATE_DIR": (state := tempfile.mkdtemp(prefix="guidebelt-load-")),
         **(env or {}),
     }
     daemon = subprocess.Popen([sys.executable, "-m", "cli.app", "run"], cwd=root, env=daemon_env)
@@ -301,3 +306,4 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
         except subprocess.TimeoutExpired:
             daemon.kill()
             daemon.wait(5)
+        shutil.rmtree(state, ignore_errors=True)

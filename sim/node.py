@@ -9,6 +9,12 @@ wait for the path planned on it, repeat. A pose is re-sent every ``pose_period_s
 nothing comes back, so the daemon never sees it go stale while it is merely waiting for a
 goal.
 
+Each time the daemon's liveliness token appears (``ALIVE``: the first time, and again after a
+daemon restart) the node resends what the daemon may have missed while it was down: its last
+delta (a daemon that lost the map then sees a gap and asks for the snapshot) and, given a
+``goal``, the goal, as the user's client would. A restarted map source (``restart_mapper``)
+starts a new epoch at sequence 0.
+
 Walkers are those of ``sim.world.WALKERS`` (``--follow``).
 """
 
@@ -28,7 +34,15 @@ from daemon.planning.grid import Cell
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, NavPath, NavState, NavStatus, PatternKind
+from protocol.messages import (
+    BeltPattern,
+    Goal,
+    MapDelta,
+    NavPath,
+    NavState,
+    NavStatus,
+    PatternKind,
+)
 
 from .courtyard import Scenario
 from .world import WALKERS, Walker, World
@@ -71,8 +85,14 @@ class SimNode:
         pose_period_s: float = 0.2,
         step_period_s: float = 0.0,
         seed: int = 0,
+        goal: Goal | None = None,
     ) -> None:
         self.session = session
+        self.goal = goal
+        self._daemon_came = threading.Event()
+        """The daemon's token appeared: (re)send from the walk's thread what it may lack."""
+        self.goals_sent = 0
+        self._last_delta: bytes | None = None
         self.user = T.check_user(user)
         self.scenario = scenario
         self.shape = scenario.shape
@@ -113,6 +133,37 @@ class SimNode:
             wire.declare_subscriber(s, T.STATUS, Callback(self._on_status, indirect=False), u),
             wire.declare_queryable(s, T.MAP_SOURCE, Callback(self._on_source, indirect=False), u),
         ]
+        self._entities.append(
+            wire.watch_liveliness(s, T.ALIVE, Callback(self._on_alive, indirect=False))
+        )
+        if self.goal is not None:
+            self._pub_goal = wire.declare_publisher(s, T.GOAL, u)
+            self._entities.append(self._pub_goal)
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._daemon_came.set()  # acted on by the walk, not on zenoh's thread
+
+    def _resend_if_daemon_came(self) -> None:
+        """The daemon appeared (at first, or back after a restart): the client sends its
+        goal, and the mapper its last delta again. A daemon that has it ignores it; one that
+        lost the map sees a gap and asks for the snapshot."""
+        if not self._daemon_came.is_set():
+            return
+        self._daemon_came.clear()
+        if self.goal is not None:
+            self._pub_goal.put(codec.encode(self.goal))
+            self.goals_sent += 1
+        with self._map_lock:
+            last = self._last_delta
+        if last is not None:
+            self._pub_delta.put(last)
+
+    def _put_delta(self, delta: MapDelta) -> None:
+        data = codec.encode(delta)
+        with self._map_lock:
+            self._last_delta = data
+        self._pub_delta.put(data)
 
     def _on_path(self, sample: zenoh.Sample) -> None:
         path = codec.decode(NavPath, sample.payload.to_bytes())
@@ -157,7 +208,7 @@ class SimNode:
         if not deltas:
             return
         for delta in deltas:
-            self._pub_delta.put(codec.encode(delta))
+            self._put_delta(delta)
         seq = deltas[-1].seq
         self._await(lambda: self._path is not None and self._path.map_seq >= seq, stop)
 
@@ -166,13 +217,20 @@ class SimNode:
         self._pub_pose.put(codec.encode(self.world.pose(stamp)))
         return stamp
 
+    def restart_mapper(self, epoch: int | None = None) -> None:
+        """The map source restarts: a new epoch, delta 0 again (``World.restart_mapper``)."""
+        with self._map_lock:
+            deltas = self.world.restart_mapper(time.time(), epoch)
+        for delta in deltas:
+            self._put_delta(delta)
+
     def _start_map(self) -> None:
         """Delta 0 carries the known obstacles when they fit in one; else the daemon, seeing
         delta 1 first, asks ``MAP_SOURCE`` for a snapshot."""
         with self._map_lock:
             deltas = self.world.first_deltas(time.time())
         for delta in deltas:
-            self._pub_delta.put(codec.encode(delta))
+            self._put_delta(delta)
 
     # -- the walk -------------------------------------------------------------------------
 
@@ -196,6 +254,7 @@ class SimNode:
                 if time.monotonic() > deadline:
                     result.reason = "timeout"
                     break
+                self._resend_if_daemon_came()
                 t0 = time.perf_counter()
                 stamp = self._send_pose()
                 path = self._wait_for_path(stamp, stop)

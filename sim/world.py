@@ -12,6 +12,7 @@ the next cell of the planned path; ``belt`` feels the pattern and never sees the
 from __future__ import annotations
 
 import math
+import secrets
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -121,7 +122,9 @@ class World:
         start: Cell | None = None,
         heading: float = math.pi / 2,
         fov_deg: float = 80.0,
+        epoch: int | None = None,
     ) -> None:
+        """``epoch``: the map source's (random when None, as a real mapper picks one)."""
         self.scenario = scenario
         self.shape = scenario.shape
         self.cell_m = scenario.cell_m
@@ -131,6 +134,7 @@ class World:
         """What the map producer has published so far."""
         self.sensor = Sensor(scenario.sensor_range_cells, fov_deg)
         self.seq = -1
+        self.epoch = secrets.randbits(64) if epoch is None else epoch
         if isinstance(walker, str):
             x, y = cell_to_xy(self.shape, start or scenario.start, self.cell_m)
             walker = WALKERS[walker](scenario, x, y, heading, seed)
@@ -151,6 +155,14 @@ class World:
             self.seq = 0
         return out + self.sense(stamp)
 
+    def restart_mapper(self, stamp: float, epoch: int | None = None) -> list[MapDelta]:
+        """The map source starts again: a new epoch, its deltas counted from 0 again, delta 0
+        first as at the start. What it had published it still knows (a mapper that reloads
+        its own map on start)."""
+        self.epoch = secrets.randbits(64) if epoch is None else epoch
+        self.seq = -1
+        return self.first_deltas(stamp)
+
     def sense(self, stamp: float) -> list[MapDelta]:
         """The deltas of what the sensor sees now that the map does not know yet (none when
         nothing is new; several when a sweep changes more cells than one delta may carry)."""
@@ -160,7 +172,7 @@ class World:
     def snapshot(self, stamp: float) -> MapSnapshot:
         """Everything published so far in one message: the map producer's answer when the
         navigator has lost the sequence (or a first map too large for one delta)."""
-        return MapSnapshot.from_array(max(self.seq, 0), self.known, stamp)
+        return MapSnapshot.from_array(max(self.seq, 0), self.known, stamp, self.epoch)
 
     def pose(self, stamp: float) -> Pose:
         return Pose(x=self.walker.x, y=self.walker.y, heading=self.walker.heading, stamp=stamp)
@@ -183,5 +195,9 @@ class World:
         for at in range(0, max(cells.size, int(at_least_one)), MAX_DELTA_CELLS):
             self.seq += 1
             part = slice(at, at + MAX_DELTA_CELLS)
-            out.append(MapDelta.from_arrays(self.seq, self.shape, cells[part], values[part], stamp))
+            out.append(
+                MapDelta.from_arrays(
+                    self.seq, self.shape, cells[part], values[part], stamp, self.epoch
+                )
+            )
         return out

@@ -38,6 +38,8 @@ OUTCOMES: dict[StatusCode, Outcome] = {
     StatusCode.OVERSIZED: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.SHAPE_MISMATCH: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.SEQUENCE_GAP: Outcome(NavState.STALE, PatternKind.WAIT),
+    StatusCode.NEW_EPOCH: Outcome(NavState.STALE, PatternKind.WAIT),
+    StatusCode.OLD_EPOCH: Outcome(NavState.STALE, PatternKind.WAIT),
     # The daemon itself.
     StatusCode.TOO_MANY_USERS: Outcome(NavState.ERROR, PatternKind.STOP),
     # The daemon cannot keep up with everyone: this user is not guided for now. Said as it
@@ -45,6 +47,8 @@ OUTCOMES: dict[StatusCode, Outcome] = {
     StatusCode.OVERLOADED: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.INTERNAL: Outcome(NavState.ERROR, PatternKind.STOP),
     StatusCode.SHUTDOWN: Outcome(NavState.IDLE, PatternKind.STOP),
+    # Back after a crash: the goal and map are restored, the pose is not (never guide on it).
+    StatusCode.RESTORED: Outcome(NavState.STALE, PatternKind.WAIT),
     # Nothing heard from the user for long.
     StatusCode.IDLE: Outcome(NavState.IDLE, PatternKind.OFF),
 }

@@ -19,8 +19,11 @@ step guides. Guidance resumes only in a later step, and only once the cause is c
 
     stale_pose                       a fresh pose (received within stale_pose_s)
     sequence_gap, shape_mismatch     a snapshot brought the map up to date
+    new_epoch                        the restarted map source's snapshot (its new epoch)
+    restored                         a fresh pose after the daemon's restart (and the stored
+                                     map confirmed by its source's snapshot)
     overloaded                       admission control guides the user again
-    a refused message                a step in which nothing is refused
+    a refused message (old_epoch…)   a step in which nothing is refused
 """
 
 from __future__ import annotations

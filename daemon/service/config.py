@@ -28,6 +28,15 @@ from protocol.settings import ZenohSettings
 __all__ = ["DaemonConfig", "ZenohSettings", "load_config"]
 
 DEFAULT_CONFIG_FILE = Path("/etc/guidebelt/guidebelt.toml")
+DEFAULT_STATE_DIR = Path("/var/lib/guidebelt")
+"""The unit's ``StateDirectory=guidebelt``."""
+
+
+def _default_state_dir() -> Path:
+    # systemd names the StateDirectory in $STATE_DIRECTORY (several: colon-separated).
+    named = os.environ.get("STATE_DIRECTORY", "").split(":")[0]
+    return Path(named) if named else DEFAULT_STATE_DIR
+
 
 Metres = Annotated[float, Field(ge=-100_000, le=100_000, allow_inf_nan=False)]
 LandmarkName = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_ -]+$")]
@@ -101,14 +110,29 @@ class DaemonConfig(BaseSettings):
     intensity: int = Field(
         default=100, ge=0, le=100, description="a new user's belt intensity (settings/set)"
     )
+    state_dir: Path | None = Field(
+        default_factory=_default_state_dir,
+        description="goals, maps, sessions and users' settings survive restarts here "
+        "(state.db); default $STATE_DIRECTORY or /var/lib/guidebelt; empty: nothing kept",
+    )
     settings_dir: Path | None = Field(
-        default=None, description="users' run-time settings kept here; None: in memory only"
+        default=None,
+        description="no longer used (settings live in state_dir): its <user>.json files are "
+        "imported once into the state database",
+    )
+    persist_map_s: float = Field(
+        default=2.0, ge=0.1, le=3600, description="each user's map written at most this often"
     )
     low_battery_v: float = Field(default=3.5, gt=0, le=10, description="the belt warns below this")
     battery_empty_v: float = Field(default=3.3, gt=0, le=10, description="0 % when spoken")
     battery_full_v: float = Field(default=4.2, gt=0, le=10, description="100 % when spoken")
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
     log_format: Literal["journal", "json"] = "journal"
+
+    @field_validator("state_dir", mode="before")
+    @classmethod
+    def _empty_is_none(cls, value: object) -> object:
+        return None if value in ("", None) else value
 
     @field_validator("planner")
     @classmethod

@@ -34,6 +34,7 @@ from protocol.topics import Topic
 from .admission import Admission, AdmissionSettings
 from .bridge import Bridge
 from .config import DaemonConfig
+from .persistence import Persistence
 from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
@@ -53,7 +54,9 @@ class Daemon:
         self.config = config
         self.notifier = notifier if notifier is not None else Notifier()
         self.runners: dict[str, UserRunner] = {}
-        self.settings = SettingsStore(config.settings_dir, config.intensity)
+        self.settings = SettingsStore(config.intensity)
+        self.state: Persistence | None = None
+        """The state store, opened by ``run``."""
         self.rejected_unrouted = 0
         self.log_limit = LogLimiter()
         """Messages refused before reaching a user (bad key, too many users)."""
@@ -79,6 +82,10 @@ class Daemon:
     async def run(self, install_signals: bool = True) -> None:
         loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
+        self.state = Persistence(self.config)
+        self.settings = SettingsStore(
+            self.config.intensity, self.state.stored_settings, self.state.save_settings
+        )
         self._pacing = Pacing(
             slots=self.config.step_workers or os.cpu_count() or 1,
             guide_hz=self.config.guide_hz,
@@ -91,6 +98,7 @@ class Daemon:
         self._say_who_may_connect()
         self._zenoh = open_session(self.config.zenoh)
         self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
+        self._restore()  # before the bridge hears anyone: a goal sent now finds its session
         self._bridge.start()
         if install_signals:
             for sig in (signal.SIGTERM, signal.SIGINT):
@@ -152,6 +160,17 @@ class Daemon:
             extra={"fields": {"planner": self.config.planner, "backend": backend, "ms": ms}},
         )
 
+    def _restore(self) -> None:
+        assert self.state is not None
+        users = self.state.users()
+        for user in users[: self.config.max_users]:
+            runner = self._runner(user)
+            assert runner is not None
+            self.state.restore(runner, lambda cells, u=user: self._map_too_big(u, cells))
+        if len(users) > self.config.max_users:
+            log.warning("sessions not restored: past max_users",
+                        extra={"fields": {"left": len(users) - self.config.max_users}})  # fmt: skip
+
     async def _shutdown(self) -> None:
         t0 = time.perf_counter()
         self.notifier.stopping()
@@ -166,6 +185,8 @@ class Daemon:
             self._bridge.close()
         if self._zenoh is not None:
             self._zenoh.close()
+        if self.state is not None:
+            self.state.close()
         self.notifier.close()
         log.info("stopped", extra={"fields": {"ms": round((time.perf_counter() - t0) * 1e3, 1)}})
 
@@ -178,6 +199,8 @@ class Daemon:
             await asyncio.sleep(period)
             self.notifier.watchdog()
             self._review_load()
+            if self.state is not None:
+                self.state.tick(self.runners)
             now = asyncio.get_running_loop().time()
             for user, runner in list(self.runners.items()):
                 active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
@@ -211,6 +234,8 @@ class Daemon:
         runner = self.runners.pop(user)
         self.admission.leave(user)
         log.info("idle user forgotten", extra={"fields": {"user": user}})
+        if self.state is not None:
+            self.state.forget(user)
         bridge = self._bridge
         task = asyncio.get_running_loop().create_task(
             runner.close(StatusCode.IDLE, f"nothing heard for {self.config.user_idle_s:g} s")
@@ -245,6 +270,7 @@ class Daemon:
             store_settings=self.settings.save,
             map_too_big=lambda cells: self._map_too_big(user, cells),
             pacing=self._pacing,
+            after_step=self.state.saver(user) if self.state is not None else None,
         )
         runner.shed = not self.admission.join(user, time.monotonic())
         self.runners[user] = runner

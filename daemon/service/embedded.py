@@ -48,7 +48,10 @@ class DaemonThread:
         self.port = free_port()
         base = config or DaemonConfig(**overrides)
         zenoh_settings = (zenoh_on or (lambda p: loopback(listen_port=p)))(self.port)
-        self.config = base.model_copy(update={"zenoh": zenoh_settings})
+        update: dict[str, object] = {"zenoh": zenoh_settings}
+        if "state_dir" not in base.model_fields_set:
+            update["state_dir"] = None  # a test or demo never writes the system's state
+        self.config = base.model_copy(update=update)
         self.daemon = Daemon(self.config)
         self._loop = uvloop.new_event_loop()
         self._error: BaseException | None = None

@@ -66,9 +66,13 @@ class UserRunner:
         store_settings: Callable[[str, UserSettings], None] | None = None,
         map_too_big: Callable[[int | None], str | None] | None = None,
         pacing: Pacing | None = None,
+        after_step: Callable[[Navigator], None] | None = None,
     ) -> None:
+        """``after_step(navigator)`` runs on the worker once a step's output is published
+        (the state store takes what changed there)."""
         self.navigator = navigator
         self.pacing = pacing or Pacing()
+        self._after_step = after_step
         self._map_too_big = map_too_big
         self._store_settings = store_settings
         self.user = navigator.user
@@ -92,9 +96,13 @@ class UserRunner:
 
     # -- inputs (loop thread) -------------------------------------------------------------
 
-    def reject(self, code: StatusCode, reason: str) -> None:
-        self._inbox.rejections.append(Rejection(code, reason))
+    def reject(self, code: StatusCode, reason: str, counted: bool = True) -> None:
+        self._inbox.rejections.append(Rejection(code, reason, counted))
         self._heard(urgent=True)
+
+    def resync(self) -> None:
+        """Ask the map source for a snapshot now (a map restored after a restart)."""
+        self._ask_for_snapshot()
 
     def put_delta(self, delta: MapDelta) -> None:
         self._inbox.deltas.append(delta)
@@ -200,6 +208,11 @@ class UserRunner:
             self._emit(out)
         except zenoh.ZError as exc:  # the session is closing under us: nothing to tell
             log.warning("publish failed", extra={"fields": {"user": self.user, "err": str(exc)}})
+        if self._after_step is not None:
+            try:
+                self._after_step(self.navigator)
+            except Exception:  # the store is not worth a user's guidance
+                log.exception("state not saved", extra={"fields": {"user": self.user}})
         return (time.thread_time() - cpu0) * 1e3
 
     def _emit(self, out: StepOutput) -> None:

@@ -4,6 +4,7 @@ and published; a belt's health alone starts no session."""
 from __future__ import annotations
 
 import json
+import sqlite3
 import time
 
 import pytest
@@ -23,8 +24,8 @@ def health(peer) -> Health:
 
 @pytest.mark.timeout(90)
 def test_settings_set_is_applied_stored_and_survives_a_restart(tmp_path):
-    folder = tmp_path / "settings"
-    with DaemonThread(backend="cpu", settings_dir=folder, intensity=70) as daemon:
+    folder = tmp_path / "state"
+    with DaemonThread(backend="cpu", state_dir=folder, intensity=70) as daemon:
         peer = daemon.peer()
         applied: Recorder[UserSettings] = Recorder(peer, T.SETTINGS, "ann")
         time.sleep(0.2)
@@ -45,8 +46,10 @@ def test_settings_set_is_applied_stored_and_survives_a_restart(tmp_path):
         assert health(peer).users == ["ann"]
         applied.close()
         peer.close()
-    assert json.loads((folder / "ann.json").read_text())["intensity"] == 35
-    with DaemonThread(backend="cpu", settings_dir=folder, intensity=70) as daemon:
+    with sqlite3.connect(folder / "state.db") as db:
+        (stored,) = db.execute("SELECT json FROM settings WHERE user = 'ann'").fetchone()
+    assert json.loads(stored)["intensity"] == 35
+    with DaemonThread(backend="cpu", state_dir=folder, intensity=70) as daemon:
         peer = daemon.peer()
         wire.put(peer, T.GOAL, "ann", codec.encode(goal))
         deadline = time.monotonic() + 3.0

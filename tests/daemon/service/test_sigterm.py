@@ -52,6 +52,7 @@ def test_sigterm_stops_the_belt_publishes_a_final_status_and_exits_fast(tmp_path
         "GUIDEBELT_ZENOH__MULTICAST_SCOUTING": "false",
         "GUIDEBELT_BACKEND": "cpu",
         "GUIDEBELT_CONFIG": "",
+        "GUIDEBELT_STATE_DIR": str(tmp_path / "state"),  # never the system's /var/lib/guidebelt
         "PYTHONPATH": str(ROOT),
     }
     proc = subprocess.Popen(
