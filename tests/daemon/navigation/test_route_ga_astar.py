@@ -47,7 +47,9 @@ def answers(planner: str) -> list[tuple[list[str], list[PatternKind], bool]]:
     for make in steps:
         o = nav.step(make(), time.time())
         given = o.path_cells is not None and len(o.path_cells) > 0
-        out.append(([str(s.code) for s in o.statuses], [b.kind for b in o.belt], given))
+        # OK statuses also come as a once-a-second refresh: when they fall depends on how long
+        # each planner took, so only the codes of trouble are compared.
+        out.append(([str(s.code) for s in o.statuses if s.code], [b.kind for b in o.belt], given))
     return out
 
 
