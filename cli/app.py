@@ -34,6 +34,9 @@ COMMAND_MODULES = [
     "cli.settings",
     "cli.sim",
     "cli.schema",
+    "cli.view",
+    "cli.record",
+    "cli.replay",
 ]
 
 for _name in COMMAND_MODULES:
