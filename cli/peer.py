@@ -13,11 +13,22 @@ Connect = Annotated[
 Scout = Annotated[
     bool, typer.Option("--scout/--no-scout", help="find the daemon by multicast scouting")
 ]
+Listen = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--listen",
+        help="zenoh endpoint to listen on as well, for nodes that reach no router "
+        "(repeatable, e.g. tcp/127.0.0.1:7448)",
+    ),
+]
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
-def open_peer(connect: list[str] | None, scout: bool):  # -> zenoh.Session, imported lazily
+def open_peer(
+    connect: list[str] | None, scout: bool, listen: list[str] | None = None
+):  # -> zenoh.Session, imported lazily
     from protocol.session import ZenohSettings, open_session
 
-    endpoints = connect if connect else ([] if scout else [DEFAULT_ENDPOINT])
-    return open_session(ZenohSettings(connect=endpoints, multicast_scouting=scout))
+    endpoints = connect if connect else ([] if scout or listen else [DEFAULT_ENDPOINT])
+    settings = ZenohSettings(connect=endpoints, listen=listen or [], multicast_scouting=scout)
+    return open_session(settings)

@@ -7,16 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout
-
-Listen = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--listen",
-        help="zenoh endpoint to listen on too, for nodes that cannot reach a router "
-        "(repeatable, e.g. tcp/127.0.0.1:7448)",
-    ),
-]
+from .peer import Connect, Listen, Scout, open_peer
 
 
 def record(
@@ -38,16 +29,13 @@ def record(
     """Record USER's messages (inputs and the daemon's outputs) with their JSON Schemas."""
     from rich.console import Console
 
-    from protocol.session import ZenohSettings, open_session
     from recording.recorder import Recorder
 
     console = Console()
     if demo:
         counts = record_demo(out, user if user != "*" else "demo", pace, max_mb, console)
     else:
-        endpoints = connect if connect else ([] if scout or listen else ["tcp/127.0.0.1:7447"])
-        settings = ZenohSettings(connect=endpoints, listen=listen or [], multicast_scouting=scout)
-        session = open_session(settings)
+        session = open_peer(connect, scout, listen)
         try:
             with Recorder(session, out, user, int(max_mb * 2**20)) as rec:
                 _progress(console, rec, lambda: False, seconds)

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .peer import Connect, Scout, open_peer
+from .peer import Connect, Listen, Scout, open_peer
 
 
 def view(
@@ -21,6 +21,7 @@ def view(
     ] = None,
     key: Annotated[Path | None, typer.Option(help="the certificate's private key (PEM)")] = None,
     connect: Connect = None,
+    listen: Listen = None,
     scout: Scout = False,
 ) -> None:
     """Serve a page with the map, path, pose, goal, belt motors, voice cues and status."""
@@ -34,7 +35,7 @@ def view(
         settings = ServeSettings(host=host, port=port, hz=hz, certfile=cert, keyfile=key)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    session = open_peer(connect, scout)
+    session = open_peer(connect, scout, listen)
     state = ViewState()
     typer.echo(f"guidebelt view on {settings.url()}")
     try:

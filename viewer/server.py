@@ -51,7 +51,7 @@ def uvicorn_config(state: ViewState, settings: ServeSettings) -> uvicorn.Config:
         host=settings.host,
         port=settings.port,
         log_level="warning",
-        ws="websockets",
+        ws="websockets-sansio",
         lifespan="off",
         **tls,
     )

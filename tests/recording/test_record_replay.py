@@ -111,3 +111,45 @@ def test_check_reports_a_changed_pattern(walk: Path) -> None:
     diffs = compare(streams, {**streams, "guidebelt/rec/belt": altered})
     assert len(diffs) == 1 and diffs[0].after_input == label
     assert diffs[0].recorded == [(kind, motors, period)]
+
+
+@pytest.mark.timeout(60)
+def test_replay_drives_a_view_without_any_daemon(walk: Path) -> None:
+    """The recorded walk, published back (fast), is what a view shows: the last pattern and
+    status recorded are the ones it holds at the end."""
+    from daemon.service.embedded import free_port
+    from protocol.session import loopback, open_session
+    from recording.replay import Player, read
+    from viewer.node import WATCHED, ViewNode
+    from viewer.state import ViewState
+
+    items = list(read(walk))
+    # Poses and paths are latest-wins on the wire (a full queue may drop one at full speed);
+    # the rest must arrive, every one.
+    drawn = sum(r.topic in WATCHED for r in items)
+    must = sum(r.topic in WATCHED and r.topic.qos.congestion == "block" for r in items)
+    port = free_port()
+    view_session = open_session(loopback(listen_port=port))
+    player_session = open_session(loopback(connect_port=port))
+    state = ViewState()
+    try:
+        with ViewNode(view_session, state):
+            time.sleep(0.3)  # the two sessions meet before the first sample
+            player = Player(player_session, items, speed=0)
+            assert player.run() == len(items)
+            player.close()
+            last = {r.topic.name: r.msg for r in items}
+            end = time.monotonic() + 5
+            while (
+                time.monotonic() < end
+                and state.frame()["users"].get("rec", {}).get("messages", 0) < drawn
+            ):
+                time.sleep(0.05)
+            user = state.frame()["users"]["rec"]
+    finally:
+        player_session.close()
+        view_session.close()
+    assert must <= user["messages"] <= drawn
+    assert user["belt"]["motors"] == list(last["belt"].motors)
+    assert user["status"]["state"] == str(last["status"].state)
+    assert user["map"]["seq"] == last["map_delta"].seq
