@@ -139,12 +139,15 @@ def test_replay_drives_a_view_without_any_daemon(walk: Path) -> None:
             assert player.run() == len(items)
             player.close()
             last = {r.topic.name: r.msg for r in items}
-            end = time.monotonic() + 5
-            while (
-                time.monotonic() < end
-                and state.frame()["users"].get("rec", {}).get("messages", 0) < drawn
-            ):
+
+            def belt_seq() -> int | None:
+                user = state.frame()["users"].get("rec")
+                return user["belt"]["seq"] if user and user["belt"] else None
+
+            end = time.monotonic() + 5  # the last pattern is the last to come
+            while time.monotonic() < end and belt_seq() != last["belt"].seq:
                 time.sleep(0.05)
+            time.sleep(0.2)  # the status published after it
             user = state.frame()["users"]["rec"]
     finally:
         player_session.close()
