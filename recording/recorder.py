@@ -51,12 +51,13 @@ class Recorder:
         user: str | None = None,
         max_bytes: int = 256 * 2**20,
         metadata: dict | None = None,
+        queue_max: int = QUEUE_MAX,
     ) -> None:
         self.session = session
         self.user = None if user in (None, "*") else T.check_user(user)
         self.log = McapLog(out, max_bytes, {"user": self.user or "*", **(metadata or {})})
         self.counts = RecordCounts()
-        self._queue: queue.Queue = queue.Queue(QUEUE_MAX)
+        self._queue: queue.Queue = queue.Queue(queue_max)
         self._entities: list = []
         self._lock = threading.Lock()
         self._writer = threading.Thread(target=self._drain, name="record-writer", daemon=True)
