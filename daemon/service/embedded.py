@@ -9,7 +9,7 @@ from __future__ import annotations
 import asyncio
 import socket
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 import uvloop
@@ -18,7 +18,7 @@ import zenoh
 from protocol.session import loopback, open_session
 
 from .config import DaemonConfig
-from .daemon import Daemon
+from .daemon import Daemon, Observer
 
 T = TypeVar("T")
 
@@ -37,11 +37,16 @@ def open_peer(port: int) -> zenoh.Session:
 class DaemonThread:
     """``with DaemonThread(config) as d:`` runs the daemon until the block ends."""
 
-    def __init__(self, config: DaemonConfig | None = None, **overrides: object) -> None:
+    def __init__(
+        self,
+        config: DaemonConfig | None = None,
+        observers: Sequence[Observer] = (),
+        **overrides: object,
+    ) -> None:
         self.port = free_port()
         base = config or DaemonConfig(**overrides)
         self.config = base.model_copy(update={"zenoh": loopback(listen_port=self.port)})
-        self.daemon = Daemon(self.config)
+        self.daemon = Daemon(self.config, observers=observers)
         self._loop = uvloop.new_event_loop()
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._main, name="guidebelt-daemon", daemon=True)

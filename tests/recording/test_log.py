@@ -67,3 +67,29 @@ def test_a_writer_that_falls_behind_drops_and_counts(tmp_path: Path) -> None:
     assert counts.heard == 40
     assert counts.dropped > 0 and counts.written + counts.dropped == counts.heard
     assert counts.invalid == 0
+
+
+@pytest.mark.timeout(60)
+def test_the_daemon_records_what_it_hears_and_sends(daemon, tmp_path: Path) -> None:
+    """``guidebelt run --record``: a recorder on the daemon's own session hears the world's
+    inputs (no router needed) and the daemon's outputs, up to its users' last STOP."""
+    from daemon.service.embedded import DaemonThread
+    from recording.recorder import Recorder
+    from recording.replay import read
+    from sim.live import LiveWalks
+
+    out = tmp_path / "run.mcap"
+    recorders: list[Recorder] = []
+
+    def observe(session):
+        recorders.append(Recorder(session, out).start())
+        return recorders[-1]
+
+    with DaemonThread(observers=[observe], **daemon.config.model_dump(exclude={"zenoh"})) as d:
+        with LiveWalks(d.port, ["ann"], pace_s=0.0) as walks:
+            assert walks.join(60)
+    counts = recorders[0].counts
+    assert counts.dropped == 0 and counts.invalid == 0 and counts.written == counts.heard
+    leaves = [r.key.split("/", 2)[2] for r in read(out)]
+    assert {"map/delta", "pose", "goal", "path", "belt", "status"} <= set(leaves)
+    assert leaves[-1] in ("belt", "status")  # the daemon's last words, after its stop
