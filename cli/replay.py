@@ -76,13 +76,13 @@ def _bar(console):
 def _check(recording: Path, items, console) -> None:
     from daemon.service.embedded import DaemonThread
     from daemon.service.logs import setup_logging
-    from recording.check import check, recorded_streams
+    from recording.check import check, split
     from recording.replay import metadata
 
     setup_logging("WARNING")
     meta = metadata(recording)
     config = {k: meta[k] for k in ("planner", "backend", "cell_m", "user_radius_m") if k in meta}
-    inputs, _ = recorded_streams(items)
+    inputs, _, _ = split(items)
     with DaemonThread(**config) as daemon:
         session = daemon.peer()
         try:
@@ -91,10 +91,10 @@ def _check(recording: Path, items, console) -> None:
                 report = check(session, items, lambda n: bar.update(task, completed=n))
         finally:
             session.close()
-    compared = ", ".join(f"{k}: {n}" for k, n in report.compared.items())
     console.print(
-        f"{report.inputs} inputs fed in order ({report.unanswered} without an answer); "
-        f"compared (repeats folded) {compared}",
+        f"{report.inputs} inputs fed in order ({report.unanswered} without an answer, as some "
+        f"were in the recording); compared the belt patterns of {report.steps_compared} "
+        f"planning steps and {report.statuses_compared} statuses (repeats folded)",
         soft_wrap=True,
     )
     for diff in report.differences:

@@ -1,13 +1,21 @@
 """``guidebelt replay --check``: a fresh daemon on a recording's inputs, its outputs compared.
 
-Alignment is by input sequence, not by wall time: the recorded inputs are fed one at a time,
-each re-stamped to now, and the next goes only once the daemon has answered this one (the
-path planned from this pose, or on this map delta; a status after a goal), as the simulated
-walker itself waits. Every output, recorded or replayed, is labelled with the number of the
-last input before it. The belt patterns (kind, motors, pulse) and the statuses (state, code)
-of each user are compared as sequences with repeats folded (the daemon's tick refreshes a
-pattern at times that depend on the clock, not on the inputs); each difference is reported
-with the input it followed.
+Alignment is by input sequence, not by wall time. The recorded inputs are fed one at a time,
+each re-stamped to now, and the next goes once the daemon has answered this one (the path
+planned from this pose or on this map delta, a status after a goal), as the simulated walker
+itself waits; an input the recorded daemon did not answer before the next came waits only as
+long as the recording did.
+
+What is compared, per user:
+
+- the belt pattern (kind, motors, pulse) of each planning step, the step named by what it
+  planned on: the pose it planned from (by its number among the inputs) and the last map
+  delta it reflects (its path's ``map_seq``). Both daemons plan from pose #k on map m: the
+  patterns must be equal. A step only the replay has (it fed deltas one by one where the
+  recorded daemon took two at once) is not a difference; a recorded step the replay never
+  made is one;
+- the statuses (state, code) as a sequence with repeats folded (the daemon's tick repeats
+  them at times that depend on the clock, not on the inputs).
 """
 
 from __future__ import annotations
@@ -29,89 +37,114 @@ from protocol.messages import BeltPattern, MapDelta, Message, NavPath, NavStatus
 from .channels import INPUTS
 from .replay import Player, Recorded
 
-COMPARED = (T.BELT, T.STATUS)
 ANSWER_S = 1.0
-"""The longest wait for the daemon's answer to one input the recorded daemon answered. One it
-did not answer (a pose before any goal) waits as long as the recording did before the next:
-longer would let the fresh daemon find a pose stale that the recorded one found fresh."""
+"""The longest wait for the daemon's answer to an input the recorded daemon answered."""
+
+StepKey = tuple[str, int, int]
+"""(user, number of the pose input planned from, last map delta reflected)."""
 
 
-def value(msg: Message) -> tuple:
-    if isinstance(msg, BeltPattern):
-        return (str(msg.kind), tuple(msg.motors), msg.period_ms)
-    if isinstance(msg, NavStatus):
-        return (str(msg.state), str(msg.code))
-    raise TypeError(type(msg))
+def belt_value(msg: BeltPattern) -> tuple:
+    return (str(msg.kind), tuple(msg.motors), msg.period_ms)
 
 
-@dataclass
-class Stream:
-    """One user's outputs on one key: (label, value) with repeats folded."""
-
-    items: list[tuple[int, tuple]] = field(default_factory=list)
-
-    def add(self, label: int, v: tuple) -> None:
-        if not self.items or self.items[-1][1] != v:
-            self.items.append((label, v))
+def status_value(msg: NavStatus) -> tuple:
+    return (str(msg.state), str(msg.code))
 
 
 @dataclass
 class Difference:
-    key: str
+    what: str
     after_input: int
     recorded: list[tuple]
     replayed: list[tuple]
 
     def __str__(self) -> str:
         return (
-            f"{self.key} after input #{self.after_input}: recorded {self.recorded}, "
+            f"{self.what} after input #{self.after_input}: recorded {self.recorded}, "
             f"replayed {self.replayed}"
         )
 
 
 @dataclass
+class Outputs:
+    """One daemon's outputs, in the order heard, and the input being fed as each came."""
+
+    items: list[tuple[int, str, Message]] = field(default_factory=list)
+
+    def step_belts(self, pose_index: dict[tuple[str, float], int]) -> dict[StepKey, tuple | None]:
+        """The belt pattern of the first step planned from each (pose, map): a belt and its
+        path share the step's stamp."""
+        belts: dict[tuple[str, float], tuple] = {}
+        out: dict[StepKey, tuple | None] = {}
+        for _label, key, msg in self.items:
+            user = T.user_of(key)
+            if isinstance(msg, BeltPattern):
+                belts[(user, msg.stamp)] = belt_value(msg)
+            elif isinstance(msg, NavPath):
+                k = pose_index.get((user, msg.pose_stamp))
+                if k is not None:
+                    out.setdefault((user, k, msg.map_seq), belts.get((user, msg.stamp)))
+        return out
+
+    def statuses(self) -> dict[str, list[tuple[int, tuple]]]:
+        folded: dict[str, list[tuple[int, tuple]]] = {}
+        for label, key, msg in self.items:
+            if isinstance(msg, NavStatus):
+                seq = folded.setdefault(T.user_of(key), [])
+                if not seq or seq[-1][1] != status_value(msg):
+                    seq.append((label, status_value(msg)))
+        return folded
+
+
+@dataclass
 class CheckReport:
     inputs: int
-    compared: dict[str, int]
-    """Folded outputs compared, per key."""
+    steps_compared: int
+    """Recorded planning steps whose belt pattern was compared."""
+    statuses_compared: int
     differences: list[Difference]
     unanswered: int
-    """Inputs the daemon gave no answer to within ``ANSWER_S``."""
+    """Inputs the fresh daemon did not answer (the recorded one left some unanswered too)."""
+    replayed: Outputs = field(default_factory=lambda: Outputs())
+    """The fresh daemon's outputs, labelled by input, for a closer look at a difference."""
+
+
+def split(items: list[Recorded]) -> tuple[list[Recorded], Outputs, dict[tuple[str, float], int]]:
+    """A recording's inputs, its outputs labelled by input, and its poses' numbers."""
+    inputs: list[Recorded] = []
+    outputs = Outputs()
+    poses: dict[tuple[str, float], int] = {}
+    for r in items:
+        if r.topic in INPUTS:
+            if isinstance(r.msg, Pose):
+                poses[(T.user_of(r.key), r.msg.stamp)] = len(inputs)
+            inputs.append(r)
+        else:
+            outputs.items.append((len(inputs) - 1, r.key, r.msg))
+    return inputs, outputs, poses
 
 
 def _answered_in_recording(items: list[Recorded]) -> list[bool]:
-    """For each input, whether the recorded daemon answered it before the next input came (a
-    path from this pose or on this delta; a status after a goal or anything else). An answer
-    that came later may have needed that next input (a pose answered once the goal came)."""
-    inputs = [i for i, r in enumerate(items) if r.topic in INPUTS]
+    """For each input, whether the recorded daemon answered it before the next input came. An
+    answer that came later may have needed that next input (a pose answered once a goal came)."""
+    at = [i for i, r in enumerate(items) if r.topic in INPUTS]
     out = []
-    for n, at in enumerate(inputs):
-        item = items[at]
-        user = T.user_of(item.key)
-        until = inputs[n + 1] if n + 1 < len(inputs) else len(items)
-        out.append(any(_answers(items[j], user, item.msg) for j in range(at + 1, until)))
+    for n, i in enumerate(at):
+        user, sent = T.user_of(items[i].key), items[i].msg
+        until = at[n + 1] if n + 1 < len(at) else len(items)
+        out.append(any(_answers(items[j].key, items[j].msg, user, sent) for j in range(i, until)))
     return out
 
 
-def _answers(out: Recorded, user: str, sent: Message) -> bool:
-    if T.user_of(out.key) != user:
+def _answers(key: str, out: Message, user: str, sent: Message) -> bool:
+    if T.user_of(key) != user:
         return False
     if isinstance(sent, Pose):
-        return isinstance(out.msg, NavPath) and abs(out.msg.pose_stamp - sent.stamp) < 1e-6
+        return isinstance(out, NavPath) and out.pose_stamp == sent.stamp
     if isinstance(sent, MapDelta):
-        return isinstance(out.msg, NavPath) and out.msg.map_seq >= sent.seq
-    return isinstance(out.msg, NavStatus)
-
-
-def recorded_streams(items: list[Recorded]) -> tuple[list[Recorded], dict[str, Stream]]:
-    inputs: list[Recorded] = []
-    streams: dict[str, Stream] = {}
-    for r in items:
-        if r.topic in INPUTS:
-            inputs.append(r)
-        elif r.topic in COMPARED:
-            streams.setdefault(r.key, Stream()).add(len(inputs) - 1, value(r.msg))
-    return inputs, streams
+        return isinstance(out, NavPath) and out.map_seq >= sent.seq
+    return isinstance(out, NavStatus)
 
 
 class _Listener:
@@ -119,51 +152,43 @@ class _Listener:
 
     def __init__(self, session: zenoh.Session) -> None:
         self.label = -1
-        self.streams: dict[str, Stream] = {}
-        self.paths: dict[str, NavPath] = {}
-        self.statuses = 0
+        self.outputs = Outputs()
         self._cond = threading.Condition()
         self._subs = [
             wire.declare_subscriber(session, t, Callback(self._on(t), indirect=False))
-            for t in (*COMPARED, T.PATH)
+            for t in (T.BELT, T.PATH, T.STATUS)
         ]
 
     def _on(self, topic: T.Topic):
+        model = topic.model
+        assert model is not None
+
         def on_sample(sample: zenoh.Sample) -> None:
-            assert topic.model is not None
-            msg = codec.decode(topic.model, sample.payload.to_bytes())
-            key = str(sample.key_expr)
+            msg = codec.decode(model, sample.payload.to_bytes())
             with self._cond:
-                if isinstance(msg, NavPath):
-                    self.paths[T.user_of(key)] = msg
-                else:
-                    self.streams.setdefault(key, Stream()).add(self.label, value(msg))
-                    self.statuses += isinstance(msg, NavStatus)
+                self.outputs.items.append((self.label, str(sample.key_expr), msg))
                 self._cond.notify_all()
 
         return on_sample
 
-    def wait(self, done: Callable[[], bool], timeout_s: float) -> bool:
+    def feed(self, label: int) -> int:
+        """Label what comes next with ``label``; how many outputs came before it."""
         with self._cond:
-            return self._cond.wait_for(done, timeout_s)
+            self.label = label
+            return len(self.outputs.items)
+
+    def wait_answer(self, key: str, sent: Message, since: int, timeout_s: float) -> bool:
+        user = T.user_of(key)
+
+        def answered() -> bool:
+            return any(_answers(k, m, user, sent) for _, k, m in self.outputs.items[since:])
+
+        with self._cond:
+            return self._cond.wait_for(answered, timeout_s)
 
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
-
-
-def _answered(listener: _Listener, item: Recorded, sent: Message, statuses: int):
-    """What tells that the daemon has taken ``sent`` (the input as re-stamped)."""
-    user = T.user_of(item.key)
-
-    def path() -> NavPath | None:
-        return listener.paths.get(user)
-
-    if isinstance(sent, Pose):
-        return lambda: (p := path()) is not None and abs(p.pose_stamp - sent.stamp) < 1e-6
-    if isinstance(sent, MapDelta):
-        return lambda: (p := path()) is not None and p.map_seq >= sent.seq
-    return lambda: listener.statuses > statuses
 
 
 def check(
@@ -172,24 +197,26 @@ def check(
     on_input: Callable[[int], None] | None = None,
 ) -> CheckReport:
     """Feed ``items``' inputs to the daemon ``session`` is connected to; compare its outputs."""
-    inputs, expected = recorded_streams(items)
+    inputs, recorded, recorded_poses = split(items)
+    was_answered = _answered_in_recording(items)
     listener = _Listener(session)
     player = Player(session, inputs, speed=0)
-    was_answered = _answered_in_recording(items)
+    replayed_poses: dict[tuple[str, float], int] = {}
     unanswered = 0
     try:
         time.sleep(0.1)  # the daemon's subscribers match ours before the first input
         for i, item in enumerate(inputs):
-            with listener._cond:
-                listener.label = i
-                statuses = listener.statuses
+            since = listener.feed(i)
             player.publish(item, time.time())
-            assert player.last is not None
+            sent = player.last
+            assert sent is not None
+            if isinstance(sent, Pose):
+                replayed_poses[(T.user_of(item.key), sent.stamp)] = i
             limit = ANSWER_S
             if not was_answered[i]:
                 gap = inputs[i + 1].log_time - item.log_time if i + 1 < len(inputs) else 0.2
                 limit = min(ANSWER_S, max(0.0, gap))
-            if not listener.wait(_answered(listener, item, player.last, statuses), limit):
+            if not listener.wait_answer(item.key, sent, since, limit):
                 unanswered += 1
             if on_input is not None:
                 on_input(i + 1)
@@ -197,23 +224,45 @@ def check(
     finally:
         listener.close()
         player.close()
+    want = recorded.step_belts(recorded_poses)
+    got = listener.outputs.step_belts(replayed_poses)
+    want_status, got_status = recorded.statuses(), listener.outputs.statuses()
     return CheckReport(
         inputs=len(inputs),
-        compared={k: len(s.items) for k, s in expected.items()},
-        differences=compare(expected, listener.streams),
+        steps_compared=len(want),
+        statuses_compared=sum(len(v) for v in want_status.values()),
+        differences=compare_steps(want, got) + compare_statuses(want_status, got_status),
         unanswered=unanswered,
+        replayed=listener.outputs,
     )
 
 
-def compare(expected: dict[str, Stream], got: dict[str, Stream]) -> list[Difference]:
+def compare_steps(
+    want: dict[StepKey, tuple | None], got: dict[StepKey, tuple | None]
+) -> list[Difference]:
     out = []
-    for key in sorted(set(expected) | set(got)):
-        a = expected.get(key, Stream()).items
-        b = got.get(key, Stream()).items
+    for key in sorted(want):
+        user, pose, seq = key
+        if key not in got:
+            what = f"{user}: belt of the step from pose #{pose} on map {seq} (replay made none)"
+            out.append(Difference(what, pose, [want[key]], []))
+        elif got[key] != want[key]:
+            what = f"{user}: belt of the step from pose #{pose} on map {seq}"
+            out.append(Difference(what, pose, [want[key]], [got[key]]))
+    return out
+
+
+def compare_statuses(
+    want: dict[str, list[tuple[int, tuple]]], got: dict[str, list[tuple[int, tuple]]]
+) -> list[Difference]:
+    out = []
+    for user in sorted(set(want) | set(got)):
+        a, b = want.get(user, []), got.get(user, [])
         matcher = difflib.SequenceMatcher(a=[v for _, v in a], b=[v for _, v in b], autojunk=False)
         for op, i1, i2, j1, j2 in matcher.get_opcodes():
-            if op == "equal":
-                continue
-            label = a[i1][0] if i1 < len(a) else (b[j1][0] if j1 < len(b) else -1)
-            out.append(Difference(key, label, [v for _, v in a[i1:i2]], [v for _, v in b[j1:j2]]))
+            if op != "equal":
+                label = a[i1][0] if i1 < len(a) else (b[j1][0] if j1 < len(b) else -1)
+                what = f"{user}: statuses"
+                out.append(Difference(what, label, [v for _, v in a[i1:i2]],
+                                      [v for _, v in b[j1:j2]]))  # fmt: skip
     return out

@@ -85,9 +85,10 @@ def test_the_daemon_records_what_it_hears_and_sends(daemon, tmp_path: Path) -> N
         recorders.append(Recorder(session, out).start())
         return recorders[-1]
 
-    with DaemonThread(observers=[observe], **daemon.config.model_dump(exclude={"zenoh"})) as d:
-        with LiveWalks(d.port, ["ann"], pace_s=0.0) as walks:
-            assert walks.join(60)
+    config = daemon.config.model_dump(exclude={"zenoh"})
+    with DaemonThread(observers=[observe], **config) as d:
+        walks = LiveWalks(d.port, ["ann"], pace_s=0.0).start()
+        assert walks.join(60)
     counts = recorders[0].counts
     assert counts.dropped == 0 and counts.invalid == 0 and counts.written == counts.heard
     leaves = [r.key.split("/", 2)[2] for r in read(out)]
