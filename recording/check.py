@@ -3,8 +3,8 @@
 Alignment is by input sequence, not by wall time. The recorded inputs are fed one at a time,
 each re-stamped to now, and the next goes once the daemon has answered this one (the path
 planned from this pose or on this map delta, a status after a goal), as the simulated walker
-itself waits; an input the recorded daemon did not answer before the next came waits only as
-long as the recording did.
+itself waits; an input the recorded daemon answered only together with the next one (a pose
+before the goal) waits only as long as the recording did.
 
 What is compared, per user:
 
@@ -21,6 +21,7 @@ What is compared, per user:
 from __future__ import annotations
 
 import difflib
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -126,14 +127,22 @@ def split(items: list[Recorded]) -> tuple[list[Recorded], Outputs, dict[tuple[st
 
 
 def _answered_in_recording(items: list[Recorded]) -> list[bool]:
-    """For each input, whether the recorded daemon answered it before the next input came. An
-    answer that came later may have needed that next input (a pose answered once a goal came)."""
+    """For each input, whether the recorded daemon answered it without the next input: with a
+    step that began (its stamp, the daemon's clock) before the next input was stamped (the
+    sender's clock; one machine in the demo). Not "heard before the next input": the recorder
+    may hear the walker's next pose before the path that let the walker go on."""
     at = [i for i, r in enumerate(items) if r.topic in INPUTS]
     out = []
     for n, i in enumerate(at):
         user, sent = T.user_of(items[i].key), items[i].msg
-        until = at[n + 1] if n + 1 < len(at) else len(items)
-        out.append(any(_answers(items[j].key, items[j].msg, user, sent) for j in range(i, until)))
+        before = getattr(items[at[n + 1]].msg, "stamp", math.inf) if n + 1 < len(at) else math.inf
+        until = at[n + 3] if n + 3 < len(at) else len(items)
+        out.append(
+            any(
+                _answers(items[j].key, items[j].msg, user, sent) and items[j].msg.stamp < before
+                for j in range(i, until)
+            )
+        )
     return out
 
 
