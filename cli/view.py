@@ -20,6 +20,13 @@ def view(
         Path | None, typer.Option(help="TLS certificate (PEM): serve https/wss only")
     ] = None,
     key: Annotated[Path | None, typer.Option(help="the certificate's private key (PEM)")] = None,
+    demo: Annotated[
+        int,
+        typer.Option(
+            help="N > 0: watch N simulated users walk the demo courtyard again and again "
+            "through a daemon in this process (no other node needed)"
+        ),
+    ] = 0,
     connect: Connect = None,
     listen: Listen = None,
     scout: Scout = False,
@@ -35,6 +42,9 @@ def view(
         settings = ServeSettings(host=host, port=port, hz=hz, certfile=cert, keyfile=key)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
+    if demo > 0:
+        _serve_demo(demo, settings)
+        return
     session = open_peer(connect, scout, listen)
     state = ViewState()
     typer.echo(f"guidebelt view on {settings.url()}")
@@ -43,6 +53,39 @@ def view(
             uvicorn.Server(uvicorn_config(state, settings)).run()
     finally:
         session.close()
+
+
+def _serve_demo(users: int, settings) -> None:
+    """Daemon, ``users`` walkers and the view, all here; until Ctrl-C."""
+    import time
+
+    from daemon.service.embedded import DaemonThread, free_port
+    from daemon.service.logs import setup_logging
+    from protocol.session import ZenohSettings, open_session
+    from sim.courtyard import USER_RADIUS_M
+    from sim.live import LiveWalks, endpoints
+    from viewer.server import ViewThread
+
+    setup_logging("WARNING")
+    names = [f"demo{i}" for i in range(users)]
+    with DaemonThread(backend="cpu", cell_m=0.1, user_radius_m=USER_RADIUS_M) as daemon:
+        zport = free_port()
+        session = open_session(
+            ZenohSettings(listen=endpoints(zport), connect=endpoints(daemon.port))
+        )
+        try:
+            with (
+                ViewThread(session, settings),
+                LiveWalks(daemon.port, names, observers=[zport], rounds=0, timeout_s=600),
+            ):
+                typer.echo(f"guidebelt view on {settings.url()} ({users} simulated users)")
+                try:
+                    while True:
+                        time.sleep(1.0)
+                except KeyboardInterrupt:
+                    pass
+        finally:
+            session.close()
 
 
 def register(app: typer.Typer) -> None:
