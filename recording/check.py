@@ -1,7 +1,7 @@
 """``guidebelt replay --check``: a fresh daemon on a recording's inputs, its outputs compared.
 
-Alignment is by input sequence, not by wall time. The recorded inputs are fed one at a time,
-each re-stamped to now, and the next goes once the daemon has answered this one (the path
+Alignment is by input sequence, not by wall time. The recorded inputs are put in the order
+their senders stamped them (the input sequence) and fed one at a time, each re-stamped to now, and the next goes once the daemon has answered this one (the path
 planned from this pose or on this map delta, a status after a goal), as the simulated walker
 itself waits; an input the recorded daemon answered only together with the next one (a pose
 before the goal) waits only as long as the recording did.
@@ -20,6 +20,7 @@ What is compared, per user:
 
 from __future__ import annotations
 
+import bisect
 import difflib
 import math
 import threading
@@ -112,37 +113,40 @@ class CheckReport:
 
 
 def split(items: list[Recorded]) -> tuple[list[Recorded], Outputs, dict[tuple[str, float], int]]:
-    """A recording's inputs, its outputs labelled by input, and its poses' numbers."""
-    inputs: list[Recorded] = []
+    """A recording's inputs in the order their senders stamped them, its outputs labelled by
+    the input before them, and its poses' numbers. Stamp order, not the order heard: the
+    recorder hears the simulator's delta and pose publishers and the daemon's on separate
+    links, and may hear a delta after the path the daemon planned on it."""
+    inputs = sorted((r for r in items if r.topic in INPUTS), key=lambda r: r.msg.stamp)
+    poses = {
+        (T.user_of(r.key), r.msg.stamp): n for n, r in enumerate(inputs) if isinstance(r.msg, Pose)
+    }
     outputs = Outputs()
-    poses: dict[tuple[str, float], int] = {}
+    heard = 0
     for r in items:
         if r.topic in INPUTS:
-            if isinstance(r.msg, Pose):
-                poses[(T.user_of(r.key), r.msg.stamp)] = len(inputs)
-            inputs.append(r)
+            heard += 1
         else:
-            outputs.items.append((len(inputs) - 1, r.key, r.msg))
+            outputs.items.append((heard - 1, r.key, r.msg))
     return inputs, outputs, poses
 
 
-def _answered_in_recording(items: list[Recorded]) -> list[bool]:
+def _answered_alone(inputs: list[Recorded], outputs: Outputs) -> list[bool]:
     """For each input, whether the recorded daemon answered it without the next input: with a
-    step that began (its stamp, the daemon's clock) before the next input was stamped (the
-    sender's clock; one machine in the demo). Not "heard before the next input": the recorder
-    may hear the walker's next pose before the path that let the walker go on."""
-    at = [i for i, r in enumerate(items) if r.topic in INPUTS]
+    step that began (its stamp, the daemon's clock) after this input was stamped and before
+    the next was (the senders' clock; one machine in the demo). A pose sent before the goal
+    was answered only once the goal came: feeding it, the check waits no longer than the
+    recording did, or the fresh daemon would find that pose stale."""
+    by_stamp = sorted(((msg.stamp, key, msg) for _l, key, msg in outputs.items), key=lambda o: o[0])
+    stamps = [o[0] for o in by_stamp]
     out = []
-    for n, i in enumerate(at):
-        user, sent = T.user_of(items[i].key), items[i].msg
-        before = getattr(items[at[n + 1]].msg, "stamp", math.inf) if n + 1 < len(at) else math.inf
-        until = at[n + 3] if n + 3 < len(at) else len(items)
-        out.append(
-            any(
-                _answers(items[j].key, items[j].msg, user, sent) and items[j].msg.stamp < before
-                for j in range(i, until)
-            )
-        )
+    for n, item in enumerate(inputs):
+        user, sent = T.user_of(item.key), item.msg
+        until = inputs[n + 1].msg.stamp if n + 1 < len(inputs) else math.inf
+        window = by_stamp[
+            bisect.bisect_left(stamps, sent.stamp) : bisect.bisect_left(stamps, until)
+        ]
+        out.append(any(_answers(key, msg, user, sent) for _s, key, msg in window))
     return out
 
 
@@ -207,7 +211,7 @@ def check(
 ) -> CheckReport:
     """Feed ``items``' inputs to the daemon ``session`` is connected to; compare its outputs."""
     inputs, recorded, recorded_poses = split(items)
-    was_answered = _answered_in_recording(items)
+    was_answered = _answered_alone(inputs, recorded)
     listener = _Listener(session)
     player = Player(session, inputs, speed=0)
     replayed_poses: dict[tuple[str, float], int] = {}
@@ -223,7 +227,7 @@ def check(
                 replayed_poses[(T.user_of(item.key), sent.stamp)] = i
             limit = ANSWER_S
             if not was_answered[i]:
-                gap = inputs[i + 1].log_time - item.log_time if i + 1 < len(inputs) else 0.2
+                gap = inputs[i + 1].msg.stamp - item.msg.stamp if i + 1 < len(inputs) else 0.2
                 limit = min(ANSWER_S, max(0.0, gap))
             if not listener.wait_answer(item.key, sent, since, limit):
                 unanswered += 1
