@@ -1,10 +1,11 @@
 """``guidebelt replay --check``: a fresh daemon on a recording's inputs, its outputs compared.
 
 Alignment is by input sequence, not by wall time. The recorded inputs are put in the order
-their senders stamped them (the input sequence) and fed one at a time, each re-stamped to now, and the next goes once the daemon has answered this one (the path
-planned from this pose or on this map delta, a status after a goal), as the simulated walker
-itself waits; an input the recorded daemon answered only together with the next one (a pose
-before the goal) waits only as long as the recording did.
+their senders stamped them (the input sequence) and fed one at a time, each re-stamped to
+now; the next goes once the daemon has answered this one (the path planned from this pose or
+on this map delta, a status after a goal), as the simulated walker itself waits. An input
+the recorded daemon answered only together with the user's next one (a pose before the
+goal) waits only as long as the recording did.
 
 What is compared, per user:
 
@@ -34,7 +35,15 @@ from zenoh.handlers import Callback
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, MapDelta, Message, NavPath, NavStatus, Pose
+from protocol.messages import (
+    BeltPattern,
+    MapDelta,
+    Message,
+    NavPath,
+    NavStatus,
+    Pose,
+    StatusCode,
+)
 
 from .channels import INPUTS
 from .replay import Player, Recorded
@@ -77,13 +86,16 @@ class Outputs:
     def step_belts(self, pose_index: dict[tuple[str, float], int]) -> dict[StepKey, tuple | None]:
         """The belt pattern of the first step planned from each (pose, map): a belt and its
         path share the step's stamp."""
-        belts: dict[tuple[str, float], tuple] = {}
+        # All belts first: a step's belt and path travel on two keys, heard in either order.
+        belts = {
+            (T.user_of(key), msg.stamp): belt_value(msg)
+            for _label, key, msg in self.items
+            if isinstance(msg, BeltPattern)
+        }
         out: dict[StepKey, tuple | None] = {}
         for _label, key, msg in self.items:
             user = T.user_of(key)
-            if isinstance(msg, BeltPattern):
-                belts[(user, msg.stamp)] = belt_value(msg)
-            elif isinstance(msg, NavPath):
+            if isinstance(msg, NavPath):
                 k = pose_index.get((user, msg.pose_stamp))
                 if k is not None:
                     out.setdefault((user, k, msg.map_seq), belts.get((user, msg.stamp)))
@@ -92,7 +104,8 @@ class Outputs:
     def statuses(self) -> dict[str, list[tuple[int, tuple]]]:
         folded: dict[str, list[tuple[int, tuple]]] = {}
         for label, key, msg in self.items:
-            if isinstance(msg, NavStatus):
+            # A daemon's own stop (SHUTDOWN) answers no input: the fresh one is not stopped.
+            if isinstance(msg, NavStatus) and msg.code != StatusCode.SHUTDOWN:
                 seq = folded.setdefault(T.user_of(key), [])
                 if not seq or seq[-1][1] != status_value(msg):
                     seq.append((label, status_value(msg)))
@@ -139,10 +152,18 @@ def _answered_alone(inputs: list[Recorded], outputs: Outputs) -> list[bool]:
     recording did, or the fresh daemon would find that pose stale."""
     by_stamp = sorted(((msg.stamp, key, msg) for _l, key, msg in outputs.items), key=lambda o: o[0])
     stamps = [o[0] for o in by_stamp]
+    # Users are stepped apart (a runner each): the next input that counts is the same user's.
+    next_stamp: dict[int, float] = {}
+    last_of: dict[str, int] = {}
+    for n, item in enumerate(inputs):
+        user = T.user_of(item.key)
+        if user in last_of:
+            next_stamp[last_of[user]] = item.msg.stamp
+        last_of[user] = n
     out = []
     for n, item in enumerate(inputs):
         user, sent = T.user_of(item.key), item.msg
-        until = inputs[n + 1].msg.stamp if n + 1 < len(inputs) else math.inf
+        until = next_stamp.get(n, math.inf)
         window = by_stamp[
             bisect.bisect_left(stamps, sent.stamp) : bisect.bisect_left(stamps, until)
         ]

@@ -29,6 +29,7 @@ def main() -> None:
     ap.add_argument("--users", type=int, default=4)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--out", type=Path, default=Path("/tmp/guidebelt-full-rate.mcap"))
+    ap.add_argument("--check", action="store_true", help="then replay --check the file")
     args = ap.parse_args()
 
     from mcap.reader import make_reader
@@ -79,6 +80,19 @@ def main() -> None:
         "machine": f"{platform.node()} {platform.machine()}, {os.cpu_count()} cores",
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
     }  # fmt: skip
+    if args.check:
+        from recording.check import check
+        from recording.replay import read
+
+        with DaemonThread(backend="cpu", cell_m=0.1, user_radius_m=USER_RADIUS_M) as fresh:
+            session = fresh.peer()
+            report = check(session, list(read(args.out)))
+            session.close()
+        result["check"] = {
+            "inputs": report.inputs, "steps_compared": report.steps_compared,
+            "statuses_compared": report.statuses_compared,
+            "differences": [str(d) for d in report.differences],
+        }  # fmt: skip
     print(json.dumps(result, indent=1))
 
 
