@@ -144,6 +144,19 @@ def split(items: list[Recorded]) -> tuple[list[Recorded], Outputs, dict[tuple[st
     return inputs, outputs, poses
 
 
+def _same_user_next(inputs: list[Recorded]) -> dict[int, int]:
+    """Input number → the number of the same user's next input. Users are stepped apart (a
+    runner each), so that is the next input that counts for an answer."""
+    following: dict[int, int] = {}
+    last_of: dict[str, int] = {}
+    for n, item in enumerate(inputs):
+        user = T.user_of(item.key)
+        if user in last_of:
+            following[last_of[user]] = n
+        last_of[user] = n
+    return following
+
+
 def _answered_alone(inputs: list[Recorded], outputs: Outputs) -> list[bool]:
     """For each input, whether the recorded daemon answered it without the next input: with a
     step that began (its stamp, the daemon's clock) after this input was stamped and before
@@ -152,18 +165,11 @@ def _answered_alone(inputs: list[Recorded], outputs: Outputs) -> list[bool]:
     recording did, or the fresh daemon would find that pose stale."""
     by_stamp = sorted(((msg.stamp, key, msg) for _l, key, msg in outputs.items), key=lambda o: o[0])
     stamps = [o[0] for o in by_stamp]
-    # Users are stepped apart (a runner each): the next input that counts is the same user's.
-    next_stamp: dict[int, float] = {}
-    last_of: dict[str, int] = {}
-    for n, item in enumerate(inputs):
-        user = T.user_of(item.key)
-        if user in last_of:
-            next_stamp[last_of[user]] = item.msg.stamp
-        last_of[user] = n
+    following = _same_user_next(inputs)
     out = []
     for n, item in enumerate(inputs):
         user, sent = T.user_of(item.key), item.msg
-        until = next_stamp.get(n, math.inf)
+        until = inputs[following[n]].msg.stamp if n in following else math.inf
         window = by_stamp[
             bisect.bisect_left(stamps, sent.stamp) : bisect.bisect_left(stamps, until)
         ]
@@ -185,7 +191,7 @@ class _Listener:
     """The fresh daemon's outputs, labelled with the input being fed when each came."""
 
     def __init__(self, session: zenoh.Session) -> None:
-        self.label = -1
+        self.labels: dict[str, int] = {}
         self.outputs = Outputs()
         self._cond = threading.Condition()
         self._subs = [
@@ -199,16 +205,17 @@ class _Listener:
 
         def on_sample(sample: zenoh.Sample) -> None:
             msg = codec.decode(model, sample.payload.to_bytes())
+            key = str(sample.key_expr)
             with self._cond:
-                self.outputs.items.append((self.label, str(sample.key_expr), msg))
+                self.outputs.items.append((self.labels.get(T.user_of(key), -1), key, msg))
                 self._cond.notify_all()
 
         return on_sample
 
-    def feed(self, label: int) -> int:
-        """Label what comes next with ``label``; how many outputs came before it."""
+    def feed(self, user: str, label: int) -> int:
+        """Label ``user``'s outputs from now on with ``label``; how many outputs came so far."""
         with self._cond:
-            self.label = label
+            self.labels[user] = label
             return len(self.outputs.items)
 
     def wait_answer(self, key: str, sent: Message, since: int, timeout_s: float) -> bool:
@@ -230,45 +237,88 @@ def check(
     items: list[Recorded],
     on_input: Callable[[int], None] | None = None,
 ) -> CheckReport:
-    """Feed ``items``' inputs to the daemon ``session`` is connected to; compare its outputs."""
+    """Feed ``items``' inputs to the daemon ``session`` is connected to; compare its outputs.
+
+    Each user's inputs are fed by a thread of their own, in lock step with that user's
+    answers: fed one after another across users, one user's wait would age another's pose."""
     inputs, recorded, recorded_poses = split(items)
-    was_answered = _answered_alone(inputs, recorded)
-    listener = _Listener(session)
-    player = Player(session, inputs, speed=0)
-    replayed_poses: dict[tuple[str, float], int] = {}
-    unanswered = 0
+    feed = _Feed(inputs, _answered_alone(inputs, recorded), _Listener(session), on_input)
+    by_user: dict[str, list[int]] = {}
+    for n, item in enumerate(inputs):
+        by_user.setdefault(T.user_of(item.key), []).append(n)
+    threads = [
+        threading.Thread(target=feed.user, args=(session, numbers), name=f"check-{user}")
+        for user, numbers in by_user.items()
+    ]
     try:
         time.sleep(0.1)  # the daemon's subscribers match ours before the first input
-        for i, item in enumerate(inputs):
-            since = listener.feed(i)
-            player.publish(item, time.time())
-            sent = player.last
-            assert sent is not None
-            if isinstance(sent, Pose):
-                replayed_poses[(T.user_of(item.key), sent.stamp)] = i
-            limit = ANSWER_S
-            if not was_answered[i]:
-                gap = inputs[i + 1].msg.stamp - item.msg.stamp if i + 1 < len(inputs) else 0.2
-                limit = min(ANSWER_S, max(0.0, gap))
-            if not listener.wait_answer(item.key, sent, since, limit):
-                unanswered += 1
-            if on_input is not None:
-                on_input(i + 1)
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
         time.sleep(0.2)  # the last step's status follows its path
     finally:
-        listener.close()
-        player.close()
-    want = recorded.step_belts(recorded_poses)
-    got = listener.outputs.step_belts(replayed_poses)
-    want_status, got_status = recorded.statuses(), listener.outputs.statuses()
+        feed.listener.close()
+    if feed.error is not None:
+        raise feed.error
+    outputs = feed.listener.outputs
+    want, got = recorded.step_belts(recorded_poses), outputs.step_belts(feed.poses)
+    want_status, got_status = recorded.statuses(), outputs.statuses()
     return CheckReport(
         inputs=len(inputs),
         steps_compared=len(want),
         statuses_compared=sum(len(v) for v in want_status.values()),
         differences=compare_steps(want, got) + compare_statuses(want_status, got_status),
-        unanswered=unanswered,
-        replayed=listener.outputs,
+        unanswered=feed.unanswered,
+        replayed=outputs,
     )
+
+
+class _Feed:
+    """What the per-user feeders share: the listener, the replayed poses' numbers, counts."""
+
+    def __init__(self, inputs, answered_alone, listener: _Listener, on_input) -> None:
+        self.inputs = inputs
+        self.answered_alone = answered_alone
+        self.following = _same_user_next(inputs)
+        self.listener = listener
+        self.on_input = on_input
+        self.poses: dict[tuple[str, float], int] = {}
+        self.unanswered = 0
+        self.fed = 0
+        self.error: BaseException | None = None
+        self._lock = threading.Lock()
+
+    def user(self, session: zenoh.Session, numbers: list[int]) -> None:
+        player = Player(session, [self.inputs[n] for n in numbers], speed=0)
+        try:
+            for n in numbers:
+                self._one(player, n)
+        except BaseException as exc:  # reported by check(), on its own thread
+            self.error = exc
+        finally:
+            player.close()
+
+    def _one(self, player: Player, n: int) -> None:
+        item = self.inputs[n]
+        user = T.user_of(item.key)
+        since = self.listener.feed(user, n)
+        player.publish(item, time.time())
+        sent = player.last
+        assert sent is not None
+        if isinstance(sent, Pose):
+            self.poses[(user, sent.stamp)] = n
+        limit = ANSWER_S
+        if not self.answered_alone[n]:
+            nxt = self.following.get(n)
+            gap = self.inputs[nxt].msg.stamp - item.msg.stamp if nxt is not None else 0.2
+            limit = min(ANSWER_S, max(0.0, gap))
+        answered = self.listener.wait_answer(item.key, sent, since, limit)
+        with self._lock:
+            self.unanswered += not answered
+            self.fed += 1
+            if self.on_input is not None:
+                self.on_input(self.fed)
 
 
 def compare_steps(

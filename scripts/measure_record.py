@@ -89,7 +89,8 @@ def main() -> None:
             report = check(session, list(read(args.out)))
             session.close()
         result["check"] = {
-            "inputs": report.inputs, "steps_compared": report.steps_compared,
+            "inputs": report.inputs, "unanswered": report.unanswered,
+            "steps_compared": report.steps_compared,
             "statuses_compared": report.statuses_compared,
             "differences": [str(d) for d in report.differences],
         }  # fmt: skip
