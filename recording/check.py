@@ -50,6 +50,8 @@ from .replay import Player, Recorded
 
 ANSWER_S = 1.0
 """The longest wait for the daemon's answer to an input the recorded daemon answered."""
+RESEND_S = 0.2
+"""A pose with no answer by then is sent again (the simulated walker's own pose period)."""
 
 StepKey = tuple[str, int, int]
 """(user, number of the pose input planned from, last map delta reflected)."""
@@ -218,11 +220,15 @@ class _Listener:
             self.labels[user] = label
             return len(self.outputs.items)
 
-    def wait_answer(self, key: str, sent: Message, since: int, timeout_s: float) -> bool:
+    def wait_answer(self, key: str, sent: list[Message], since: int, timeout_s: float) -> bool:
+        """Wait until an output since ``since`` answers one of ``sent`` (one input, sent once
+        or again)."""
         user = T.user_of(key)
 
         def answered() -> bool:
-            return any(_answers(k, m, user, sent) for _, k, m in self.outputs.items[since:])
+            return any(
+                _answers(k, m, user, one) for _, k, m in self.outputs.items[since:] for one in sent
+            )
 
         with self._cond:
             return self._cond.wait_for(answered, timeout_s)
@@ -303,22 +309,41 @@ class _Feed:
         item = self.inputs[n]
         user = T.user_of(item.key)
         since = self.listener.feed(user, n)
-        player.publish(item, time.time())
-        sent = player.last
-        assert sent is not None
-        if isinstance(sent, Pose):
-            self.poses[(user, sent.stamp)] = n
-        limit = ANSWER_S
-        if not self.answered_alone[n]:
+        sent = self._send(player, user, n)
+        if self.answered_alone[n]:
+            answered = self._await(player, user, n, [sent], since)
+        else:
             nxt = self.following.get(n)
             gap = self.inputs[nxt].msg.stamp - item.msg.stamp if nxt is not None else 0.2
-            limit = min(ANSWER_S, max(0.0, gap))
-        answered = self.listener.wait_answer(item.key, sent, since, limit)
+            answered = self.listener.wait_answer(item.key, [sent], since, min(ANSWER_S, gap))
         with self._lock:
             self.unanswered += not answered
             self.fed += 1
             if self.on_input is not None:
                 self.on_input(self.fed)
+
+    def _send(self, player: Player, user: str, n: int) -> Message:
+        player.publish(self.inputs[n], time.time())
+        sent = player.last
+        assert sent is not None
+        if isinstance(sent, Pose):
+            self.poses[(user, sent.stamp)] = n
+        return sent
+
+    def _await(self, player: Player, user: str, n: int, sent: list[Message], since: int) -> bool:
+        """Wait for the answer; a pose not answered within ``RESEND_S`` is sent again. Poses
+        are latest-wins on the wire (a full queue drops one), and the walker too sends its
+        pose again when nothing comes back, so the recorded daemon never waited for one."""
+        end = time.monotonic() + ANSWER_S
+        key = self.inputs[n].key
+        while True:
+            left = end - time.monotonic()
+            step = min(RESEND_S, left) if isinstance(sent[0], Pose) else left
+            if self.listener.wait_answer(key, sent, since, max(0.0, step)):
+                return True
+            if time.monotonic() >= end:
+                return False
+            sent.append(self._send(player, user, n))
 
 
 def compare_steps(
