@@ -160,23 +160,45 @@ def _same_user_next(inputs: list[Recorded]) -> dict[int, int]:
 
 
 def _answered_alone(inputs: list[Recorded], outputs: Outputs) -> list[bool]:
-    """For each input, whether the recorded daemon answered it without the next input: with a
-    step that began (its stamp, the daemon's clock) after this input was stamped and before
-    the next was (the senders' clock; one machine in the demo). A pose sent before the goal
-    was answered only once the goal came: feeding it, the check waits no longer than the
-    recording did, or the fresh daemon would find that pose stale."""
+    """For each input, whether the recorded daemon answered it without the user's next input.
+    A step's path names the pose it planned from: a step that answered this input and did not
+    plan from the next pose took this one alone. When the next input is not a pose, the step
+    must have begun (its stamp, the daemon's clock) before the next input was stamped (the
+    senders' clock; one machine in the demo). A pose sent before the goal was answered only
+    once the goal came: feeding it, the check waits no longer than the recording did, or
+    the fresh daemon would find that pose stale."""
     by_stamp = sorted(((msg.stamp, key, msg) for _l, key, msg in outputs.items), key=lambda o: o[0])
     stamps = [o[0] for o in by_stamp]
+    paths = {(T.user_of(k), m.stamp): m for _s, k, m in by_stamp if isinstance(m, NavPath)}
     following = _same_user_next(inputs)
     out = []
     for n, item in enumerate(inputs):
         user, sent = T.user_of(item.key), item.msg
-        until = inputs[following[n]].msg.stamp if n in following else math.inf
+        nxt = inputs[following[n]].msg if n in following else None
+        after = following.get(following[n]) if n in following else None
+        until = inputs[after].msg.stamp if after is not None else math.inf
         window = by_stamp[
             bisect.bisect_left(stamps, sent.stamp) : bisect.bisect_left(stamps, until)
         ]
-        out.append(any(_answers(key, msg, user, sent) for _s, key, msg in window))
+        out.append(
+            any(
+                _answers(key, msg, user, sent)
+                and not _reflects(paths.get((user, msg.stamp)), msg.stamp, nxt)
+                for _s, key, msg in window
+            )
+        )
     return out
+
+
+def _reflects(path: NavPath | None, step: float, nxt: Message | None) -> bool:
+    """Whether the step stamped ``step`` (with ``path``, if it made one) had taken ``nxt``."""
+    if nxt is None:
+        return False
+    if path is not None and isinstance(nxt, Pose):
+        return path.pose_stamp == nxt.stamp
+    # Not ``map_seq`` for a delta: a delta the daemon ignored (an old sequence number, a
+    # walker starting again under the same name) is below it and was never taken.
+    return step >= nxt.stamp
 
 
 def _answers(key: str, out: Message, user: str, sent: Message) -> bool:
