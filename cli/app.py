@@ -36,6 +36,9 @@ COMMAND_MODULES = [
     "cli.schema",
     "cli.certs",
     "cli.load",
+    "cli.view",
+    "cli.record",
+    "cli.replay",
 ]
 
 for _name in COMMAND_MODULES:

@@ -22,6 +22,14 @@ ZenohConfig = Annotated[
         "endpoints); --connect/--listen given too replace its endpoints",
     ),
 ]
+Listen = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--listen",
+        help="zenoh endpoint to listen on as well, for nodes that reach no router "
+        "(repeatable, e.g. tcp/127.0.0.1:7448)",
+    ),
+]
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
@@ -57,8 +65,14 @@ def node_settings(
     return settings
 
 
-def open_peer(connect: list[str] | None, scout: bool, zenoh_config: Path | None = None):
-    """A session with the daemon (-> zenoh.Session, imported lazily)."""
+def open_peer(
+    connect: list[str] | None,
+    scout: bool,
+    zenoh_config: Path | None = None,
+    listen: list[str] | None = None,
+):  # -> zenoh.Session, imported lazily
+    """A session with the daemon; ``listen`` adds endpoints others may dial (a view or a
+    recorder that no router relays for)."""
     from protocol.session import open_session
 
-    return open_session(node_settings(zenoh_config, connect, scout=scout))
+    return open_session(node_settings(zenoh_config, connect, listen, scout))

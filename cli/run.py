@@ -22,6 +22,16 @@ def run(
         str | None,
         typer.Option(help=f"A registry planner ({PLANNER_NAMES}); overrides the config."),
     ] = None,
+    record: Annotated[
+        Path | None,
+        typer.Option(
+            help="Record every user's messages, as the daemon hears and sends them, "
+            "to this MCAP file (rotated: .001.mcap, …)."
+        ),
+    ] = None,
+    record_max_mb: Annotated[
+        float, typer.Option(help="With --record: rotate past this many MiB per file.")
+    ] = 256.0,
 ) -> None:
     """Serve goals, poses and map deltas over zenoh until SIGTERM."""
     import uvloop
@@ -32,7 +42,13 @@ def run(
 
     cfg = _config_or_exit(load_config, config, planner)
     setup_logging(cfg.log_level, cfg.log_format)
-    uvloop.run(serve(cfg))
+    observers = []
+    if record is not None:
+        from recording.recorder import Recorder
+
+        max_bytes = int(record_max_mb * 2**20)
+        observers.append(lambda session: Recorder(session, record, None, max_bytes).start())
+    uvloop.run(serve(cfg, observers))
     # Everything the daemon owns is closed by now. Skip the interpreter's teardown: the
     # compiled planner's runtime takes ~0.7 s to unload, and systemd (and the user waiting
     # for the belt to go quiet) get a stop well inside one second.

@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from cli.options import PLANNER_NAMES, comma_list
+from cli.options import PLANNER_NAMES, comma_list, walk_progress
 
 
 def walks(
@@ -108,15 +108,20 @@ def walks(
         raise typer.BadParameter(str(exc), param_hint="--grid") from exc
     if table:
         t0 = time.perf_counter()
-        with console.status("walking…") as status:
+        with walk_progress(console) as progress:
+            # One advance per row (scenario × grid × density): each row is ``runs`` walks.
+            task = progress.add_task(
+                f"rows of {runs} walks", total=len(scenarios) * len(grids) * len(unknowns)
+            )
             rows = run_table(
                 grids, unknowns, runs, backend=backend, smooth=smooth, first_seed=seed, jobs=jobs,
                 planner=planner,
                 params=WalkerParams(
                     step_m=step_m, perception_sd_deg=perception_sd, gait_sd_deg=gait_sd
                 ),
-                on_row=lambda r: status.update(
-                    f"done {r['scenario']} {r['grid']} @ {r['unknown']:.0%}"
+                on_row=lambda r: progress.update(
+                    task, advance=1,
+                    description=f"done {r['scenario']} {r['grid']} @ {r['unknown']:.0%}",
                 ),
                 scenarios=scenarios,
                 follow=follow,

@@ -17,6 +17,8 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import zenoh
 
@@ -49,9 +51,22 @@ and device copies, with room for the copies a step makes."""
 STOP_BUDGET_S = 0.6
 
 
+Observer = Callable[[zenoh.Session], Any]
+"""Started on the daemon's own session once it serves (``guidebelt run --record``): it hears
+every input the daemon hears and every output it publishes, with no router in between. What
+it returns is closed (``close()``) after the users' last patterns, before the session."""
+
+
 class Daemon:
-    def __init__(self, config: DaemonConfig, notifier: Notifier | None = None) -> None:
+    def __init__(
+        self,
+        config: DaemonConfig,
+        notifier: Notifier | None = None,
+        observers: Sequence[Observer] = (),
+    ) -> None:
         self.config = config
+        self.observers = list(observers)
+        self._observing: list[Any] = []
         self.notifier = notifier if notifier is not None else Notifier()
         self.runners: dict[str, UserRunner] = {}
         self.settings = SettingsStore(config.intensity)
@@ -100,6 +115,7 @@ class Daemon:
         self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
         self._restore()  # before the bridge hears anyone: a goal sent now finds its session
         self._bridge.start()
+        self._observing = [observe(self._zenoh) for observe in self.observers]
         if install_signals:
             for sig in (signal.SIGTERM, signal.SIGINT):
                 loop.add_signal_handler(sig, self.stop)
@@ -181,6 +197,11 @@ class Daemon:
             )
             for fut in pending:
                 fut.cancel()
+        for observer in self._observing:
+            try:
+                observer.close()
+            except Exception:  # an observer's failure must not keep the daemon from stopping
+                log.exception("observer failed to close")
         if self._bridge is not None:
             self._bridge.close()
         if self._zenoh is not None:
@@ -427,8 +448,8 @@ class Daemon:
         task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
 
 
-async def serve(config: DaemonConfig) -> None:
+async def serve(config: DaemonConfig, observers: Sequence[Observer] = ()) -> None:
     """Run until SIGTERM or SIGINT."""
-    daemon = Daemon(config)
+    daemon = Daemon(config, observers=observers)
     with contextlib.suppress(asyncio.CancelledError):
         await daemon.run()

@@ -9,7 +9,7 @@ from __future__ import annotations
 import asyncio
 import socket
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 import uvloop
@@ -18,7 +18,7 @@ import zenoh
 from protocol.session import ZenohSettings, loopback, open_session
 
 from .config import DaemonConfig
-from .daemon import Daemon
+from .daemon import Daemon, Observer
 
 T = TypeVar("T")
 
@@ -41,10 +41,12 @@ class DaemonThread:
         self,
         config: DaemonConfig | None = None,
         zenoh_on: Callable[[int], ZenohSettings] | None = None,
+        observers: Sequence[Observer] = (),
         **overrides: object,
     ) -> None:
         """``zenoh_on(port)`` gives the daemon's zenoh settings on its free port (default:
-        plain TCP on 127.0.0.1; the TLS tests pass certificates and access rules)."""
+        plain TCP on 127.0.0.1; the TLS tests pass certificates and access rules);
+        ``observers`` watch the daemon's own session (a recorder)."""
         self.port = free_port()
         base = config or DaemonConfig(**overrides)
         zenoh_settings = (zenoh_on or (lambda p: loopback(listen_port=p)))(self.port)
@@ -52,7 +54,7 @@ class DaemonThread:
         if "state_dir" not in base.model_fields_set:
             update["state_dir"] = None  # a test or demo never writes the system's state
         self.config = base.model_copy(update=update)
-        self.daemon = Daemon(self.config)
+        self.daemon = Daemon(self.config, observers=observers)
         self._loop = uvloop.new_event_loop()
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._main, name="guidebelt-daemon", daemon=True)
