@@ -30,6 +30,13 @@ class Pose(Message):
     heading: float = Field(allow_inf_nan=False, description="radians, 0 = east, CCW positive")
     stamp: float = Field(ge=0, allow_inf_nan=False, description="seconds since the Unix epoch")
     quality: float = Field(default=1.0, ge=0.0, le=1.0, description="1 = exact (sim, LF tag)")
+    sigma_m: float | None = Field(
+        default=None,
+        ge=0.0,
+        le=100.0,
+        allow_inf_nan=False,
+        description="1-sigma position uncertainty, metres (None: derived from quality)",
+    )
 
 
 class GoalCell(Message):
