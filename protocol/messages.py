@@ -196,6 +196,8 @@ class StatusCode(StrEnum):
     # Positions the daemon cannot trust.
     POSE_OFF_MAP = "pose_off_map"
     STALE_POSE = "stale_pose"
+    POSE_UNCERTAIN = "pose_uncertain"
+    """The pose's own uncertainty (``Pose.sigma_m`` / ``quality``) is past the daemon's limit."""
     # Map updates refused whole.
     OVERSIZED = "oversized"
     SHAPE_MISMATCH = "shape_mismatch"

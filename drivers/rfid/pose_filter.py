@@ -55,6 +55,10 @@ class FilterParams:
     """Fast shadowing of one UHF read."""
     sigma_tag_db: float = 1.5
     """What the median cannot remove: a tag's fixed offset (mounting) and model error."""
+    tag_memory_s: float = 5.0
+    """A tag's fixed offset is the same in every read: the m updates one tag gave in this
+    long share its variance (σ_tag² m each), so together they never count for more than one
+    — else a user standing by one tag would grow sure of a biased position."""
     gate_sigma: float = 3.5
     """UHF reads whose innovation exceeds this many σ are taken as multipath and dropped."""
     lf_sigma_m: float = 0.05
@@ -68,7 +72,8 @@ class FilterParams:
     """How far the compass bias may drift per step (walking past steel)."""
     init_sigma_m: float = 1.0
     """Start with no prior: the first tag read puts the user within the UHF field of it."""
-    init_bias_sigma_rad: float = math.radians(15.0)
+    init_bias_sigma_rad: float = math.radians(8.0)
+    """Prior on the compass bias: indoor offsets of a few degrees, rarely past 15°."""
     eq3_min_m: float = 0.6
     """Eq. 3 needs this much straight travel before it says anything about the heading."""
     eq3_window_s: float = 1.5
@@ -104,11 +109,14 @@ class PoseFilter:
         params: FilterParams | None = None,
         *,
         start: tuple[float, float] | None = None,
-        start_sigma_m: float = 0.5,
+        start_sigma_m: float = 0.3,
+        pedometer: bool = False,
         a: float = A_DB,
         n: float = N_PATH,
     ) -> None:
-        """``start``: where the user is known to begin (an entrance), if anywhere."""
+        """``start``: where the user is known to begin (an entrance), if anywhere.
+        ``pedometer``: steps will be reported, so no step means standing still; without one
+        the position's spread grows with time (``drift_mps``) until the next fix."""
         self.tags = tag_map
         self.p = params or FilterParams()
         self.a, self.n = a, n
@@ -123,17 +131,16 @@ class PoseFilter:
         self.source = "steps"
         self.t = 0.0
         self._uhf: dict[int, list[float]] = {}
+        self._tag_updates: dict[int, deque[float]] = {}
         self._track: deque[tuple[float, float, float, float]] = deque()
         """(t, x, y, compass) after each step, for eq. 3."""
         self.heading_eq3: float | None = None
-        self.pedometer = False
-        """A step has been reported: motion comes from steps, not from the drift model."""
+        self.pedometer = pedometer
+        """Motion comes from steps, not from the drift model (set by the first step too)."""
         self._last_t: float | None = None
         self._step_t: float | None = None
         self._step_dt = 0.5
         self._step_len = 0.0
-        self._credited = 0.0
-        """Of the step under way, how far ``_advance`` has already carried the state."""
         self._lf_round: list[int] = []
         self._lf_round_t = -math.inf
         self._lf_done_t = -math.inf
@@ -179,10 +186,8 @@ class PoseFilter:
             return
         th = compass_rad - self.s[2]
         c, s = math.cos(th), math.sin(th)
-        rest = length_m - self._credited  # what ``_advance`` has not already moved it
-        self._credited = 0.0
-        self.s[0] += rest * c
-        self.s[1] += rest * s
+        self.s[0] += length_m * c
+        self.s[1] += length_m * s
         f = np.eye(3)
         f[0, 2] = length_m * s
         f[1, 2] = -length_m * c
@@ -210,11 +215,10 @@ class PoseFilter:
             self._init_at(z, self.p.lf_sigma_m)
             self.source = "lf"
             return
-        self._advance(t)
         r = (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
         h = np.zeros((2, 3))
         h[0, 0] = h[1, 1] = 1.0
-        self._update(z - self.s[:2], h, r)
+        self._update(z - self.s[:2] - self._stride(t), h, r)
         self.source = "lf"
 
     # -- output ---------------------------------------------------------------------------
@@ -227,31 +231,31 @@ class PoseFilter:
             self.P[0, 0] += self.p.drift_mps**2 * dt
             self.P[1, 1] += self.p.drift_mps**2 * dt
         self._last_t = now
-        self._advance(now)
         if self._lf_round and now - self._lf_round_t > LF_ROUND_S:
             self._flush_lf()
         self._fold_uhf()
         if not self.ready:
             return None
         sigma = self.sigma_m
+        x, y = self.s[:2] + self._stride(now)
         return FilteredPose(
-            float(self.s[0]), float(self.s[1]), self.heading, self.heading_eq3, sigma,
+            float(x), float(y), self.heading, self.heading_eq3, sigma,
             quality_from_sigma(sigma), now, self.source,
         )  # fmt: skip
 
-    def _advance(self, now: float) -> None:
-        """Between two steps the user is not standing at the last one: carry the state on at
-        the cadence of the last steps (never past one more step), so that a fix taken
-        mid-stride is compared with where the user is, not where the last step ended."""
-        if not self.ready or self._step_t is None or now - self._step_t >= 1.5 * self._step_dt:
-            return
-        target = min(1.0, (now - self._step_t) / self._step_dt) * self._step_len
-        delta = target - self._credited
-        if delta > 0.0:
-            th = self.heading
-            self.s[0] += delta * math.cos(th)
-            self.s[1] += delta * math.sin(th)
-            self._credited = target
+    def _stride(self, now: float) -> np.ndarray:
+        """Where the user is in the stride under way, from the last step's end.
+
+        Between two steps a walking user is not standing at the last one: the pose and every
+        fix taken mid-stride are put at the cadence of the last steps (never past one more
+        step). The state itself moves only by the steps reported, so a step that never comes
+        (the user stopped) leaves nothing behind.
+        """
+        if self._step_t is None or now - self._step_t >= 1.5 * self._step_dt:
+            return np.zeros(2)
+        ahead = min(1.0, (now - self._step_t) / self._step_dt) * self._step_len
+        th = self.heading
+        return np.array([ahead * math.cos(th), ahead * math.sin(th)])
 
     @property
     def sigma_m(self) -> float:
@@ -282,18 +286,30 @@ class PoseFilter:
             self._init_at(self.tags.uhf_xy[i], self.p.init_sigma_m)
         used = False
         for i, vals in sorted(reads.items(), key=lambda kv: float(np.median(kv[1]))):
-            used |= self._range_update(self.tags.uhf_xy[i], float(np.median(vals)), len(vals))
+            seen = self._tag_updates.setdefault(i, deque())
+            while seen and seen[0] < self.t - self.p.tag_memory_s:
+                seen.popleft()
+            m = len(seen) + 1
+            z = float(np.median(vals))
+            if self._range_update(self.tags.uhf_xy[i], z, len(vals), m):
+                seen.append(self.t)
+                used = True
         if used:
             self.source = "uhf"
 
-    def _range_update(self, centre: np.ndarray, z_db: float, k: int) -> bool:
+    def _range_update(self, centre: np.ndarray, z_db: float, k: int, m: int = 1) -> bool:
         """Eq. 1 read backwards: |RSSI| = A + 10 n log10 r, updated in dB."""
-        diff = self.s[:2] - centre
+        diff = self.s[:2] + self._stride(self.t) - centre
         r = max(float(np.hypot(*diff)), NEAR_FIELD_M)
         pred = self.a + 10.0 * self.n * math.log10(r)
         h = np.zeros((1, 3))
         h[0, :2] = 10.0 * self.n / (LN10 * r * r) * diff
-        var = self.p.sigma_read_db**2 / k + self.p.sigma_tag_db**2
+        var = self.p.sigma_read_db**2 / k + self.p.sigma_tag_db**2 * m
+        # Near a tag the log-range bends sharply over the position's spread: the
+        # second-order term ½ tr((∇²h P)²) the linear update leaves out, added as noise.
+        curv = 10.0 * self.n / LN10 / (r * r)
+        pos = self.P[:2, :2]
+        var += 0.5 * curv * curv * float(np.trace(pos @ pos))
         innov = np.array([z_db - pred])
         s = float((h @ self.P @ h.T)[0, 0]) + var
         if innov[0] ** 2 > self.p.gate_sigma**2 * s:
