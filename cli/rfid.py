@@ -169,7 +169,48 @@ def rfid(
             mock_reader.stop()
 
 
+def rfid_walks(
+    runs: Annotated[int, typer.Option(min=1, help="Walks per clutter level (seeds 0..n-1).")] = 50,
+    unknown: Annotated[list[float] | None, typer.Option(help="Clutter levels.")] = None,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+) -> None:
+    """Closed-loop belt walks of the 100² courtyard guided by the RFID pose filter alone."""
+    import numpy as np
+
+    from sim.courtyard import make_courtyard
+    from sim.rfid_belt_walk import rfid_belt_walk
+
+    rows = []
+    for level in unknown or [0.2, 0.4, 0.6]:
+        res = [rfid_belt_walk(make_courtyard(100, level, s), seed=s) for s in range(runs)]
+        errors = np.concatenate([r.pose_errors for r in res])
+        heading = np.degrees(np.concatenate([r.heading_errors for r in res]))
+        row = {
+            "unknown": level,
+            "runs": runs,
+            "success": round(sum(r.arrived for r in res) / runs, 4),
+            "collisions": int(sum(r.collisions for r in res)),
+            "walks_with_collision": int(sum(r.collisions > 0 for r in res)),
+            "waits": int(sum(r.waits for r in res)),
+            "pose_median_m": round(float(np.median(errors)), 3),
+            "pose_p95_m": round(float(np.percentile(errors, 95)), 3),
+            "heading_median_deg": round(float(np.median(heading)), 1),
+            "final_error_median_m": round(float(np.median([r.final_error_m for r in res])), 3),
+            "failures": [
+                (s, r.reason, r.collisions)
+                for s, r in enumerate(res)
+                if not r.arrived or r.collisions
+            ],
+        }
+        rows.append(row)
+        typer.echo(json.dumps(row))
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
 def register(app: typer.Typer) -> None:
+    app.command("rfid-walks")(rfid_walks)
     app.command("rfid-eval")(rfid_eval)
     app.command("rfid-tags")(rfid_tags)
     app.command("rfid")(rfid)
