@@ -18,8 +18,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from daemon.planning.grid import Cell
 from daemon.planning.inflation import InflatedMap
 from protocol.messages import Pose
@@ -106,15 +104,18 @@ class PoseMargin:
         self._better_since = None
         if want == self.extra_cells:
             return 0
-        old = maps.map
-        new = InflatedMap(old.occupancy, self.base_cells + want)
-        while want > 0 and goal is not None and new.blocked[goal] and not old.blocked[goal]:
-            want -= 1  # never let the margin swallow a goal the base margin leaves free
-            new = InflatedMap(old.occupancy, self.base_cells + want)
+        grid = maps.map
+        if want > 0 and goal is not None and not grid.blocked[goal]:
+            # Never let the margin swallow a goal the base margin leaves free.
+            free = InflatedMap(grid.occupancy, self.base_cells + want)
+            while want > 0 and free.blocked[goal]:
+                want -= 1
+                free = InflatedMap(grid.occupancy, self.base_cells + want)
+        if want == self.extra_cells:
+            return 0
         self.extra_cells = want
-        flipped = np.flatnonzero(new.blocked.reshape(-1) != old.blocked.reshape(-1))
-        maps.map = new
-        maps.radius_cells = new.radius_cells
+        flipped, blocked_now = grid.reinflate(self.base_cells + want)
+        maps.radius_cells = grid.radius_cells  # a snapshot is inflated the same way
         if flipped.size:
-            route.change(flipped.astype(np.int64), new.blocked.reshape(-1)[flipped])
+            route.change(flipped, blocked_now)
         return int(flipped.size)

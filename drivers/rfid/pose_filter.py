@@ -43,6 +43,8 @@ from .rssi import A_DB, N_PATH, NEAR_FIELD_M
 from .tags import TagMap
 
 LN10 = math.log(10.0)
+STRIDE_TURN_RAD = math.radians(30.0)
+"""Turned this far since the last step: the user is turning, not striding on."""
 LF_ROUND_S = 5e-3
 """Reads of one LF round share its time within this (rounds are 20 ms apart)."""
 
@@ -140,6 +142,8 @@ class PoseFilter:
         self._last_t: float | None = None
         self._step_t: float | None = None
         self._step_dt = 0.5
+        self._cadence = False
+        self._step_compass = 0.0
         self._step_len = 0.0
         self._lf_round: list[int] = []
         self._lf_round_t = -math.inf
@@ -181,7 +185,10 @@ class PoseFilter:
         self.pedometer = True
         if self._step_t is not None and 0.2 <= t - self._step_t <= 2.0:
             self._step_dt = t - self._step_t
-        self._step_t, self._step_len = t, length_m
+            self._cadence = True
+        else:
+            self._cadence = False  # the first step after a stop: no stride to carry on
+        self._step_t, self._step_len, self._step_compass = t, length_m, compass_rad
         if not self.ready:
             return
         th = compass_rad - self.s[2]
@@ -251,8 +258,14 @@ class PoseFilter:
         step). The state itself moves only by the steps reported, so a step that never comes
         (the user stopped) leaves nothing behind.
         """
-        if self._step_t is None or now - self._step_t >= 1.5 * self._step_dt:
-            return np.zeros(2)
+        if (
+            not self._cadence
+            or self._step_t is None
+            or now - self._step_t >= 1.5 * self._step_dt
+            or self.compass_rad is None
+            or abs(_wrap(self.compass_rad - self._step_compass)) > STRIDE_TURN_RAD
+        ):
+            return np.zeros(2)  # not walking steadily, or turned since: no stride under way
         ahead = min(1.0, (now - self._step_t) / self._step_dt) * self._step_len
         th = self.heading
         return np.array([ahead * math.cos(th), ahead * math.sin(th)])
