@@ -107,6 +107,7 @@ class FilteredRfidPoses:
         self.uhf_every = uhf_every
         self.pose_every = pose_every
         self.rounds = 0
+        self.bumps = 0
         self.t = 0.0
         self.at: tuple[float, float, float] | None = None
         self.errors: list[float] = []
@@ -116,6 +117,9 @@ class FilteredRfidPoses:
     def __call__(self, world: World, now: float) -> Pose | None:
         w = world.walker
         here = (w.x, w.y, w.heading)
+        if getattr(w, "collisions", 0) > self.bumps:  # felt through the IMU as a jolt
+            self.bumps = w.collisions
+            self.filter.bump(self.t)
         if self.at is None:
             self._listen(here, here, WARM_UP_S, stepped=False)
         else:

@@ -48,10 +48,12 @@ SETTINGS = {s.name: s for s in (PAPER, DENSE)}
 def tags_for(
     scenario, lf_layout: str = "floor", seed: int = 0, edge_spacing_m: float = 2.0
 ) -> TagMap:
-    """Tags placed on the scenario's known obstacles (what a venue would survey)."""
+    """Tags placed on the scenario's known obstacles (what a venue would survey); with
+    ``crossings``, a patch at the scenario's goal too (the landmark the user asks for)."""
     known_occupied = scenario.known == OCCUPIED
+    goal = np.array([cell_to_xy(scenario.shape, scenario.goal, scenario.cell_m)])
     return generate(known_occupied, scenario.cell_m, seed=seed, lf_layout=lf_layout,
-                    edge_spacing_m=edge_spacing_m)  # fmt: skip
+                    edge_spacing_m=edge_spacing_m, landmarks_xy=goal)  # fmt: skip
 
 
 def true_route(scenario) -> np.ndarray:
@@ -174,7 +176,9 @@ def evaluate(
     fused = method == "filter"
     loc = None if fused else Localiser(tag_map, method=method)
     imu = Imu(seed=seed + 7919)
-    filt = PoseFilter(tag_map, filter_params, start=tuple(route[0])) if fused else None
+    filt = (
+        PoseFilter(tag_map, filter_params, start=tuple(route[0]), pedometer=True) if fused else None
+    )
     length = float(np.hypot(*np.diff(route, axis=0).T).sum())
     duration = length / speed_mps
     t_rounds = np.arange(0.0, duration, 1.0 / round_hz)

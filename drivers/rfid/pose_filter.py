@@ -43,8 +43,9 @@ from .rssi import A_DB, N_PATH, NEAR_FIELD_M
 from .tags import TagMap
 
 LN10 = math.log(10.0)
-STRIDE_TURN_RAD = math.radians(30.0)
-"""Turned this far since the last step: the user is turning, not striding on."""
+STRIDE_TURN_RAD = math.radians(60.0)
+"""Turned this far since the last step: the user is turning on the spot, not striding on
+(walking round a corner turns the compass less within one stride)."""
 LF_ROUND_S = 5e-3
 """Reads of one LF round share its time within this (rounds are 20 ms apart)."""
 
@@ -82,6 +83,8 @@ class FilterParams:
     eq3_max_turn_rad: float = math.radians(12.0)
     """The compass must have stayed within this during the window: walking straight."""
     eq3_gain_sigma_rad: float = math.radians(8.0)
+    bump_sigma_m: float = 0.15
+    """Spread added when the user bumps into an obstacle (``bump``)."""
     drift_mps: float = 0.7
     """Without a pedometer the user may be anywhere a walk takes them: the position's spread
     grows by this much per √s between corrections (a brisk walk's worth)."""
@@ -206,6 +209,15 @@ class PoseFilter:
         q[2, 2] = self.p.bias_walk_rad**2
         self.P = f @ self.P @ f.T + q
         self._eq3(t, compass_rad)
+
+    def bump(self, t: float) -> None:
+        """The user walked into something the map said was clear of the pose: the pose is
+        wrong by more than its margin, so it is made that much less sure (the daemon widens
+        the margin by a = 2σ and the route moves off the obstacle)."""
+        self.t = max(self.t, t)
+        if self.ready:
+            self.P[0, 0] += self.p.bump_sigma_m**2
+            self.P[1, 1] += self.p.bump_sigma_m**2
 
     def uhf(self, t: float, tag_id: str, rssi_dbm: float) -> None:
         """A UHF read; it is used at the next ``pose`` (all reads of a tag since, by median)."""

@@ -7,7 +7,8 @@ down. The paper lays them at intersections; ``lf_layout`` says where they go her
 ``corners`` (patches on the floor around the obstacle corners, where a route turns),
 ``crossings`` (the paper's Figure 4: a small patch, tags 20 cm apart, where the ways around
 each convex corner of an obstacle meet — centred ``lf_offset_m`` out along the corner's
-diagonal, where a walk kept ω/2 clear of the obstacle bends, of radius ``crossing_patch_m``),
+diagonal, where a walk kept ω/2 clear of the obstacle bends, of radius ``crossing_patch_m``;
+and one at each of ``landmarks_xy``, the goals a user may name),
 ``floor`` (the whole walkable
 floor — in an open courtyard every spot is a crossing) or ``none``.
 """
@@ -153,6 +154,7 @@ def generate(
     lf_patch_m: float = 0.8,
     lf_offset_m: float = 0.45,
     crossing_patch_m: float = 0.35,
+    landmarks_xy: np.ndarray | None = None,
     walkable: np.ndarray | None = None,
 ) -> TagMap:
     """Place tags in a map of known obstacles (``occupancy`` != 0 is an obstacle).
@@ -194,6 +196,8 @@ def generate(
                 v, out = _convex_corners(occupied)
                 diag = np.column_stack([out[:, 1], -out[:, 0]]) / math.sqrt(2.0)
                 centres = vertex_xy(v) + lf_offset_m * diag
+                if landmarks_xy is not None:  # the doors a user may ask for are signposted too
+                    centres = np.vstack([centres, np.asarray(landmarks_xy, float).reshape(-1, 2)])
             radius = lf_patch_m if lf_layout == "corners" else crossing_patch_m
             near = np.zeros(len(pts), dtype=bool)
             for c in centres:
