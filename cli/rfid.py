@@ -102,7 +102,9 @@ def rfid(
     user: Annotated[str, typer.Option(help="User whose pose this reader gives.")],
     port: Annotated[str | None, typer.Option(help="Serial port of the reader.")] = None,
     tags: Annotated[Path | None, typer.Option(help="Tag map file (default: the sim's).")] = None,
-    method: Annotated[str, typer.Option(help="lsq (default) or centroid (the paper's).")] = "lsq",
+    method: Annotated[
+        str, typer.Option(help="lsq (default), centroid (the paper's) or filter (with σ).")
+    ] = "lsq",
     rate: Annotated[float, typer.Option(min=10.0, help="Poses per second.")] = 20.0,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh listen endpoint.")] = None,
     connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to join.")] = None,
