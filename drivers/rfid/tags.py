@@ -153,7 +153,7 @@ def generate(
     lf_range_m: float = 0.10,
     lf_patch_m: float = 0.8,
     lf_offset_m: float = 0.45,
-    crossing_patch_m: float = 0.35,
+    crossing_patch_m: float = 0.5,
     landmarks_xy: np.ndarray | None = None,
     walkable: np.ndarray | None = None,
 ) -> TagMap:
