@@ -74,18 +74,22 @@ def test_rfid_eval_command_writes_rows(tmp_path) -> None:
 
 
 @pytest.mark.timeout(60)
-def test_in_the_papers_setting_only_the_filter_always_has_a_pose(scenario) -> None:
-    """1.5 m reads, tags on corners only, LF patches at crossings (``PAPER``)."""
-    route = true_route(scenario)
-    tag_map = tags_for(scenario, "crossings", seed=2, edge_spacing_m=PAPER.edge_spacing_m)
-    rows = {}
-    for method in ("lsq", "filter"):
-        res = [evaluate(tag_map, route, method=method, lf_layout="crossings", seed=2 * 1000 + w,
-                        offset=off, uhf_range_m=PAPER.uhf_range_m)
-               for w, off in enumerate([(0.037, -0.061), (-0.05, 0.02)])]  # fmt: skip
-        rows[method] = summary_row(method, "crossings", res)
-    lsq, filt = rows["lsq"], rows["filter"]
-    assert lsq["availability"] < 0.5  # three tags in 1.5 m reach are rare
+def test_in_the_papers_setting_only_the_filter_always_has_a_pose() -> None:
+    """1.5 m reads, tags on corners only, LF patches at crossings (``PAPER``); two courtyards
+    of the five ``guidebelt rfid-eval`` pools, two walks each."""
+    pooled: dict[str, list] = {"lsq": [], "filter": []}
+    for seed in (0, 1):
+        court = make_courtyard(100, 0.4, seed)
+        route = true_route(court)
+        tag_map = tags_for(court, "crossings", seed, edge_spacing_m=PAPER.edge_spacing_m)
+        offsets = np.random.default_rng(seed).uniform(-0.1, 0.1, size=(2, 2))
+        for method, runs in pooled.items():
+            runs += [evaluate(tag_map, route, method=method, lf_layout="crossings",
+                              seed=seed * 1000 + w, offset=(float(o[0]), float(o[1])),
+                              uhf_range_m=PAPER.uhf_range_m)
+                     for w, o in enumerate(offsets)]  # fmt: skip
+    lsq, filt = (summary_row(m, "crossings", pooled[m]) for m in ("lsq", "filter"))
+    assert lsq["availability"] < 0.6  # three tags in 1.5 m reach are rare
     assert lsq["all_p95_m"] == float("inf") or lsq["all_p95_m"] > 1.0
     assert filt["availability"] == 1.0
     assert filt["all_median_m"] <= 0.15 and filt["all_p95_m"] <= 0.40
@@ -95,14 +99,14 @@ def test_in_the_papers_setting_only_the_filter_always_has_a_pose(scenario) -> No
 def test_crossing_patches_are_small_and_beside_corners(scenario) -> None:
     floor = tags_for(scenario, "floor", seed=2)
     patches = tags_for(scenario, "crossings", seed=2, edge_spacing_m=PAPER.edge_spacing_m)
-    assert 0 < len(patches.lf_ids) < 0.2 * len(floor.lf_ids)
+    assert 0 < len(patches.lf_ids) < 0.25 * len(floor.lf_ids)
     assert len(patches.uhf_ids) < len(floor.uhf_ids)  # corners only, no edge fill
-    # Every LF tag lies in a patch beside an obstacle: within 0.45 + 0.35 m (and a cell) of one.
+    # Every LF tag lies in a patch beside an obstacle: within 0.45 + 0.5 m (and a cell) of one.
     rows, cols = np.nonzero(scenario.known == 1)
     h = scenario.known.shape[0]
     cells = np.column_stack([(cols + 0.5) * scenario.cell_m, (h - rows - 0.5) * scenario.cell_m])
     d = np.hypot(*(patches.lf_xy[:, None, :] - cells[None, :, :]).transpose(2, 0, 1))
-    assert d.min(axis=1).max() <= 0.45 + 0.35 + 0.15
+    assert d.min(axis=1).max() <= 0.45 + 0.5 + 0.15
 
 
 def test_rfid_tags_command_writes_a_valid_map(tmp_path) -> None:
