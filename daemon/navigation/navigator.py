@@ -286,7 +286,7 @@ class Navigator:
         """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; WAIT past a limit."""
         assert self.pose is not None
         if self.margin.too_unsure(self.pose):
-            why = f"pose uncertain by {self.margin.sigma_m:.2f} m"
+            why = f"pose quality {self.pose.quality:.2f} (sigma {self.pose.sigma_m} m)"
             self._reject(Rejection(StatusCode.POSE_UNCERTAIN, why, counted=False), now, out)
             return True
         no_way = self.state == NavState.NO_PATH

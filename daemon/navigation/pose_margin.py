@@ -2,10 +2,11 @@
 
 Chen et al. enlarge every obstacle by ω/2 + a, "ω the robot width and a the positional
 uncertainty of the robot (currently, 15 cm)". The daemon's margin is the user's radius
-(ω/2); ``PoseMargin`` adds a, read from each pose's uncertainty (``Pose.sigma_m``, or its
-``quality`` — ``protocol.pose_quality``), rounded up to whole cells and capped at
-``a_max_m``. A pose worse than ``wait_sigma_m`` gives WAIT: the user stands until a fix
-arrives rather than being sent off in a direction that may be wrong.
+(ω/2); ``PoseMargin`` adds a, read from each pose's uncertainty (``Pose.sigma_m``), rounded
+up to whole cells and capped at ``a_max_m``. A pose worse than ``wait_sigma_m`` (its
+``sigma_m``, or the σ its ``quality`` stands for — ``protocol.pose_quality``) gives WAIT:
+the user stands until a fix arrives rather than being sent off in a direction that may be
+wrong.
 
 An exact pose (the sim's, an old sender's default quality 1) means a = 0: nothing changes.
 The margin grows at once and shrinks only after ``shrink_after_s`` of better poses, so that
@@ -68,9 +69,14 @@ class PoseMargin:
         return self.extra_cells * self.cell_m
 
     def too_unsure(self, pose: Pose) -> bool:
-        """True when this pose must not be guided on (WAIT)."""
-        self.sigma_m = pose_sigma_m(pose.quality, pose.sigma_m)
-        return self.sigma_m > self.policy.wait_sigma_m
+        """True when this pose must not be guided on (WAIT).
+
+        The WAIT reads either figure; the margin only a sender's own ``sigma_m``: the first
+        RFID node's ``quality`` was never calibrated in metres, and a margin grown from it
+        made its walks stall (``tests/sim/test_rfid_node.py``), so a quality-only sender
+        keeps the plain ω/2."""
+        self.sigma_m = pose.sigma_m if pose.sigma_m is not None else 0.0
+        return pose_sigma_m(pose.quality, pose.sigma_m) > self.policy.wait_sigma_m
 
     def wanted_cells(self) -> int:
         a = min(self.policy.sigmas * self.sigma_m, self.policy.a_max_m)
