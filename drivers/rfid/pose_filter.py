@@ -7,10 +7,11 @@ positions (eq. 3). With the paper's ~1.5 m UHF field and tags only on the obstac
 feature points, three tags answer almost nowhere, so that method leaves the user without a
 position most of the time. This filter keeps one:
 
-- state ``[x, y, b]``: position (m) and the compass's bias b (rad) — indoors a compass is
-  off by a slowly varying amount (steel, wiring), which the fixes make observable;
-- predict on each step the pedometer reports: ``p += L (cos(c − b), sin(c − b))`` with the
-  measured step length L and the compass reading c;
+- state ``[x, y, b, k]``: position (m), the compass's bias b (rad) — indoors a compass is
+  off by a slowly varying amount (steel, wiring) — and the stride-scale error k of the
+  pedometer's stride model; the fixes make both observable;
+- predict on each step the pedometer reports: ``p += L (1 + k) (cos(c − b), sin(c − b))``
+  with the measured step length L and the compass reading c;
 - update with every UHF tag read since the last update — one range per tag through eq. 1
   (in dB, where its noise is Gaussian), so one or two tags in reach still pull the estimate,
   where trilateration needs three;
@@ -20,7 +21,7 @@ position most of the time. This filter keeps one:
   eq. 3 over the filtered track, fused as a measurement of the bias while the user walks
   straight.
 
-numpy rather than ``filterpy``: three states, a scalar update per tag read and a nonlinear
+numpy rather than ``filterpy``: four states, a scalar update per tag read and a nonlinear
 motion model; the library's ``ExtendedKalmanFilter`` would add a dependency and still need
 every Jacobian written here, and its per-update object churn is slower at 20 Hz per user.
 
@@ -43,6 +44,8 @@ from .rssi import A_DB, N_PATH, NEAR_FIELD_M
 from .tags import TagMap
 
 LN10 = math.log(10.0)
+N_STATE = 4
+"""x, y (m), the compass bias b (rad) and the stride-scale error k (fraction)."""
 STRIDE_TURN_RAD = math.radians(60.0)
 """Turned this far since the last step: the user is turning on the spot, not striding on
 (walking round a corner turns the compass less within one stride)."""
@@ -75,6 +78,8 @@ class FilterParams:
     """How far the compass bias may drift per step (walking past steel)."""
     init_sigma_m: float = 1.0
     """Start with no prior: the first tag read puts the user within the UHF field of it."""
+    init_scale_sd: float = 0.05
+    """Prior on the pedometer's stride-model error: fitted to the user within a few %."""
     init_bias_sigma_rad: float = math.radians(8.0)
     """Prior on the compass bias: indoor offsets of a few degrees, rarely past 15°."""
     eq3_min_m: float = 0.6
@@ -125,8 +130,8 @@ class PoseFilter:
         self.tags = tag_map
         self.p = params or FilterParams()
         self.a, self.n = a, n
-        self.s = np.zeros(3)
-        self.P = np.diag([1.0, 1.0, self.p.init_bias_sigma_rad**2])
+        self.s = np.zeros(N_STATE)
+        self.P = np.diag([1.0, 1.0, self.p.init_bias_sigma_rad**2, self.p.init_scale_sd**2])
         self.ready = False
         if start is not None:
             self.s[:2] = start
@@ -196,15 +201,18 @@ class PoseFilter:
             return
         th = compass_rad - self.s[2]
         c, s = math.cos(th), math.sin(th)
-        self.s[0] += length_m * c
-        self.s[1] += length_m * s
-        f = np.eye(3)
-        f[0, 2] = length_m * s
-        f[1, 2] = -length_m * c
+        stride = length_m * (1.0 + self.s[3])  # the pedometer's stride model, corrected
+        self.s[0] += stride * c
+        self.s[1] += stride * s
+        f = np.eye(N_STATE)
+        f[0, 2] = stride * s
+        f[1, 2] = -stride * c
+        f[0, 3] = length_m * c
+        f[1, 3] = length_m * s
         sl = self.p.step_sigma_m + self.p.step_sigma_frac * length_m
         sh = length_m * self.p.heading_sigma_rad
         rot = np.array([[c, -s], [s, c]])
-        q = np.zeros((3, 3))
+        q = np.zeros((N_STATE, N_STATE))
         q[:2, :2] = rot @ np.diag([sl * sl, sh * sh]) @ rot.T
         q[2, 2] = self.p.bias_walk_rad**2
         self.P = f @ self.P @ f.T + q
@@ -235,7 +243,7 @@ class PoseFilter:
             self.source = "lf"
             return
         r = (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
-        h = np.zeros((2, 3))
+        h = np.zeros((2, N_STATE))
         h[0, 0] = h[1, 1] = 1.0
         self._update(z - self.s[:2] - self._stride(t), h, r)
         self.source = "lf"
@@ -278,7 +286,7 @@ class PoseFilter:
             or abs(_wrap(self.compass_rad - self._step_compass)) > STRIDE_TURN_RAD
         ):
             return np.zeros(2)  # not walking steadily, or turned since: no stride under way
-        ahead = min(1.0, (now - self._step_t) / self._step_dt) * self._step_len
+        ahead = min(1.0, (now - self._step_t) / self._step_dt) * self._step_len * (1.0 + self.s[3])
         th = self.heading
         return np.array([ahead * math.cos(th), ahead * math.sin(th)])
 
@@ -327,7 +335,7 @@ class PoseFilter:
         diff = self.s[:2] + self._stride(self.t) - centre
         r = max(float(np.hypot(*diff)), NEAR_FIELD_M)
         pred = self.a + 10.0 * self.n * math.log10(r)
-        h = np.zeros((1, 3))
+        h = np.zeros((1, N_STATE))
         h[0, :2] = 10.0 * self.n / (LN10 * r * r) * diff
         var = self.p.sigma_read_db**2 / k + self.p.sigma_tag_db**2 * m
         # Near a tag the log-range bends sharply over the position's spread: the
@@ -347,7 +355,7 @@ class PoseFilter:
         gain = self.P @ h.T @ np.linalg.inv(s)
         self.s = self.s + gain @ innov
         self.s[2] = _wrap(float(self.s[2]))
-        ikh = np.eye(3) - gain @ h
+        ikh = np.eye(N_STATE) - gain @ h
         self.P = ikh @ self.P @ ikh.T + gain @ r @ gain.T  # Joseph form: stays symmetric PSD
 
     def _eq3(self, t: float, compass_rad: float) -> None:
@@ -369,7 +377,8 @@ class PoseFilter:
         # The track is the filter's own, so the measurement is weak: only what the
         # positions' spread over ``dist`` allows, and never stronger than eq3_gain_sigma.
         sig = max(self.p.eq3_gain_sigma_rad, math.atan2(self.sigma_m, dist))
-        h = np.array([[0.0, 0.0, 1.0]])
+        h = np.zeros((1, N_STATE))
+        h[0, 2] = 1.0
         innov = np.array([_wrap(mean_c - theta - float(self.s[2]))])
         self._update(innov, h, np.array([[sig * sig]]))
 

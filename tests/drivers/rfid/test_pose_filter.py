@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drivers.rfid.pose_filter import FilterParams, PoseFilter
+from drivers.rfid.pose_filter import FilterParams, PoseFilter, _wrap
 from drivers.rfid.protocol import Read
 from drivers.rfid.rssi import rssi_at
 from drivers.rfid.tags import Tag, TagMap, TagMapFile
@@ -97,23 +97,25 @@ def test_turning_on_the_spot_turns_the_heading_at_once() -> None:
     assert (pose.x, pose.y) == pytest.approx((3.0, 2.0), abs=1e-6)  # no stride north
 
 
-def test_the_compass_bias_is_learned_from_signposts_and_eq3_tracks_the_walk() -> None:
-    """A compass 10° off: between two LF signposts the filter learns the offset."""
-    bias = math.radians(10.0)
+def test_the_compass_bias_and_stride_are_learned_from_signposts() -> None:
+    """A compass 10° off and a pedometer 8 % short: walking 4 m east and back between two LF
+    signposts, the filter learns both, and eq. 3 follows the walk."""
+    bias, short = math.radians(10.0), 0.92
     f = PoseFilter(tag_map(), start=(2.1, 1.0), start_sigma_m=0.05, pedometer=True)
-    t = 0.0
-    for _ in range(6):
-        x, y = 2.1, 1.0
-        f.lf(t, (x, y), 1)
-        for _ in range(8):  # 4 m due east, the compass reading 10° more
+    t, x = 0.0, 2.1
+    f.lf(t, (x, 1.0), 1)
+    for lap in range(8):
+        way = 1.0 if lap % 2 == 0 else -1.0
+        for _ in range(8):
             t += 0.5
-            x += 0.5
-            f.step(t, 0.5, bias)
-        f.lf(t + 0.01, (x, y), 1)
-        t += 1.0
+            x += 0.5 * way
+            f.step(t, 0.5 * short, (0.0 if way > 0 else math.pi) + bias)
+        f.lf(t, (x, 1.0), 1)  # read as the step lands (a stride later it would be ahead)
+        t += 2.0  # a pause at each end: the next lap starts from a standstill
     assert f.s[2] == pytest.approx(bias, abs=math.radians(3.0))
-    assert f.heading == pytest.approx(0.0, abs=math.radians(3.0))
-    assert f.heading_eq3 is not None and abs(f.heading_eq3) < math.radians(15.0)
+    assert 1.0 + f.s[3] == pytest.approx(1.0 / short, abs=0.03)
+    assert abs(_wrap(f.heading - math.pi)) < math.radians(3.0)  # last lap: west
+    assert f.heading_eq3 is not None and abs(_wrap(f.heading_eq3 - math.pi)) < math.radians(15)
 
 
 def test_without_a_pedometer_standing_still_grows_unsure() -> None:
