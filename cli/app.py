@@ -26,6 +26,7 @@ COMMAND_MODULES = [
     "cli.demo",
     "cli.walks",
     "cli.voice",
+    "cli.voice_goal",
     "cli.rfid",
     "cli.belt",
     "cli.run",

@@ -10,8 +10,7 @@ import typer
 
 from .peer import ZenohConfig, node_settings
 
-METHODS = ("centroid", "lsq")
-LAYOUTS = ("none", "corners", "floor")
+METHODS = ("centroid", "lsq", "filter")
 
 
 def rfid_eval(
@@ -20,15 +19,26 @@ def rfid_eval(
     walks: Annotated[int, typer.Option(min=1, help="Walks per courtyard, each shifted.")] = 4,
     unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
     speed: Annotated[float, typer.Option(help="Walking speed, m/s.")] = 1.0,
+    setting: Annotated[
+        str, typer.Option(help="paper (1.5 m reads, corner tags, LF at crossings) or dense.")
+    ] = "paper",
+    uhf_range: Annotated[
+        float | None, typer.Option(min=0.1, help="UHF read radius, m (default: the setting's).")
+    ] = None,
 ) -> None:
-    """Position error walking the simulated courtyard: both methods, with and without LF tags."""
+    """Position and heading error walking the simulated courtyard: every method and LF layout
+    of the setting; availability, and the error over all instants (the last pose held)."""
     import numpy as np
     from rich.console import Console
     from rich.table import Table
 
     from sim.courtyard import make_courtyard
-    from sim.rfid_eval import evaluate, tags_for, true_route
+    from sim.rfid_eval import SETTINGS, evaluate, summary_row, tags_for, true_route
 
+    if setting not in SETTINGS:
+        raise typer.BadParameter(f"setting {setting!r}: choose one of {', '.join(SETTINGS)}")
+    chosen = SETTINGS[setting]
+    reach = uhf_range if uhf_range is not None else chosen.uhf_range_m
     console = Console()
     pooled: dict[tuple[str, str], list] = {}
     for seed in range(seeds):
@@ -37,39 +47,39 @@ def rfid_eval(
         # Each walk is shifted by up to half an LF tag spacing, so the walks pass the
         # floor lattice at every phase and not only along its lines.
         offsets = np.random.default_rng(seed).uniform(-0.1, 0.1, size=(walks, 2))
-        for layout in LAYOUTS:
-            tag_map = tags_for(scenario, layout, seed)
+        for layout in chosen.lf_layouts:
+            tag_map = tags_for(scenario, layout, seed, edge_spacing_m=chosen.edge_spacing_m)
             for w, offset in enumerate(offsets):
                 for method in METHODS:
-                    res = evaluate(tag_map, route, method=method, lf_layout=layout,
-                                   seed=seed * 1000 + w, speed_mps=speed,
-                                   offset=(float(offset[0]), float(offset[1])))
+                    res = evaluate(
+                        tag_map,
+                        route,
+                        method=method,
+                        lf_layout=layout,
+                        seed=seed * 1000 + w,
+                        speed_mps=speed,
+                        uhf_range_m=reach,
+                        offset=(float(offset[0]), float(offset[1])),
+                    )
                     pooled.setdefault((method, layout), []).append(res)
-    rows = []
-    for (method, layout), results in pooled.items():
-        errors = np.concatenate([r.errors for r in results])
-        n = max(1, errors.size)
-        lf = sum(r.lf_fraction * r.errors.size for r in results) / n
-        held = sum(r.held_fraction * r.errors.size for r in results) / n
-        rows.append({
-            "method": method,
-            "lf_tags": layout != "none",
-            "lf_layout": layout,
-            "median_m": round(float(np.median(errors)), 3),
-            "p95_m": round(float(np.percentile(errors, 95)), 3),
-            "samples": int(errors.size),
-            "lf_fraction": round(float(lf), 3),
-            "held_fraction": round(float(held), 3),
-        })
-    title = f"RFID position error, {seeds} courtyards x {walks} walks at {speed} m/s"
+    rows = [dict(summary_row(m, lay, rs), setting=setting, uhf_range_m=reach)
+            for (m, lay), rs in pooled.items()]  # fmt: skip
+    title = (f"RFID pose error ({setting}: UHF {reach} m), {seeds} courtyards x {walks} walks"
+             f" at {speed} m/s")  # fmt: skip
     table = Table(title=title)
-    for col in ("method", "LF tags", "median m", "p95 m", "samples", "LF read", "LF held"):
+    cols = ("method", "LF tags", "avail.", "median m", "p95 m", "all: median m", "all: p95 m",
+            "heading med °", "heading p95 °", "samples")  # fmt: skip
+    for col in cols:
         table.add_column(col)
     for r in rows:
-        table.add_row(r["method"], r["lf_layout"], f"{r['median_m']:.3f}", f"{r['p95_m']:.3f}",
-                      str(r["samples"]), f"{r['lf_fraction'] - r['held_fraction']:.0%}",
-                      f"{r['held_fraction']:.0%}")
+        table.add_row(r["method"], r["lf_layout"], f"{r['availability']:.0%}",
+                      f"{r['median_m']:.3f}", f"{r['p95_m']:.3f}", f"{r['all_median_m']:.3f}",
+                      f"{r['all_p95_m']:.3f}", f"{r['heading_median_deg']:.1f}",
+                      f"{r['heading_p95_deg']:.1f}", str(r["samples"]))  # fmt: skip
     console.print(table)
+    console.print("all: the error of the latest pose the user has at every instant (inf before "
+                  "the first); heading: 'filter' is the compass less its estimated bias, the "
+                  "others eq. 3 over successive positions")  # fmt: skip
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         json_out.write_text(json.dumps(rows, indent=1) + "\n")
@@ -94,7 +104,9 @@ def rfid(
     user: Annotated[str, typer.Option(help="User whose pose this reader gives.")],
     port: Annotated[str | None, typer.Option(help="Serial port of the reader.")] = None,
     tags: Annotated[Path | None, typer.Option(help="Tag map file (default: the sim's).")] = None,
-    method: Annotated[str, typer.Option(help="lsq (default) or centroid (the paper's).")] = "lsq",
+    method: Annotated[
+        str, typer.Option(help="lsq (default), centroid (the paper's) or filter (with σ).")
+    ] = "lsq",
     rate: Annotated[float, typer.Option(min=10.0, help="Poses per second.")] = 20.0,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh listen endpoint.")] = None,
     connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to join.")] = None,
@@ -160,7 +172,48 @@ def rfid(
             mock_reader.stop()
 
 
+def rfid_walks(
+    runs: Annotated[int, typer.Option(min=1, help="Walks per clutter level (seeds 0..n-1).")] = 50,
+    unknown: Annotated[list[float] | None, typer.Option(help="Clutter levels.")] = None,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+) -> None:
+    """Closed-loop belt walks of the 100² courtyard guided by the RFID pose filter alone."""
+    import numpy as np
+
+    from sim.courtyard import make_courtyard
+    from sim.rfid_belt_walk import rfid_belt_walk
+
+    rows = []
+    for level in unknown or [0.2, 0.4, 0.6]:
+        res = [rfid_belt_walk(make_courtyard(100, level, s), seed=s) for s in range(runs)]
+        errors = np.concatenate([r.pose_errors for r in res])
+        heading = np.degrees(np.concatenate([r.heading_errors for r in res]))
+        row = {
+            "unknown": level,
+            "runs": runs,
+            "success": round(sum(r.arrived for r in res) / runs, 4),
+            "collisions": int(sum(r.collisions for r in res)),
+            "walks_with_collision": int(sum(r.collisions > 0 for r in res)),
+            "waits": int(sum(r.waits for r in res)),
+            "pose_median_m": round(float(np.median(errors)), 3),
+            "pose_p95_m": round(float(np.percentile(errors, 95)), 3),
+            "heading_median_deg": round(float(np.median(heading)), 1),
+            "final_error_median_m": round(float(np.median([r.final_error_m for r in res])), 3),
+            "failures": [
+                (s, r.reason, r.collisions)
+                for s, r in enumerate(res)
+                if not r.arrived or r.collisions
+            ],
+        }
+        rows.append(row)
+        typer.echo(json.dumps(row))
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
 def register(app: typer.Typer) -> None:
+    app.command("rfid-walks")(rfid_walks)
     app.command("rfid-eval")(rfid_eval)
     app.command("rfid-tags")(rfid_tags)
     app.command("rfid")(rfid)

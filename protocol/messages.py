@@ -45,6 +45,13 @@ class Pose(Message):
     heading: Radians = Field(description="radians, 0 = east, CCW positive")
     stamp: Stamp = Field(description="seconds since the Unix epoch")
     quality: float = Field(default=1.0, ge=0.0, le=1.0, description="1 = exact (sim, LF tag)")
+    sigma_m: float | None = Field(
+        default=None,
+        ge=0.0,
+        le=100.0,
+        allow_inf_nan=False,
+        description="1-sigma position uncertainty, metres (None: derived from quality)",
+    )
 
 
 class GoalCell(Message):
@@ -204,6 +211,8 @@ class StatusCode(StrEnum):
     # Positions the daemon cannot trust.
     POSE_OFF_MAP = "pose_off_map"
     STALE_POSE = "stale_pose"
+    POSE_UNCERTAIN = "pose_uncertain"
+    """The pose's own uncertainty (``Pose.sigma_m`` / ``quality``) is past the daemon's limit."""
     # Map updates refused whole.
     OVERSIZED = "oversized"
     SHAPE_MISMATCH = "shape_mismatch"

@@ -41,6 +41,7 @@ from .inbox import Inbox, StepOutput
 from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
+from .pose_margin import PoseMargin
 from .route import PlannerFactory, PlanReport, Route
 from .session_state import SessionState
 
@@ -105,6 +106,7 @@ class Navigator:
         self.settings = settings
         self.radius_cells = radius_in_cells(settings.user_radius_m, settings.cell_m)
         self.maps = MapKeeper(self.radius_cells)
+        self.margin = PoseMargin(settings.cell_m, self.radius_cells)
         self.route = Route(
             planner_factory
             or (lambda backend: make_planner(settings.planner, backend, settings.variant)),
@@ -193,7 +195,7 @@ class Navigator:
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)
-            elif self.session.may_guide():
+            elif self.session.may_guide() and not self._pose_unsure(now, out):
                 self._guide(now, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
@@ -285,6 +287,17 @@ class Navigator:
             return  # this step said WAIT or STOP already
         g = self.guidance.event(PatternKind.WAIT, now, reason="map out of date")
         out.belt.append(g.pattern)
+
+    def _pose_unsure(self, now: float, out: StepOutput) -> bool:
+        """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; WAIT past a limit."""
+        assert self.pose is not None
+        if self.margin.too_unsure(self.pose):
+            why = f"pose quality {self.pose.quality:.2f} (sigma {self.pose.sigma_m} m)"
+            self._reject(Rejection(StatusCode.POSE_UNCERTAIN, why, counted=False), now, out)
+            return True
+        no_way = self.state == NavState.NO_PATH
+        self.last.changed += self.margin.adjust(self.maps, self.route, self.goal_cell, now, no_way)
+        return False
 
     def _guide(self, now: float, out: StepOutput) -> None:
         grid = self.maps.map

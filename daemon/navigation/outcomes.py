@@ -34,6 +34,8 @@ OUTCOMES: dict[StatusCode, Outcome] = {
     # Position the daemon cannot trust: never guide on it.
     StatusCode.POSE_OFF_MAP: Outcome(NavState.ERROR, PatternKind.STOP),
     StatusCode.STALE_POSE: Outcome(NavState.STALE, PatternKind.STOP),
+    # A pose too unsure to guide on: stand and wait for a fix (``pose_margin``).
+    StatusCode.POSE_UNCERTAIN: Outcome(NavState.STALE, PatternKind.WAIT),
     # Map updates refused whole; the map is out of date until a snapshot arrives.
     StatusCode.OVERSIZED: Outcome(NavState.ERROR, PatternKind.WAIT),
     StatusCode.SHAPE_MISMATCH: Outcome(NavState.ERROR, PatternKind.WAIT),

@@ -127,6 +127,20 @@ class InflatedMap:
         self._seen = np.zeros(self.shape[0] * self.shape[1], dtype=np.int32)
         self._epoch = 0
 
+    def reinflate(self, radius_cells: int) -> tuple[np.ndarray, np.ndarray]:
+        """Inflate by another radius, in place (planners hold ``blocked`` itself).
+
+        Returns ``(flipped, blocked_now)`` as ``apply`` does.
+        """
+        new = InflatedMap(self.occupancy, radius_cells)
+        flat = self.blocked.reshape(-1)
+        flipped = np.flatnonzero(new.blocked.reshape(-1) != flat).astype(np.int64)
+        self.radius_cells = new.radius_cells
+        self._dr, self._dc = new._dr, new._dc
+        self.cover[...] = new.cover
+        self.blocked[...] = new.blocked
+        return flipped, flat[flipped].copy()
+
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set occupancy of flat ``cells`` to ``values``.
 

@@ -22,6 +22,7 @@ from protocol import topics as T
 from protocol.messages import Pose, RfidStats
 
 from .localiser import DEFAULT_METHOD, Estimate, Localiser
+from .pose_filter import PoseFilter
 from .reader import RfidReader
 from .tags import TagMap
 
@@ -45,8 +46,12 @@ class RfidNode:
         self.user = T.check_user(user)
         self.clock = clock
         self.period = 1.0 / rate_hz
-        self.localiser = Localiser(tag_map, method=method)
-        self.reader = RfidReader(port, tag_map.ids, self.localiser.add, clock=clock)
+        # "filter": the pose filter, always a pose with its σ (no pedometer on the wire yet,
+        # so its spread grows with time between fixes and the daemon says WAIT past 1 m).
+        self.filter = PoseFilter(tag_map) if method == "filter" else None
+        self.localiser = Localiser(tag_map, method="lsq" if self.filter else method)
+        sink = self.filter.add if self.filter is not None else self.localiser.add
+        self.reader = RfidReader(port, tag_map.ids, sink, clock=clock)
         self._pose_pub = wire.declare_publisher(session, T.POSE, user)
         self._stats_pub = wire.declare_publisher(session, T.RFID_STATS, user)
         self.published = 0
@@ -55,10 +60,18 @@ class RfidNode:
     def publish_once(self) -> Estimate | None:
         """Estimate now and publish the pose; None (nothing sent) without enough reads."""
         now = self.clock()
-        est = self.localiser.estimate(now)
+        sigma = None
+        if self.filter is not None:
+            fp = self.filter.pose(now)
+            est = None if fp is None else Estimate(fp.x, fp.y, fp.heading, fp.quality, fp.source,
+                                                   0, now)  # fmt: skip
+            sigma = None if fp is None else min(fp.sigma_m, 100.0)
+        else:
+            est = self.localiser.estimate(now)
         if est is None:
             return None
-        pose = Pose(x=est.x, y=est.y, heading=est.heading, stamp=now, quality=est.quality)
+        pose = Pose(x=est.x, y=est.y, heading=est.heading, stamp=now, quality=est.quality,
+                    sigma_m=sigma)  # fmt: skip
         self._pose_pub.put(codec.encode(pose))
         self.published += 1
         self.last = est

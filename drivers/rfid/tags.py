@@ -5,8 +5,12 @@ also gets one every ``edge_spacing_m`` so that no stretch of floor is out of ran
 tags lie in the floor on a 20 cm lattice and are read from 10 cm: a read pins the user
 down. The paper lays them at intersections; ``lf_layout`` says where they go here:
 ``corners`` (patches on the floor around the obstacle corners, where a route turns),
-``floor`` (the whole walkable floor — in an open courtyard every spot is a crossing) or
-``none``.
+``crossings`` (the paper's Figure 4: a small patch, tags 20 cm apart, where the ways around
+each convex corner of an obstacle meet — centred ``lf_offset_m`` out along the corner's
+diagonal, where a walk kept ω/2 clear of the obstacle bends, of radius ``crossing_patch_m``;
+and one at each of ``landmarks_xy``, the goals a user may name),
+``floor`` (the whole walkable
+floor — in an open courtyard every spot is a crossing) or ``none``.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 FORMAT = "guidebelt-tagmap"
-LF_LAYOUTS = ("none", "corners", "floor")
+LF_LAYOUTS = ("none", "corners", "crossings", "floor")
 
 
 class Tag(BaseModel):
@@ -104,6 +108,21 @@ def _corner_vertices(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.argwhere(corner), np.argwhere(edge)
 
 
+def _convex_corners(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices with exactly one occupied cell, and the outward diagonal (drow, dcol) of each.
+
+    The map's border is not padded here: the courtyard's own walls are cells of the map.
+    """
+    pad = np.pad(occupied, 1, constant_values=False).astype(np.int8)
+    nw, ne, sw, se = pad[:-1, :-1], pad[:-1, 1:], pad[1:, :-1], pad[1:, 1:]
+    one = (nw + ne + sw + se) == 1
+    v = np.argwhere(one)
+    # Away from the one occupied cell: south-east of a north-west cell, and so on.
+    dr = np.where(nw[one] | ne[one], 1, -1)
+    dc = np.where(nw[one] | sw[one], 1, -1)
+    return v, np.column_stack([dr, dc])
+
+
 def _thin(points: np.ndarray, spacing: float, kept: list[np.ndarray]) -> list[np.ndarray]:
     """Greedy: keep each point farther than ``spacing`` from every point kept so far."""
     for p in points:
@@ -133,6 +152,9 @@ def generate(
     lf_spacing_m: float = 0.20,
     lf_range_m: float = 0.10,
     lf_patch_m: float = 0.8,
+    lf_offset_m: float = 0.45,
+    crossing_patch_m: float = 0.5,
+    landmarks_xy: np.ndarray | None = None,
     walkable: np.ndarray | None = None,
 ) -> TagMap:
     """Place tags in a map of known obstacles (``occupancy`` != 0 is an obstacle).
@@ -167,10 +189,19 @@ def generate(
         rows = np.clip(h - 1 - np.floor(pts[:, 1] / cell_m).astype(int), 0, h - 1)
         cols = np.clip(np.floor(pts[:, 0] / cell_m).astype(int), 0, w - 1)
         keep = free[rows, cols]
-        if lf_layout == "corners":
+        if lf_layout in ("corners", "crossings"):
+            if lf_layout == "corners":
+                centres = uhf_xy[:n_corner]
+            else:
+                v, out = _convex_corners(occupied)
+                diag = np.column_stack([out[:, 1], -out[:, 0]]) / math.sqrt(2.0)
+                centres = vertex_xy(v) + lf_offset_m * diag
+                if landmarks_xy is not None:  # the doors a user may ask for are signposted too
+                    centres = np.vstack([centres, np.asarray(landmarks_xy, float).reshape(-1, 2)])
+            radius = lf_patch_m if lf_layout == "corners" else crossing_patch_m
             near = np.zeros(len(pts), dtype=bool)
-            for c in uhf_xy[:n_corner]:
-                near |= np.hypot(*(pts - c).T) <= lf_patch_m
+            for c in centres:
+                near |= np.hypot(*(pts - c).T) <= radius
             keep &= near
         lf_xy = pts[keep]
 

@@ -89,3 +89,49 @@ def test_node_publishes_poses_at_10_hz_or_more(tmp_path) -> None:
     assert float(np.median(errors)) <= 0.10  # a floor tag is in reach: the LF fix
     assert all(0.0 <= p.quality <= 1.0 for p in recent)
     assert stats and stats[-1].accepted > 0 and stats[-1].connected is True
+
+
+@pytest.mark.timeout(30)
+def test_node_with_the_filter_sends_its_uncertainty(tmp_path) -> None:
+    occ = np.zeros((50, 50), dtype=np.uint8)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1
+    occ[10:20, 10:30] = 1
+    tag_map = generate(occ, 0.1, lf_layout="floor", seed=5)
+    truth = (2.53, 1.37)
+    port = free_port()
+    node_session = open_session(loopback(listen_port=port))
+    client = open_session(loopback(connect_port=port))
+    poses: list[Pose] = []
+    lock = threading.Lock()
+
+    def on_pose(sample) -> None:
+        with lock:
+            poses.append(Pose.model_validate_json(sample.payload.to_bytes()))
+
+    sub = wire.declare_subscriber(client, T.POSE, on_pose, "carol")
+    mock = MockReader(ReadModel.for_tags(tag_map, seed=6), lambda t: truth,
+                      link=str(tmp_path / "ttyRFID")).start()  # fmt: skip
+    node = RfidNode(node_session, "carol", tag_map, mock.path, method="filter", rate_hz=20.0)
+
+    async def main() -> None:
+        task = asyncio.create_task(node.run())
+        await asyncio.sleep(2.0)
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+    try:
+        asyncio.run(main())
+    finally:
+        mock.stop()
+        node.close()
+        sub.undeclare()
+        client.close()
+        node_session.close()
+    with lock:
+        got = list(poses)
+    assert len(got) >= 20
+    assert all(p.sigma_m is not None for p in got)
+    last = got[-1]
+    assert math.dist((last.x, last.y), truth) < 0.3
+    assert 0 < last.sigma_m < 0.5 and last.quality > 0.3

@@ -1,0 +1,219 @@
+"""Closed loop by RFID alone: a belt walker guided by the filtered RFID pose, never the truth.
+
+The walker (``belt_walker.BeltWalker``) feels the belt and steps; the obstacle sensor sees
+from where the walker really is (``World.sense``); the navigator — the daemon's own — is
+given only the pose the filter (``drivers.rfid.pose_filter``) makes of what the reader and a
+belt IMU report along the walker's true movement: reader rounds drawn from the RSSI model in
+the paper's setting (1.5 m UHF field, tags on obstacle corners, LF patches at crossings), one
+pedometer step per walker step and the compass (``sim.pedometer``). Its pose carries
+``sigma_m``, so the daemon enlarges obstacles by ω/2 + a and says WAIT when it is unsure.
+
+A walk succeeds when the navigator says ARRIVED (on the estimated pose) with the walker truly
+within ``success_m`` of the goal, with no collision.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
+from drivers.rfid.pose_filter import PoseFilter
+from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tags import TagMap
+from protocol.messages import Pose
+
+from .belt_walker import BeltWalker, WalkerParams
+from .closed_loop import STEP_S, run_walk
+from .courtyard import Scenario
+from .pedometer import Imu
+from .rfid_eval import PAPER, tags_for
+from .world import World
+
+WARM_UP_S = 1.0
+"""The user stands at the start this long while the first reads come in."""
+SUCCESS_M = 0.5
+"""Truly this close to the goal when the navigator says ARRIVED: the user is there."""
+
+
+@dataclass
+class RfidBeltWalk:
+    arrived: bool
+    """ARRIVED on the estimated pose with the walker truly within ``SUCCESS_M``."""
+    reason: str
+    collisions: int
+    final_error_m: float
+    actions: int
+    waits: int
+    """Steps whose pattern was WAIT (pose too unsure, or the map out of date)."""
+    pose_errors: np.ndarray = field(repr=False)
+    heading_errors: np.ndarray = field(repr=False)
+    sigmas: np.ndarray = field(repr=False)
+
+
+class EstimatedFrameWorld(World):
+    """The world whose mapper writes what the sensor sees at the *estimated* pose.
+
+    The obstacle sensor looks from where the walker truly stands, but a real mapper places
+    what it sees relative to where the localiser says the user is: a pose error shifts the
+    new cells by the same error (the heading's few degrees of rotation are left out). The
+    surveyed obstacles — those the tags carry — stay where the survey put them; a shifted
+    view never writes over them.
+    """
+
+    def __init__(self, scenario: Scenario, walker) -> None:
+        super().__init__(scenario, walker)
+        self.estimate: tuple[float, float] | None = None
+        self._surveyed = (scenario.known == OCCUPIED).reshape(-1)
+
+    def sense(self, stamp: float) -> list:
+        true_cell = self.cell()
+        seen = self.sensor.visible(self.true.shape, true_cell, self.walker.heading)
+        values = self.true.reshape(-1)[seen]
+        h, w = self.shape
+        dr = dc = 0
+        if self.estimate is not None:
+            est = xy_to_cell(self.shape, self.estimate[0], self.estimate[1], self.cell_m)
+            dr, dc = est[0] - true_cell[0], est[1] - true_cell[1]
+        rows, cols = seen // w + dr, seen % w + dc
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        cells = rows[inside] * w + cols[inside]
+        values = values[inside]
+        keep = ~self._surveyed[cells] & (self.known.reshape(-1)[cells] != values)
+        return self._deltas(cells[keep], values[keep], stamp)
+
+
+class FilteredRfidPoses:
+    """The ``PoseSource``: reader rounds and IMU reports along the walker's true movement
+    since the last call, then the filter's pose (with its ``sigma_m``)."""
+
+    def __init__(
+        self,
+        tag_map: TagMap,
+        start: tuple[float, float],
+        *,
+        seed: int,
+        uhf_range_m: float = PAPER.uhf_range_m,
+        round_hz: float = 50.0,
+        uhf_every: int = 5,
+        pose_every: int = 5,
+    ) -> None:
+        self.model = ReadModel.for_tags(tag_map, seed=seed, uhf_range_m=uhf_range_m)
+        self.imu = Imu(seed=seed + 7919)
+        self.filter = PoseFilter(tag_map, start=start, pedometer=True)
+        self.round_dt = 1.0 / round_hz
+        self.uhf_every = uhf_every
+        self.pose_every = pose_every
+        self.rounds = 0
+        self.bumps = 0
+        self.t = 0.0
+        self.at: tuple[float, float, float] | None = None
+        self.errors: list[float] = []
+        self.heading_errors: list[float] = []
+        self.sigmas: list[float] = []
+
+    def __call__(self, world: World, now: float) -> Pose | None:
+        w = world.walker
+        here = (w.x, w.y, w.heading)
+        if getattr(w, "collisions", 0) > self.bumps:  # felt through the IMU as a jolt
+            self.bumps = w.collisions
+            self.filter.bump(self.t)
+        if self.at is None:
+            self._listen(here, here, WARM_UP_S, stepped=False)
+        else:
+            self._listen(self.at, here, now + WARM_UP_S - self.t, stepped=True)
+        self.at = here
+        pose = self.filter.pose(self.t)
+        if pose is None:
+            return None
+        self.errors.append(math.hypot(pose.x - w.x, pose.y - w.y))
+        self.heading_errors.append(abs(_wrap(pose.heading - w.heading)))
+        self.sigmas.append(pose.sigma_m)
+        if isinstance(world, EstimatedFrameWorld):
+            world.estimate = (pose.x, pose.y)
+        return Pose(x=pose.x, y=pose.y, heading=pose.heading, stamp=now,
+                    quality=pose.quality, sigma_m=min(pose.sigma_m, 100.0))  # fmt: skip
+
+    def _listen(self, a: tuple, b: tuple, dt: float, stepped: bool) -> None:
+        """Rounds along a → b over ``dt``; a step (if the walker moved) ends the stretch."""
+        if dt <= 0:
+            return
+        n = max(1, round(dt / self.round_dt))
+        t0 = self.t
+        moved = math.hypot(b[0] - a[0], b[1] - a[1])
+        for i in range(1, n + 1):
+            f = i / n
+            self.t = t0 + dt * f
+            x, y = a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f
+            uhf = self.rounds % self.uhf_every == 0
+            for read in self.model.round(x, y, self.t, int(self.t * 1000), uhf=uhf):
+                self.filter.add(read)
+            self.rounds += 1
+            if self.rounds % self.pose_every == 0 and i < n:
+                # The compass follows the body as it turns; the filter folds its reads.
+                heading = b[2] if moved < 1e-9 else a[2] + _wrap(b[2] - a[2]) * f
+                self.filter.compass(self.t, self.imu.compass(heading))
+                self.filter.pose(self.t)
+        if stepped and moved > 1e-9:
+            way = math.atan2(b[1] - a[1], b[0] - a[0])
+            self.filter.step(self.t, self.imu.step(moved), self.imu.compass(way))
+        else:
+            self.filter.compass(self.t, self.imu.compass(b[2]))
+
+
+def rfid_belt_walk(
+    scenario: Scenario,
+    *,
+    seed: int = 0,
+    tag_map: TagMap | None = None,
+    backend: str = "cpu",
+    uhf_range_m: float = PAPER.uhf_range_m,
+    max_actions: int | None = None,
+    register: str = "true",
+) -> RfidBeltWalk:
+    """One belt walk of ``scenario`` guided by the RFID pose filter, noise seeded by ``seed``.
+
+    ``register``: where the mapper puts what the sensor sees — ``true`` (its own
+    registration, as a camera-based mapper has: the project's walks all assume it) or
+    ``estimate`` (at the RFID pose: ``EstimatedFrameWorld``).
+    """
+    if register not in ("true", "estimate"):
+        raise ValueError(f"register {register!r}: choose true or estimate")
+    from daemon.navigation import Navigator
+
+    from .walks import belt_settings, optimal_m
+
+    if tag_map is None:
+        tag_map = tags_for(scenario, PAPER.lf_layouts[0], seed, edge_spacing_m=PAPER.edge_spacing_m)
+    settings = belt_settings(scenario, backend)
+    navigator = Navigator("rfid-walker", settings)
+    x, y = cell_to_xy(scenario.shape, scenario.start, scenario.cell_m)
+    params = WalkerParams()
+    walker = BeltWalker(x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m, params=params,
+                        rng=np.random.default_rng(seed))  # fmt: skip
+    poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m)
+    limit = max_actions or int(8 * optimal_m(scenario) / params.step_m) + 150
+    world = (EstimatedFrameWorld if register == "estimate" else World)(scenario, walker)
+    done = run_walk(world, navigator, max_actions=limit, step_s=STEP_S,
+                    pose_source=poses, stop_on_no_path=False)  # fmt: skip
+    gx, gy = cell_to_xy(scenario.shape, scenario.goal, scenario.cell_m)
+    final = math.hypot(walker.x - gx, walker.y - gy)
+    ok = done.arrived and final <= SUCCESS_M
+    reason = done.reason if not done.arrived or ok else "arrived off the goal"
+    return RfidBeltWalk(
+        arrived=ok,
+        reason=reason,
+        collisions=walker.collisions,
+        final_error_m=final,
+        actions=len(done.track) - 1,
+        waits=sum(b.kind == "wait" for b in done.belts),
+        pose_errors=np.array(poses.errors),
+        heading_errors=np.array(poses.heading_errors),
+        sigmas=np.array(poses.sigmas),
+    )
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi

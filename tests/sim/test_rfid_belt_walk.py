@@ -1,0 +1,41 @@
+"""Closed loop by RFID alone: the belt walker, guided from the filtered RFID pose."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.belt_walker import BeltWalker
+from sim.courtyard import make_courtyard
+from sim.rfid_belt_walk import FilteredRfidPoses, rfid_belt_walk
+from sim.rfid_eval import PAPER, tags_for
+from sim.world import World
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("unknown", "seed"), [(0.2, 0), (0.4, 2), (0.6, 3)])
+def test_seeded_walks_arrive_guided_by_the_rfid_pose_only(unknown, seed) -> None:
+    walk = rfid_belt_walk(make_courtyard(100, unknown, seed), seed=seed)
+    assert walk.arrived, walk.reason
+    assert walk.collisions == 0
+    assert walk.final_error_m <= 0.5
+    # The navigator was given estimates, not the truth: they are off, by centimetres.
+    assert np.median(walk.pose_errors) > 0.01
+    assert np.median(walk.pose_errors) < 0.25
+    assert np.degrees(np.median(walk.heading_errors)) < 10.0
+
+
+def test_the_pose_source_never_reads_the_truth_it_is_scored_against() -> None:
+    scenario = make_courtyard(100, 0.2, 1)
+    tag_map = tags_for(scenario, "crossings", 1, edge_spacing_m=PAPER.edge_spacing_m)
+    walker = BeltWalker(x=5.05, y=0.65, heading=math.pi / 2, cell_m=scenario.cell_m)
+    world = World(scenario, walker)
+    poses = FilteredRfidPoses(tag_map, (5.05, 0.65), seed=1)
+    first = poses(world, 0.0)
+    assert first is not None and first.sigma_m is not None and first.sigma_m > 0
+    walker.x += 0.5  # the walker moves; the filter only hears the IMU and the reader
+    second = poses(world, 0.6)
+    assert second is not None and second.x == pytest.approx(5.55, abs=0.15)
+    assert second.x != walker.x
