@@ -17,7 +17,7 @@ from protocol.schema import MESSAGES
 from protocol.topics import Congestion, Kind, Priority
 
 ROOT = Path(__file__).resolve().parents[2]
-PRODUCT = ("protocol", "daemon", "drivers", "sim", "cli", "scripts")
+PRODUCT = ("protocol", "daemon", "drivers", "sim", "cli", "scripts", "viewer", "recording")
 
 
 def test_keys_stay_under_the_user_or_the_daemon():

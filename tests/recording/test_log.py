@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from protocol import topics as T
 from protocol.messages import Pose
 
 
@@ -20,7 +21,7 @@ def test_rotation_keeps_every_file_readable_and_every_message(tmp_path: Path) ->
     n = 6000
     for i in range(n):
         log.write(
-            "guidebelt/ann/pose", Pose(x=i * 0.01, y=1.0, heading=0.5, stamp=1e9 + i), 1e9 + i
+            T.POSE.key("ann"), Pose(x=i * 0.01, y=1.0, heading=0.5, stamp=1e9 + i), 1e9 + i
         )
     log.close()
     files = log.counts.files
@@ -91,6 +92,6 @@ def test_the_daemon_records_what_it_hears_and_sends(daemon, tmp_path: Path) -> N
         assert walks.join(60)
     counts = recorders[0].counts
     assert counts.dropped == 0 and counts.invalid == 0 and counts.written == counts.heard
-    leaves = [r.key.split("/", 2)[2] for r in read(out)]
-    assert {"map/delta", "pose", "goal", "path", "belt", "status"} <= set(leaves)
-    assert leaves[-1] in ("belt", "status")  # the daemon's last words, after its stop
+    topics = [T.topic_of(r.key) for r in read(out)]
+    assert {T.MAP_DELTA, T.POSE, T.GOAL, T.PATH, T.BELT, T.STATUS} <= set(topics)
+    assert topics[-1] in (T.BELT, T.STATUS)  # the daemon's last words, after its stop

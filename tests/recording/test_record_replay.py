@@ -71,8 +71,8 @@ def test_read_back_in_order_with_valid_schemas(walk: Path) -> None:
             seen[channel.id] = message.sequence
             keys.add(channel.topic)
     assert summary.statistics.message_count == sum(n + 1 for n in seen.values())
-    for leaf in ("map/delta", "pose", "goal", "path", "status", "belt", "voice"):
-        assert f"guidebelt/rec/{leaf}" in keys, keys
+    for topic in (T.MAP_DELTA, T.POSE, T.GOAL, T.PATH, T.STATUS, T.BELT, T.VOICE):
+        assert topic.key("rec") in keys, keys
 
 
 @pytest.mark.timeout(120)
