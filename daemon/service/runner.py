@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -46,7 +47,9 @@ class Pacing:
         shed_period_s: float = 0.5,
         record: Callable[[str, float, float], None] | None = None,
     ) -> None:
-        self.slots = asyncio.Semaphore(slots)
+        self.slots = threading.Semaphore(slots)
+        """Taken by a user's worker thread for its step: held for the step alone, never for
+        the loop's round trip; waiting threads are let in first come, first served."""
         self.guide_period_s = 1.0 / guide_hz
         self.shed_period_s = shed_period_s
         self._record = record
@@ -81,6 +84,8 @@ class UserRunner:
         self._snapshot_timeout_s = snapshot_timeout_s
         self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"plan-{self.user}")
         self._inbox = Inbox()
+        self._lock = threading.Lock()
+        """The inbox is filled on the loop and taken by the worker when its turn comes."""
         self._wake = asyncio.Event()
         self._snapshot_pending = False
         self._urgent_at: float | None = None
@@ -97,33 +102,39 @@ class UserRunner:
     # -- inputs (loop thread) -------------------------------------------------------------
 
     def reject(self, code: StatusCode, reason: str, counted: bool = True) -> None:
-        self._inbox.rejections.append(Rejection(code, reason, counted))
-        self._heard(urgent=True)
+        with self._lock:
+            self._inbox.rejections.append(Rejection(code, reason, counted))
+            self._heard(urgent=True)
 
     def resync(self) -> None:
         """Ask the map source for a snapshot now (a map restored after a restart)."""
         self._ask_for_snapshot()
 
     def put_delta(self, delta: MapDelta) -> None:
-        self._inbox.deltas.append(delta)
-        self._heard(urgent=True)
+        with self._lock:
+            self._inbox.deltas.append(delta)
+            self._heard(urgent=True)
 
     def put_pose(self, pose: Pose) -> None:
-        self._inbox.pose = pose  # the latest pose wins
-        self._inbox.pose_received = time.time()  # staleness is judged on the daemon's clock
-        self._heard()
+        with self._lock:
+            self._inbox.pose = pose  # the latest pose wins
+            self._inbox.pose_received = time.time()  # staleness: on the daemon's clock
+            self._heard()
 
     def put_goal(self, goal: Goal) -> None:
-        self._inbox.goal = goal
-        self._heard(urgent=True)
+        with self._lock:
+            self._inbox.goal = goal
+            self._heard(urgent=True)
 
     def put_button(self, press: BeltButton) -> None:
-        self._inbox.buttons.append(press)
-        self._heard(urgent=True)
+        with self._lock:
+            self._inbox.buttons.append(press)
+            self._heard(urgent=True)
 
     def put_settings(self, settings: UserSettings) -> None:
-        self._inbox.settings = settings  # the latest wins
-        self._heard(urgent=True)
+        with self._lock:
+            self._inbox.settings = settings  # the latest wins
+            self._heard(urgent=True)
 
     def put_belt_health(self, health: BeltHealth) -> None:
         """The belt's battery. Health comes twice a second and steps nobody by itself,
@@ -132,7 +143,8 @@ class UserRunner:
             return
         low = self.navigator.settings.battery.low_v
         known = self.navigator.controls.battery_v
-        self._inbox.battery_v = health.battery_v
+        with self._lock:
+            self._inbox.battery_v = health.battery_v
         if health.battery_v < low and (known is None or known >= low):
             self._wake.set()
 
@@ -146,7 +158,8 @@ class UserRunner:
         self._wake.set()
 
     def tick(self) -> None:
-        self._inbox.tick = True
+        with self._lock:
+            self._inbox.tick = True
         self._wake.set()
 
     # -- the worker -----------------------------------------------------------------------
@@ -155,28 +168,35 @@ class UserRunner:
         loop = asyncio.get_running_loop()
         while not self._closed:
             await self._gather()
-            inbox, self._inbox = self._inbox, Inbox()
-            urgent_at, self._urgent_at = self._urgent_at, None
-            if not inbox:
+            period = self.pacing.shed_period_s if self.shed else self.pacing.guide_period_s
+            self._next_step_at = loop.time() + period
+            try:
+                done = await loop.run_in_executor(self._executor, self._take_and_step)
+            except asyncio.CancelledError:
+                raise
+            except Exception:  # even the error report failed: log it, keep serving
+                log.exception("worker failed", extra={"fields": {"user": self.user}})
                 continue
-            # One step per core at a time, first come first served: fifty users' threads
-            # fighting over the GIL would make every step slow instead of a few late.
-            async with self.pacing.slots:
-                started = time.monotonic()
-                inbox.taken_at = time.time()
-                inbox.overloaded = self.shed
-                self._next_step_at = loop.time() + (
-                    self.pacing.shed_period_s if self.shed else self.pacing.guide_period_s
-                )
-                cpu_ms = 0.0
-                try:
-                    cpu_ms = await loop.run_in_executor(self._executor, self._step, inbox)
-                except asyncio.CancelledError:
-                    raise
-                except Exception:  # even the error report failed: log it, keep serving
-                    log.exception("worker failed", extra={"fields": {"user": self.user}})
-            lag_ms = (time.monotonic() - (urgent_at or started)) * 1e3
-            self.pacing.record(self.user, lag_ms, cpu_ms)
+            if done is not None:
+                self.pacing.record(self.user, *done)
+
+    def _take_and_step(self) -> tuple[float, float] | None:
+        """On the worker: wait for a step slot (one per core, first come first served: fifty
+        users' threads fighting over the GIL would make every step slow instead of a few
+        late), take the inbox then, so the step has the freshest inputs, and step. Returns
+        (lag ms from the first urgent input, or from the turn coming; CPU ms), None if the
+        inbox was empty."""
+        with self.pacing.slots:
+            with self._lock:
+                inbox, self._inbox = self._inbox, Inbox()
+                urgent_at, self._urgent_at = self._urgent_at, None
+            if not inbox:
+                return None
+            started = time.monotonic()
+            inbox.taken_at = time.time()
+            inbox.overloaded = self.shed
+            cpu_ms = self._step(inbox)
+        return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
     async def _gather(self) -> None:
         """Wait for inputs. Urgent ones (map, goal, refusal, button) step at once; a pose
@@ -242,19 +262,23 @@ class UserRunner:
 
     def _on_snapshot(self, payload: bytes | None) -> None:
         self._snapshot_pending = False
+        snapshot, refusal = None, None
         if payload is None:
             log.warning("no snapshot from the map source", extra={"fields": {"user": self.user}})
-            self._inbox.snapshot_failed = True
         elif self._map_too_big is not None and (why := self._map_too_big(codec.map_cells(payload))):
-            rej = Rejection(StatusCode.OVERSIZED, f"snapshot: {why}")  # refused before decoding
-            self._inbox.rejections.append(rej)
-            self._inbox.snapshot_failed = True
+            refusal = Rejection(StatusCode.OVERSIZED, f"snapshot: {why}")  # before decoding
         else:
             try:
-                self._inbox.snapshot = codec.decode(MapSnapshot, payload)
+                snapshot = codec.decode(MapSnapshot, payload)
             except codec.DecodeError as exc:
-                self._inbox.rejections.append(Rejection(exc.code, f"snapshot: {exc.reason}"))
+                refusal = Rejection(exc.code, f"snapshot: {exc.reason}")
+        with self._lock:  # one step sees the snapshot, or its failure and why, whole
+            if snapshot is not None:
+                self._inbox.snapshot = snapshot
+            else:
                 self._inbox.snapshot_failed = True
+                if refusal is not None:
+                    self._inbox.rejections.append(refusal)
         self._wake.set()
 
     # -- queries --------------------------------------------------------------------------
