@@ -39,6 +39,7 @@ from .messages import (
     NavPath,
     NavStatus,
     Pose,
+    Proximity,
     RfidStats,
     UserSettings,
     VoiceCue,
@@ -167,38 +168,66 @@ def _t(name: str, leaf: str, model, kind: Kind, producer: str, consumers: str, *
 PS, Q, LV = Kind.PUBSUB, Kind.QUERYABLE, Kind.LIVELINESS
 
 MAP_DELTA = _t("map_delta", "map/delta", MapDelta, PS, "mapper / sim", "daemon")
-MAP_SNAPSHOT = _t("map_snapshot", "map/snapshot", MapSnapshot, Q, "daemon", "view, tools",
-                  qos=BULK)
-MAP_SOURCE = _t("map_source", "map/source", MapSnapshot, Q, "mapper / sim",
-                "daemon (after a sequence gap)", qos=BULK)
-POSE = _t("pose", "pose", Pose, PS, "localiser / RFID node / sim", "daemon",
-          qos=QoS(congestion=Congestion.DROP, priority=Priority.INTERACTIVE_HIGH, express=True))
+MAP_SNAPSHOT = _t("map_snapshot", "map/snapshot", MapSnapshot, Q, "daemon", "view, tools", qos=BULK)
+MAP_SOURCE = _t(
+    "map_source",
+    "map/source",
+    MapSnapshot,
+    Q,
+    "mapper / sim",
+    "daemon (after a sequence gap)",
+    qos=BULK,
+)
+POSE = _t(
+    "pose",
+    "pose",
+    Pose,
+    PS,
+    "localiser / RFID node / sim",
+    "daemon",
+    qos=QoS(congestion=Congestion.DROP, priority=Priority.INTERACTIVE_HIGH, express=True),
+)
 GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI", "daemon")
 PATH = _t("path", "path", NavPath, PS, "daemon", "sim, view, recorder", qos=LATEST_WINS)
 STATUS = _t("status", "status", NavStatus, PS, "daemon", "client, CLI, sim, recorder")
 STATUS_QUERY = _t("status_query", "status", NavStatus, Q, "daemon", "CLI (`guidebelt status`)")
-BELT = _t("belt", "belt", BeltPattern, PS, "daemon", "belt driver, sim, recorder",
-          qos=QoS(priority=Priority.REAL_TIME, express=True))
-BELT_HEALTH = _t("belt_health", "belt/health", BeltHealth, PS, "belt driver", "view, tools",
-                 qos=LATEST_WINS)
+BELT = _t(
+    "belt",
+    "belt",
+    BeltPattern,
+    PS,
+    "daemon",
+    "belt driver, sim, recorder",
+    qos=QoS(priority=Priority.REAL_TIME, express=True),
+)
+BELT_HEALTH = _t(
+    "belt_health", "belt/health", BeltHealth, PS, "belt driver", "view, tools", qos=LATEST_WINS
+)
 BELT_BUTTON = _t("belt_button", "belt/button", BeltButton, PS, "belt driver", "daemon")
-SETTINGS_SET = _t("settings_set", "settings/set", UserSettings, PS, "the user's client / phone",
-                  "daemon (on this user's key only)")
-SETTINGS = _t("settings", "settings", UserSettings, PS, "daemon",
-              "belt driver (intensity), client")
-SETTINGS_QUERY = _t("settings_query", "settings", UserSettings, Q, "daemon",
-                    "belt driver (at start), client")
+SETTINGS_SET = _t(
+    "settings_set",
+    "settings/set",
+    UserSettings,
+    PS,
+    "the user's client / phone",
+    "daemon (on this user's key only)",
+)
+SETTINGS = _t("settings", "settings", UserSettings, PS, "daemon", "belt driver (intensity), client")
+SETTINGS_QUERY = _t(
+    "settings_query", "settings", UserSettings, Q, "daemon", "belt driver (at start), client"
+)
 VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder")
-RFID_STATS = _t("rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools",
-                qos=LATEST_WINS)
+RFID_STATS = _t(
+    "rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools", qos=LATEST_WINS
+)
+PROXIMITY = _t("proximity", "proximity", Proximity, PS, "mapper", "daemon (STOP before contact)")
 HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", per_user=False)
-ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)",
-           per_user=False)
+ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)", per_user=False)
 
 TOPICS: tuple[Topic, ...] = (
     MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,
     BELT, BELT_HEALTH, BELT_BUTTON, SETTINGS_SET, SETTINGS, SETTINGS_QUERY, VOICE, RFID_STATS,
-    HEALTH, ALIVE,
+    PROXIMITY, HEALTH, ALIVE,
 )  # fmt: skip
 
 

@@ -15,6 +15,7 @@ from protocol.messages import (
     NavPath,
     NavStatus,
     Pose,
+    Proximity,
     UserSettings,
     VoiceCue,
 )
@@ -39,12 +40,14 @@ class Inbox:
     """A change the user asked for on their own ``settings/set`` key."""
     battery_v: float | None = None
     """The belt's battery, from its latest health."""
+    proximity: Proximity | None = None
+    """The mapper's latest nearest-obstacle report (the latest wins)."""
 
     def __bool__(self) -> bool:
         return bool(
             self.rejections or self.deltas or self.snapshot or self.snapshot_failed
             or self.goal or self.pose or self.tick or self.buttons or self.settings
-            or self.battery_v is not None
+            or self.battery_v is not None or self.proximity is not None
         )
 
 

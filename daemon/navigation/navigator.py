@@ -43,6 +43,7 @@ from .inbox import Inbox, StepOutput
 from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
+from .proximity import ProximityGuard, ProximitySettings
 from .route import PlannerFactory, PlanReport, Route
 
 log = logging.getLogger("guidebelt.navigation")
@@ -73,6 +74,8 @@ class NavigatorSettings:
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     intensity: int = 100
     battery: BatteryPolicy = field(default_factory=BatteryPolicy)
+    stop_m: float = 0.6
+    """An obstacle nearer than this ahead in the camera's latest frame: STOP (``proximity``)."""
 
 
 @dataclass(slots=True)
@@ -124,6 +127,7 @@ class Navigator:
         self.rejected_by_code: dict[str, int] = {}
         """Refused inputs by status code, for the daemon's health (``rejected``: their sum)."""
         self.log_limit = LogLimiter()
+        self.safety = ProximityGuard(ProximitySettings(stop_m=settings.stop_m))
         self.steps = 0
         self.replans = 0
         self.last = StepReport()
@@ -175,6 +179,8 @@ class Navigator:
             self._take_pose(inbox.pose, now, out)
         elif self.pose is not None and self.pose_cell is None and self.maps.map is not None:
             self._take_pose(self.pose, now, out)  # the pose came before the map
+        guiding = self.goal_cell is not None
+        self._held |= self.safety.step(inbox.proximity, now, self.guidance, out, guiding)
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)

@@ -27,6 +27,7 @@ from protocol.messages import (
     MapDelta,
     MapSnapshot,
     Pose,
+    Proximity,
     StatusCode,
     UserSettings,
 )
@@ -81,6 +82,10 @@ class UserRunner:
 
     def put_button(self, press: BeltButton) -> None:
         self._inbox.buttons.append(press)
+        self._heard()
+
+    def put_proximity(self, proximity: Proximity) -> None:
+        self._inbox.proximity = proximity  # the latest frame's wins
         self._heard()
 
     def put_settings(self, settings: UserSettings) -> None:
