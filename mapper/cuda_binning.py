@@ -14,7 +14,7 @@ import cupy as cp
 import cupyx
 import numpy as np
 
-from .binning import Binned, Window
+from .binning import PUSH_M, Binned, Window
 
 _GRIDS: dict[tuple[int, int, int], tuple] = {}
 
@@ -81,8 +81,10 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     hit[~cp.isfinite(best_hit), 0] = np.inf
     far[best_far < 0, 0] = -1.0
     inv = 1.0 / win.cell_m
-    row = (win.map_rows - 1 - cp.floor(py * inv).astype(cp.int32)) - win.r0
-    col = cp.floor(px * inv).astype(cp.int32) - win.c0
+    # As binning.py: a face on a cell boundary belongs to the cell behind it.
+    push = PUSH_M / cp.sqrt(cp.maximum(r2, 1e-12))
+    row = (win.map_rows - 1 - cp.floor((py + dy * push) * inv).astype(cp.int32)) - win.r0
+    col = cp.floor((px + dx * push) * inv).astype(cp.int32) - win.c0
     inwin = obst & (row >= 0) & (row < win.side) & (col >= 0) & (col < win.side)
     flat = (row * win.side + col)[inwin]
     counts = cp.bincount(flat, minlength=win.side * win.side).astype(cp.int32)

@@ -56,8 +56,8 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def fit_floor(points: np.ndarray, cam: np.ndarray, *, band_m: float = 0.6,
-              inlier_m: float = 0.03, max_tilt_deg: float = 25.0, hypotheses: int = 64,
-              min_inliers: int = 60, min_share: float = 0.3,
+              inlier_m: float = 0.02, max_tilt_deg: float = 25.0, hypotheses: int = 128,
+              min_inliers: int = 60, min_share: float = 0.15, max_offset_m: float = 0.2,
               rng: np.random.Generator | None = None) -> FloorFit:  # fmt: skip
     """RANSAC plane of the points near the nominal floor; ``NOMINAL`` if none is good."""
     cand = points[np.abs(points[:, 2]) < band_m]
@@ -76,17 +76,33 @@ def fit_floor(points: np.ndarray, cam: np.ndarray, *, band_m: float = 0.6,
     if len(normals) == 0:
         return NOMINAL
     offsets = -np.einsum("ij,ij->i", normals, anchors)
+    # The floor passes under the camera near where the mounting says (a tilt turns the plane
+    # about the camera, it hardly moves the point below it); a box's top does not.
+    under = -(normals[:, 0] * cam[0] + normals[:, 1] * cam[1] + offsets) / normals[:, 2]
     dist = np.abs(cand @ normals.T + offsets)  # (points, hypotheses)
-    score = (dist < inlier_m).sum(axis=0)
+    score = np.where(np.abs(under) <= max_offset_m, (dist < inlier_m).sum(axis=0), -1)
     best = int(np.argmax(score))
+    if score[best] < 0:
+        return NOMINAL
     inl = cand[dist[:, best] < inlier_m]
     if len(inl) < min_inliers or len(inl) < min_share * len(cand):
         return NOMINAL
-    centre = inl.mean(axis=0)
-    normal = np.linalg.svd(inl - centre, full_matrices=False)[2][2]
-    normal = normal * (1.0 if normal[2] >= 0 else -1.0)
+    for _ in range(2):  # least squares on the inliers, then again on the refit's own inliers
+        centre = inl.mean(axis=0)
+        normal = np.linalg.svd(inl - centre, full_matrices=False)[2][2]
+        normal = normal * (1.0 if normal[2] >= 0 else -1.0)
+        near = np.abs((cand - centre) @ normal) < inlier_m
+        if near.sum() < min_inliers:
+            return NOMINAL
+        inl = cand[near]
     if normal[2] < cos_max:
         return NOMINAL
+    # Keep the mounting's floor unless the fit explains the floor points clearly better: a
+    # narrow strip of floor fixes its own tilt poorly, and the pose is usually right.
+    fitted_rms = float(np.sqrt(np.mean(((inl - centre) @ normal) ** 2)))
+    nominal_rms = float(np.sqrt(np.mean(inl[:, 2] ** 2)))
+    if nominal_rms < 1.5 * fitted_rms + 0.005:
+        return FloorFit(np.eye(3), 0.0, 0.0, len(inl), False)
     up = np.array([0.0, 0.0, 1.0])
     rot = _rotation_between(normal, up)
     # Heights measured from the camera: the plane, turned about it, lies at this z.

@@ -132,7 +132,7 @@ class OccupancyMapper:
                              s.stride)  # fmt: skip
         t3 = time.perf_counter()
         free = clear_rays(binned.hit, binned.far, cam[0], cam[1], win.r0, win.c0, win.side,
-                          win.map_rows, win.cell_m, win.cell_m)  # fmt: skip
+                          win.map_rows, win.cell_m, 0.5 * win.cell_m)  # fmt: skip
         occupied = binned.counts >= s.min_points
         cells, values = self._changes(win, occupied, free.astype(bool))
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
