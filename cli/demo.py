@@ -77,6 +77,14 @@ def demo(
         typer.Option("--planner", "--mode", help=f"Registry planner: {PLANNER_NAMES}."),
     ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),
+    sensor: Annotated[
+        str,
+        typer.Option(
+            help="With the daemon, what makes the map: map (the truth in range) or camera "
+            "(rendered RGB-D frames through the mapper, people walking)."
+        ),
+    ] = "map",
+    people: Annotated[int, typer.Option(help="With --sensor camera: people walking.")] = 3,
     belt: Annotated[
         str,
         typer.Option(
@@ -88,6 +96,10 @@ def demo(
     """Guide a simulated pedestrian across the courtyard and save a picture of the walk."""
     if belt not in ("simavr", "mock", "none"):
         raise typer.BadParameter(f"--belt must be simavr, mock or none, not {belt!r}")
+    if sensor not in ("map", "camera"):
+        raise typer.BadParameter(f"--sensor must be map or camera, not {sensor!r}")
+    if in_process and sensor != "map":
+        raise typer.BadParameter("--sensor camera needs the daemon (leave out --in-process)")
     if in_process and belt != "none":
         raise typer.BadParameter("--belt needs the daemon (leave out --in-process)")
     if in_process:
@@ -95,7 +107,9 @@ def demo(
     else:
         from cli.demo_world import run_with_daemon
 
-        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace, planner)
+        arrived = run_with_daemon(
+            grid, unknown, seed, backend, follow, out, belt, pace, planner, sensor, people
+        )
     raise typer.Exit(0 if arrived else 1)
 
 

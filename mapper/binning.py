@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+MIN_DEPTH_M = 0.15
+"""Nearer than this no depth camera measures (a D435 from 0.1-0.3 m): a value there is noise."""
 PUSH_M = 0.002
 """How far a surface point is moved on along its ray before it is binned: a face lying on
 a cell boundary then counts in the cell behind it, not the free one in front (above the
@@ -39,7 +41,7 @@ class Binned:
     """What one frame says, in its window and per column bin."""
 
     counts: np.ndarray
-    """``(side, side)`` int32: obstacle points per cell."""
+    """``(2, side, side)`` int32: obstacle points ([0]) and floor points ([1]) per cell."""
     hit: np.ndarray
     """``(bins, 3)`` float32: squared range, x, y of the nearest obstacle point (inf: none)."""
     far: np.ndarray
@@ -50,10 +52,10 @@ class Binned:
 
 @njit(cache=True, nogil=True)
 def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map_rows, cell_m,
-                min_h, max_h, max_range, cols_per_bin, stride):  # fmt: skip
+                min_h, max_h, max_range, cols_per_bin, stride, min_depth):  # fmt: skip
     h, w = depth.shape
     bins = (w + cols_per_bin - 1) // cols_per_bin
-    counts = np.zeros((side, side), np.int32)
+    counts = np.zeros((2, side, side), np.int32)
     hit = np.empty((bins, 3), np.float32)
     far = np.empty((bins, 3), np.float32)
     for b in range(bins):
@@ -66,7 +68,7 @@ def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map
         ry = (v - cy) / fy
         for u in range(0, w, stride):
             d = depth[v, u] * scale
-            if not (d > 0.0) or d > 1e4:  # zero, negative, NaN or inf: a missing pixel
+            if not (d >= min_depth) or d > 1e4:  # 0, too near, NaN or inf: missing
                 continue
             valid += 1
             rx = (u - cx) / fx
@@ -82,30 +84,35 @@ def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map
                 if max_r2 > far[b, 0]:
                     far[b, 0], far[b, 1], far[b, 2] = max_r2, t[0] + dx * k, t[1] + dy * k
                 continue
+            # A face on a cell boundary belongs to the cell behind it: push the point
+            # PUSH_M on along its ray before binning it.
+            k = PUSH_M / np.sqrt(max(r2, 1e-12))
+            row = map_rows - 1 - int(np.floor((py + dy * k) * inv)) - r0
+            col = int(np.floor((px + dx * k) * inv)) - c0
+            inside = 0 <= row < side and 0 <= col < side
             if pz < min_h:
                 if r2 > far[b, 0]:
                     far[b, 0], far[b, 1], far[b, 2] = r2, px, py
+                if inside:
+                    counts[1, row, col] += 1
             elif pz <= max_h:
                 if r2 < hit[b, 0]:
                     hit[b, 0], hit[b, 1], hit[b, 2] = r2, px, py
-                # A face on a cell boundary belongs to the cell behind it: push the point
-                # PUSH_M on along its ray before binning it.
-                k = PUSH_M / np.sqrt(max(r2, 1e-12))
-                row = map_rows - 1 - int(np.floor((py + dy * k) * inv)) - r0
-                col = int(np.floor((px + dx * k) * inv)) - c0
-                if 0 <= row < side and 0 <= col < side:
-                    counts[row, col] += 1
+                if inside:
+                    counts[0, row, col] += 1
     return counts, hit, far, valid
 
 
 def bin_frame_cpu(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
                   floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
-                  cols_per_bin: int, stride: int) -> Binned:  # fmt: skip
+                  cols_per_bin: int, stride: int,
+                  min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
     counts, hit, far, valid = _bin_pixels(
         depth, float(scale), float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy),
         np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(t, np.float64),
         float(floor_z), win.r0, win.c0, win.side, win.map_rows, float(win.cell_m),
         float(min_h), float(max_h), float(max_range), int(cols_per_bin), int(stride),
+        float(min_depth),
     )  # fmt: skip
     return Binned(counts, hit, far, int(valid))
 

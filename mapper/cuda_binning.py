@@ -14,7 +14,7 @@ import cupy as cp
 import cupyx
 import numpy as np
 
-from .binning import PUSH_M, Binned, Window
+from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window
 
 _GRIDS: dict[tuple[int, int, int], tuple] = {}
 
@@ -46,11 +46,12 @@ def _pick(r2: cp.ndarray, bins: cp.ndarray, nbins: int, best: cp.ndarray, xs, ys
 
 def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
                    floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
-                   cols_per_bin: int, stride: int) -> Binned:  # fmt: skip
+                   cols_per_bin: int, stride: int,
+                   min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
     h, w = depth.shape
     u, v, ucol = _pixel_grid(h, w, stride)
     d = cp.asarray(depth)[::stride, ::stride].ravel().astype(cp.float32) * cp.float32(scale)
-    ok = (d > 0) & (d < 1e4)  # NaN compares false: missing
+    ok = (d >= min_depth) & (d < 1e4)  # NaN compares false: missing
     rx = (u - intr.cx) / intr.fx * d
     ry = (v - intr.cy) / intr.fy * d
     r = rot.astype(np.float32)
@@ -85,8 +86,13 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     push = PUSH_M / cp.sqrt(cp.maximum(r2, 1e-12))
     row = (win.map_rows - 1 - cp.floor((py + dy * push) * inv).astype(cp.int32)) - win.r0
     col = cp.floor((px + dx * push) * inv).astype(cp.int32) - win.c0
-    inwin = obst & (row >= 0) & (row < win.side) & (col >= 0) & (col < win.side)
-    flat = (row * win.side + col)[inwin]
-    counts = cp.bincount(flat, minlength=win.side * win.side).astype(cp.int32)
+    inwin = inside & (row >= 0) & (row < win.side) & (col >= 0) & (col < win.side)
+    # Obstacle points count in plane 0, floor points in plane 1, as in binning.py.
+    plane = cp.where(obst, 0, cp.where(floor, 1, -1))
+    keep = inwin & (plane >= 0)
+    flat = (plane * (win.side * win.side) + row * win.side + col)[keep]
+    counts = cp.bincount(flat, minlength=2 * win.side * win.side).astype(cp.int32)
     valid = ok.sum()
-    return Binned(counts.reshape(win.side, win.side).get(), hit.get(), far.get(), int(valid.get()))
+    return Binned(
+        counts.reshape(2, win.side, win.side).get(), hit.get(), far.get(), int(valid.get())
+    )

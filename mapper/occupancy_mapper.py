@@ -43,6 +43,8 @@ class MapperSettings:
     """Seed 000's sensing range (3.0 m)."""
     min_points: int = 3
     """Obstacle points a cell needs in one frame to be OCCUPIED (single noisy points are not)."""
+    min_share: float = 0.25
+    """Share of a cell's points (obstacle and floor) that must be obstacle points."""
     cols_per_bin: int = 4
     """Image columns that share one clearing ray."""
     stride: int = 1
@@ -52,8 +54,13 @@ class MapperSettings:
     max_tilt_deg: float = 25.0
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
-    corridor_m: float = 0.35
-    """Half-width of the walking corridor in which an obstacle counts as ahead."""
+    forget_s: float = 10.0
+    """An obstacle the mapper saw but has not seen again for this long, out of view, goes back
+    to UNKNOWN (0: never). A person who walked off while nobody looked is not a wall for
+    good; a box still there is seen again on the way. Obstacles of the start map stay."""
+    corridor_m: float = 0.2
+    """Half-width of the walking corridor in which an obstacle counts as ahead: half a
+    walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
 
 
 @dataclass
@@ -80,6 +87,10 @@ class OccupancyMapper:
             self.occupancy = np.ascontiguousarray(initial, dtype=np.uint8).copy()
         else:
             self.occupancy = np.full(s.shape, UNKNOWN, np.uint8)
+        self._fixed = self.occupancy == OCCUPIED
+        self.seen_at = np.zeros(s.shape, np.float64)
+        """When each cell was last seen occupied or free."""
+        self._forgot_at = 0.0
         self.binner = make_binner(s.backend)
         self.refused: Counter[str] = Counter()
         self.frames = 0
@@ -133,13 +144,18 @@ class OccupancyMapper:
         t3 = time.perf_counter()
         free = clear_rays(binned.hit, binned.far, cam[0], cam[1], win.r0, win.c0, win.side,
                           win.map_rows, win.cell_m, 0.5 * win.cell_m)  # fmt: skip
-        occupied = binned.counts >= s.min_points
-        cells, values = self._changes(win, occupied, free.astype(bool))
+        obst, floor = binned.counts[0], binned.counts[1]
+        # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
+        # in front of a face, where range noise scatters some of the face's points, is not.
+        occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
+        cells, values, seen = self._changes(win, occupied, free.astype(bool))
+        cells, values = self._forget(cells, values, seen, frame.stamp)
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
                                  frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
         # Everything is known: only now does the map change.
         self.occupancy.reshape(-1)[cells] = values
+        self.seen_at.reshape(-1)[seen] = frame.stamp
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
         self.frames += 1
         ms = {
@@ -148,16 +164,35 @@ class OccupancyMapper:
         }  # fmt: skip
         return FrameResult(cells, values, prox, fit, binned.valid, ms)
 
+    def _forget(self, cells: np.ndarray, values: np.ndarray, seen: np.ndarray,
+                stamp: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Add to the change the obstacles gone unseen for ``forget_s`` (checked once a
+        second: the whole map is scanned)."""
+        s = self.settings
+        if s.forget_s <= 0 or stamp - self._forgot_at < 1.0:
+            return cells, values
+        self._forgot_at = stamp
+        old = (self.occupancy == OCCUPIED) & ~self._fixed & (self.seen_at < stamp - s.forget_s)
+        old.reshape(-1)[seen] = False
+        gone = np.flatnonzero(old)
+        if gone.size == 0:
+            return cells, values
+        return (np.concatenate((cells, gone)),
+                np.concatenate((values, np.full(gone.size, UNKNOWN, np.uint8))))  # fmt: skip
+
     def _changes(self, win: Window, occupied: np.ndarray,
-                 free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Flat cells and new values where the frame changes the map (window clipped)."""
+                 free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """Flat cells and new values where the frame changes the map (window clipped), and
+        the flat cells it saw."""
         h, w = self.settings.shape
         r0, c0 = max(0, win.r0), max(0, win.c0)
         r1, c1 = min(h, win.r0 + win.side), min(w, win.c0 + win.side)
         if r0 >= r1 or c0 >= c1:
-            return np.empty(0, np.int64), np.empty(0, np.uint8)
+            return np.empty(0, np.int64), np.empty(0, np.uint8), np.empty(0, np.int64)
         local = (slice(r0 - win.r0, r1 - win.r0), slice(c0 - win.c0, c1 - win.c0))
         old = self.occupancy[r0:r1, c0:c1]
         new = np.where(occupied[local], OCCUPIED, np.where(free[local], FREE, old))
         rr, cc = np.nonzero(new != old)
-        return ((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8)
+        sr, sc = np.nonzero(occupied[local] | free[local])
+        return (((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8),
+                ((sr + r0) * w + (sc + c0)).astype(np.int64))  # fmt: skip

@@ -28,7 +28,7 @@ from .inbox import StepOutput
 class ProximitySettings:
     stop_m: float = 0.6
     near_m: float = 1.0
-    hold_s: float = 1.5
+    hold_s: float = 0.5
     rearm_m: float = 0.15
     max_age_s: float = 1.0
 
