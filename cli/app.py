@@ -27,6 +27,7 @@ COMMAND_MODULES = [
     "cli.walks",
     "cli.voice",
     "cli.rfid",
+    "cli.mapper",
     "cli.belt",
     "cli.run",
     "cli.goal",

@@ -69,7 +69,10 @@ def demo(
         typer.Option(help="With the daemon: seconds per step (0.1 = 1 m/s at 10 cm; 0 = no wait)."),
     ] = 0.1,
     grid: Annotated[int, typer.Option(help="Grid side (100 = 10 cm cells).")] = 100,
-    unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
+    unknown: Annotated[
+        float | None,
+        typer.Option(help="Fraction of free area unknown (0.4; with --sensor camera 0.2)."),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
@@ -102,6 +105,8 @@ def demo(
         raise typer.BadParameter("--sensor camera needs the daemon (leave out --in-process)")
     if in_process and belt != "none":
         raise typer.BadParameter("--belt needs the daemon (leave out --in-process)")
+    if unknown is None:
+        unknown = 0.2 if sensor == "camera" else 0.4  # sim.camera_walk.CAMERA_UNKNOWN says why
     if in_process:
         arrived = run_in_process(grid, unknown, seed, backend, planner, out)
     else:

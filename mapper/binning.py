@@ -50,55 +50,61 @@ class Binned:
     """Pixels with a usable depth."""
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map_rows, cell_m,
                 min_h, max_h, max_range, cols_per_bin, stride, min_depth):  # fmt: skip
     h, w = depth.shape
     bins = (w + cols_per_bin - 1) // cols_per_bin
     counts = np.zeros((2, side, side), np.int32)
-    hit = np.empty((bins, 3), np.float32)
-    far = np.empty((bins, 3), np.float32)
+    hit = np.empty((bins, 3), np.float64)
+    far = np.empty((bins, 3), np.float64)
     for b in range(bins):
         hit[b, 0] = np.inf
         far[b, 0] = -1.0
     valid = 0
     max_r2 = max_range * max_range
     inv = 1.0 / cell_m
+    # Row and column terms of each pixel's ray, so the loop only multiplies and adds.
+    rxs = (np.arange(w) - cx) / fx
+    ax, ay, az = rot[0, 0] * rxs, rot[1, 0] * rxs, rot[2, 0] * rxs
+    top = map_rows - 1 - r0
     for v in range(0, h, stride):
         ry = (v - cy) / fy
+        bx = rot[0, 1] * ry + rot[0, 2]
+        by = rot[1, 1] * ry + rot[1, 2]
+        bz = rot[2, 1] * ry + rot[2, 2]
         for u in range(0, w, stride):
             d = depth[v, u] * scale
             if not (d >= min_depth) or d > 1e4:  # 0, too near, NaN or inf: missing
                 continue
             valid += 1
-            rx = (u - cx) / fx
-            qx, qy, qz = rx * d, ry * d, d
-            px = rot[0, 0] * qx + rot[0, 1] * qy + rot[0, 2] * qz + t[0]
-            py = rot[1, 0] * qx + rot[1, 1] * qy + rot[1, 2] * qz + t[1]
-            pz = rot[2, 0] * qx + rot[2, 1] * qy + rot[2, 2] * qz + t[2] - floor_z
-            dx, dy = px - t[0], py - t[1]
+            dx = (ax[u] + bx) * d
+            dy = (ay[u] + by) * d
+            pz = (az[u] + bz) * d + t[2] - floor_z
+            px, py = dx + t[0], dy + t[1]
             r2 = dx * dx + dy * dy
             b = u // cols_per_bin
             if r2 > max_r2:  # past the range: free as far as the range, no obstacle
-                k = max_range / np.sqrt(r2)
                 if max_r2 > far[b, 0]:
+                    k = max_range / np.sqrt(r2)
                     far[b, 0], far[b, 1], far[b, 2] = max_r2, t[0] + dx * k, t[1] + dy * k
                 continue
-            # A face on a cell boundary belongs to the cell behind it: push the point
-            # PUSH_M on along its ray before binning it.
-            k = PUSH_M / np.sqrt(max(r2, 1e-12))
-            row = map_rows - 1 - int(np.floor((py + dy * k) * inv)) - r0
-            col = int(np.floor((px + dx * k) * inv)) - c0
-            inside = 0 <= row < side and 0 <= col < side
             if pz < min_h:
                 if r2 > far[b, 0]:
                     far[b, 0], far[b, 1], far[b, 2] = r2, px, py
-                if inside:
+                row = top - int(np.floor(py * inv))
+                col = int(np.floor(px * inv)) - c0
+                if 0 <= row < side and 0 <= col < side:
                     counts[1, row, col] += 1
             elif pz <= max_h:
                 if r2 < hit[b, 0]:
                     hit[b, 0], hit[b, 1], hit[b, 2] = r2, px, py
-                if inside:
+                # A face on a cell boundary belongs to the cell behind it: push the point
+                # PUSH_M on along its ray before binning it.
+                k = 1.0 + PUSH_M / np.sqrt(r2 + 1e-12)
+                row = top - int(np.floor((t[1] + dy * k) * inv))
+                col = int(np.floor((t[0] + dx * k) * inv)) - c0
+                if 0 <= row < side and 0 <= col < side:
                     counts[0, row, col] += 1
     return counts, hit, far, valid
 

@@ -24,7 +24,7 @@ def _pixel_grid(h: int, w: int, stride: int) -> tuple:
     key = (h, w, stride)
     if key not in _GRIDS:
         v, u = cp.mgrid[0:h:stride, 0:w:stride]
-        _GRIDS[key] = (u.ravel().astype(cp.float32), v.ravel().astype(cp.float32),
+        _GRIDS[key] = (u.ravel().astype(cp.float64), v.ravel().astype(cp.float64),
                        (u.ravel() // 1).astype(cp.int32))  # fmt: skip
     return _GRIDS[key]
 
@@ -35,7 +35,7 @@ def _pick(r2: cp.ndarray, bins: cp.ndarray, nbins: int, best: cp.ndarray, xs, ys
     winner = cp.full(nbins, r2.size, cp.int64)
     at = r2 == best[bins]
     cupyx.scatter_min(winner, bins[at], idx[at])
-    out = cp.full((nbins, 3), fill, cp.float32)
+    out = cp.full((nbins, 3), fill, cp.float64)
     has = winner < r2.size
     sel = winner[has]
     out[has, 0] = best[has]
@@ -50,11 +50,12 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
                    min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
     h, w = depth.shape
     u, v, ucol = _pixel_grid(h, w, stride)
-    d = cp.asarray(depth)[::stride, ::stride].ravel().astype(cp.float32) * cp.float32(scale)
+    # float64 as the CPU pass, so both bin a point on a cell boundary alike (H100: fast FP64).
+    d = cp.asarray(depth)[::stride, ::stride].ravel().astype(cp.float64) * scale
     ok = (d >= min_depth) & (d < 1e4)  # NaN compares false: missing
     rx = (u - intr.cx) / intr.fx * d
     ry = (v - intr.cy) / intr.fy * d
-    r = rot.astype(np.float32)
+    r = np.asarray(rot, np.float64)
     tx, ty, tz = (float(x) for x in t)
     px = r[0, 0] * rx + r[0, 1] * ry + r[0, 2] * d + tx
     py = r[1, 0] * rx + r[1, 1] * ry + r[1, 2] * d + ty
@@ -63,7 +64,7 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     r2 = dx * dx + dy * dy
     nbins = (w + cols_per_bin - 1) // cols_per_bin
     bins = ucol // cols_per_bin
-    max_r2 = np.float32(max_range * max_range)
+    max_r2 = max_range * max_range
     beyond = ok & (r2 > max_r2)
     inside = ok & ~beyond
     floor = inside & (pz < min_h)
@@ -71,21 +72,21 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     # Past the range: free as far as the range along the point's direction.
     k = cp.where(beyond, max_range / cp.sqrt(cp.maximum(r2, 1e-12)), 1.0)
     fx, fy = cp.where(beyond, tx + dx * k, px), cp.where(beyond, ty + dy * k, py)
-    free_r2 = cp.where(beyond, max_r2, cp.where(floor, r2, cp.float32(-1)))
-    hit_r2 = cp.where(obst, r2, cp.float32(np.inf))
-    best_hit = cp.full(nbins, np.inf, cp.float32)
+    free_r2 = cp.where(beyond, max_r2, cp.where(floor, r2, -1.0))
+    hit_r2 = cp.where(obst, r2, np.inf)
+    best_hit = cp.full(nbins, np.inf, cp.float64)
     cupyx.scatter_min(best_hit, bins, hit_r2)
-    best_far = cp.full(nbins, -1, cp.float32)
+    best_far = cp.full(nbins, -1.0, cp.float64)
     cupyx.scatter_max(best_far, bins, free_r2)
     hit = _pick(hit_r2, bins, nbins, best_hit, px, py, np.inf)
     far = _pick(free_r2, bins, nbins, best_far, fx, fy, -1.0)
     hit[~cp.isfinite(best_hit), 0] = np.inf
     far[best_far < 0, 0] = -1.0
     inv = 1.0 / win.cell_m
-    # As binning.py: a face on a cell boundary belongs to the cell behind it.
-    push = PUSH_M / cp.sqrt(cp.maximum(r2, 1e-12))
-    row = (win.map_rows - 1 - cp.floor((py + dy * push) * inv).astype(cp.int32)) - win.r0
-    col = cp.floor((px + dx * push) * inv).astype(cp.int32) - win.c0
+    # As binning.py: an obstacle point on a cell boundary belongs to the cell behind it.
+    push = cp.where(obst, 1.0 + PUSH_M / cp.sqrt(r2 + 1e-12), 1.0)
+    row = (win.map_rows - 1 - cp.floor((ty + dy * push) * inv).astype(cp.int32)) - win.r0
+    col = cp.floor((tx + dx * push) * inv).astype(cp.int32) - win.c0
     inwin = inside & (row >= 0) & (row < win.side) & (col >= 0) & (col < win.side)
     # Obstacle points count in plane 0, floor points in plane 1, as in binning.py.
     plane = cp.where(obst, 0, cp.where(floor, 1, -1))

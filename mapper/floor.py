@@ -56,7 +56,7 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def fit_floor(points: np.ndarray, cam: np.ndarray, *, band_m: float = 0.6,
-              inlier_m: float = 0.02, max_tilt_deg: float = 25.0, hypotheses: int = 128,
+              inlier_m: float = 0.02, max_tilt_deg: float = 25.0, hypotheses: int = 96,
               min_inliers: int = 60, min_share: float = 0.15, max_offset_m: float = 0.2,
               rng: np.random.Generator | None = None) -> FloorFit:  # fmt: skip
     """RANSAC plane of the points near the nominal floor; ``NOMINAL`` if none is good."""

@@ -50,7 +50,7 @@ class MapperSettings:
     stride: int = 1
     """Pixel step of the per-pixel pass (1 = every pixel)."""
     floor_ransac: bool = True
-    floor_sample_step: int = 8
+    floor_sample_step: int = 12
     max_tilt_deg: float = 25.0
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
