@@ -25,9 +25,11 @@ def main() -> None:
     ap.add_argument("--unknown", type=float, default=CAMERA_UNKNOWN)
     ap.add_argument("--people", type=int, default=3)
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--only", type=str, help="Comma-separated seeds (a share of a parallel run).")
     args = ap.parse_args()
     rows = []
-    for seed in range(args.seeds):
+    seeds = [int(s) for s in args.only.split(",")] if args.only else range(args.seeds)
+    for seed in seeds:
         w = camera_walk(seed, args.unknown, args.people)
         row = {
             "seed": seed, "arrived": w.arrived, "reason": w.reason, "steps": w.steps,
