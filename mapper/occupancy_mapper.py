@@ -148,7 +148,8 @@ class OccupancyMapper:
         # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
         # in front of a face, where range noise scatters some of the face's points, is not.
         occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
-        cells, values, seen = self._changes(win, occupied, free.astype(bool))
+        cleared = free.astype(bool) & (obst == 0)
+        cells, values, seen = self._changes(win, occupied, cleared, floor >= s.min_points)
         cells, values = self._forget(cells, values, seen, frame.stamp)
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
                                  frame.stamp)  # fmt: skip
@@ -180,10 +181,12 @@ class OccupancyMapper:
         return (np.concatenate((cells, gone)),
                 np.concatenate((values, np.full(gone.size, UNKNOWN, np.uint8))))  # fmt: skip
 
-    def _changes(self, win: Window, occupied: np.ndarray,
-                 free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    def _changes(self, win: Window, occupied: np.ndarray, free: np.ndarray,
+                 floor_seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
         """Flat cells and new values where the frame changes the map (window clipped), and
-        the flat cells it saw."""
+        the flat cells it saw. A ray crossing a cell frees it when it was unknown; a cell
+        the map holds as an obstacle is freed only where the frame also sees its floor (a
+        ray grazing the corner of a box's cell is no proof the box has gone)."""
         h, w = self.settings.shape
         r0, c0 = max(0, win.r0), max(0, win.c0)
         r1, c1 = min(h, win.r0 + win.side), min(w, win.c0 + win.side)
@@ -191,7 +194,8 @@ class OccupancyMapper:
             return np.empty(0, np.int64), np.empty(0, np.uint8), np.empty(0, np.int64)
         local = (slice(r0 - win.r0, r1 - win.r0), slice(c0 - win.c0, c1 - win.c0))
         old = self.occupancy[r0:r1, c0:c1]
-        new = np.where(occupied[local], OCCUPIED, np.where(free[local], FREE, old))
+        frees = free[local] & ((old != OCCUPIED) | floor_seen[local])
+        new = np.where(occupied[local], OCCUPIED, np.where(frees, FREE, old))
         rr, cc = np.nonzero(new != old)
         sr, sc = np.nonzero(occupied[local] | free[local])
         return (((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8),
