@@ -32,6 +32,7 @@ class FloorFit:
 
 
 NOMINAL = FloorFit(np.eye(3), 0.0, 0.0, 0, False)
+SCORE_POINTS = 600
 
 
 def sample_points(depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray,
@@ -65,6 +66,8 @@ def fit_floor(points: np.ndarray, cam: np.ndarray, *, band_m: float = 0.6,
         return NOMINAL
     rng = rng or np.random.default_rng(0)
     tri = cand[rng.integers(0, len(cand), size=(hypotheses, 3))]
+    # Hypotheses are scored on at most SCORE_POINTS of the candidates (the refit uses all).
+    scored = cand if len(cand) <= SCORE_POINTS else cand[rng.choice(len(cand), SCORE_POINTS, False)]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(normals, axis=1)
     good = norm > 1e-9
@@ -79,12 +82,12 @@ def fit_floor(points: np.ndarray, cam: np.ndarray, *, band_m: float = 0.6,
     # The floor passes under the camera near where the mounting says (a tilt turns the plane
     # about the camera, it hardly moves the point below it); a box's top does not.
     under = -(normals[:, 0] * cam[0] + normals[:, 1] * cam[1] + offsets) / normals[:, 2]
-    dist = np.abs(cand @ normals.T + offsets)  # (points, hypotheses)
+    dist = np.abs(scored @ normals.T + offsets)  # (points, hypotheses)
     score = np.where(np.abs(under) <= max_offset_m, (dist < inlier_m).sum(axis=0), -1)
     best = int(np.argmax(score))
     if score[best] < 0:
         return NOMINAL
-    inl = cand[dist[:, best] < inlier_m]
+    inl = cand[np.abs(cand @ normals[best] + offsets[best]) < inlier_m]
     if len(inl) < min_inliers or len(inl) < min_share * len(cand):
         return NOMINAL
     for _ in range(2):  # least squares on the inliers, then again on the refit's own inliers

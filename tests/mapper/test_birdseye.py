@@ -49,9 +49,13 @@ def test_target_and_box_found_where_they_are():
 
 
 def test_no_target_in_view_says_so():
-    img = RgbdCamera(KINECT, mount_height_m=HEIGHT_M, pitch_deg=PITCH_DEG).render(
-        empty_scene((60, 60), 0.1), RgbdCamera().pose(3.0, 1.0, math.pi / 2, PITCH_DEG), 1.0
-    ).color
+    img = (
+        RgbdCamera(KINECT, mount_height_m=HEIGHT_M, pitch_deg=PITCH_DEG)
+        .render(
+            empty_scene((60, 60), 0.1), RgbdCamera().pose(3.0, 1.0, math.pi / 2, PITCH_DEG), 1.0
+        )
+        .color
+    )
     _, target = bev()(img)
     assert bev().target_xy(target) is None
 
