@@ -28,6 +28,7 @@ COMMAND_MODULES = [
     "cli.voice",
     "cli.voice_goal",
     "cli.rfid",
+    "cli.mapper",
     "cli.belt",
     "cli.run",
     "cli.goal",

@@ -69,7 +69,10 @@ def demo(
         typer.Option(help="With the daemon: seconds per step (0.1 = 1 m/s at 10 cm; 0 = no wait)."),
     ] = 0.1,
     grid: Annotated[int, typer.Option(help="Grid side (100 = 10 cm cells).")] = 100,
-    unknown: Annotated[float, typer.Option(help="Fraction of free area unknown.")] = 0.4,
+    unknown: Annotated[
+        float | None,
+        typer.Option(help="Fraction of free area unknown (0.4; with --sensor camera 0.2)."),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Scenario seed.")] = 0,
     backend: Annotated[str, typer.Option(help="cpu, cuda, auto or reference.")] = "cpu",
     planner: Annotated[
@@ -77,6 +80,14 @@ def demo(
         typer.Option("--planner", "--mode", help=f"Registry planner: {PLANNER_NAMES}."),
     ] = "eds",
     out: Annotated[Path, typer.Option(help="Picture of the walk.")] = Path("out/demo.png"),
+    sensor: Annotated[
+        str,
+        typer.Option(
+            help="With the daemon, what makes the map: map (the truth in range) or camera "
+            "(rendered RGB-D frames through the mapper, people walking)."
+        ),
+    ] = "map",
+    people: Annotated[int, typer.Option(help="With --sensor camera: people walking.")] = 3,
     belt: Annotated[
         str,
         typer.Option(
@@ -88,14 +99,22 @@ def demo(
     """Guide a simulated pedestrian across the courtyard and save a picture of the walk."""
     if belt not in ("simavr", "mock", "none"):
         raise typer.BadParameter(f"--belt must be simavr, mock or none, not {belt!r}")
+    if sensor not in ("map", "camera"):
+        raise typer.BadParameter(f"--sensor must be map or camera, not {sensor!r}")
+    if in_process and sensor != "map":
+        raise typer.BadParameter("--sensor camera needs the daemon (leave out --in-process)")
     if in_process and belt != "none":
         raise typer.BadParameter("--belt needs the daemon (leave out --in-process)")
+    if unknown is None:
+        unknown = 0.2 if sensor == "camera" else 0.4  # sim.camera_walk.CAMERA_UNKNOWN says why
     if in_process:
         arrived = run_in_process(grid, unknown, seed, backend, planner, out)
     else:
         from cli.demo_world import run_with_daemon
 
-        arrived = run_with_daemon(grid, unknown, seed, backend, follow, out, belt, pace, planner)
+        arrived = run_with_daemon(
+            grid, unknown, seed, backend, follow, out, belt, pace, planner, sensor, people
+        )
     raise typer.Exit(0 if arrived else 1)
 
 

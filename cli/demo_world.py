@@ -35,9 +35,24 @@ def render_sim(scenario: Scenario, result: SimResult, out: Path) -> Path:
     return render_walk(scenario, walk, out)
 
 
+def _camera_summary(console, node, belt) -> None:
+    """The camera's part of the walk: frames mapped, refused, time per frame, STOPs felt."""
+    ms = np.array(node.frame_ms) if node.frame_ms else np.array([math.nan])
+    stops = sum(1 for k in belt.kinds() if k == "stop")
+    walker = node.walker
+    console.print(
+        f"camera: {len(node.frame_ms)} frames, {node.mapper.frames} mapped, "
+        f"{sum(node.mapper.refused.values())} refused; mapper {np.median(ms):.1f} ms per frame "
+        f"(median, p99 {np.percentile(ms, 99):.1f}, backend {node.mapper.backend}); "
+        f"{len(node.movers.people)} people walking; {stops} STOP patterns; "
+        f"{getattr(walker, 'collisions', 0)} collisions"
+    )
+
+
 def run_with_daemon(
     grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
-    belt_kind: str = "none", pace_s: float = 0.0, planner: str = "eds",
+    belt_kind: str = "none", pace_s: float = 0.0, planner: str = "eds", sensor: str = "map",
+    people: int = 3,
 ) -> bool:
     """One user guided across the courtyard by the real daemon; True when they arrived.
 
@@ -74,7 +89,15 @@ def run_with_daemon(
     ) as daemon:
         drivers, world, client = daemon.peer(), daemon.peer(), daemon.peer()
         belt, voice = BeltRecorder(drivers, user), VoiceRecorder(drivers, user)
-        node = SimNode(world, user, scenario, walker=follow, step_period_s=pace_s)
+        # The camera's walk stops for obstacles ahead (a real second each): give it longer.
+        timeout_s = 300.0 if sensor == "camera" else 120.0
+        if sensor == "camera":  # world → RGB-D frames → mapper node → daemon
+            from sim.camera_node import CameraSimNode
+
+            node: SimNode = CameraSimNode(world, user, scenario, walker=follow, seed=seed,
+                                          people=people, step_period_s=pace_s)  # fmt: skip
+        else:
+            node = SimNode(world, user, scenario, walker=follow, step_period_s=pace_s)
         box: dict[str, SimResult] = {}
         stop = threading.Event()
         try:
@@ -94,7 +117,9 @@ def run_with_daemon(
                     )
 
                 walker = threading.Thread(
-                    target=lambda: box.setdefault("r", node.run(stop, on_step=progress))
+                    target=lambda: box.setdefault(
+                        "r", node.run(stop, on_step=progress, timeout_s=timeout_s)
+                    )
                 )
                 walker.start()
                 time.sleep(0.3)
@@ -126,6 +151,8 @@ def run_with_daemon(
     )
     if nano is not None:
         console.print(belt_summary(nano), soft_wrap=True)
+    if sensor == "camera":
+        _camera_summary(console, node, belt)
     render_sim(scenario, result, out)
     console.print(f"picture: {out}")
     return result.arrived

@@ -87,6 +87,7 @@ class PatternKind(StrEnum):
     OFF = "off"
     PAUSED = "paused"  # the user paused guidance (belt button): one tap, then quiet
     RESUMED = "resumed"  # the user resumed it: a short three-motor tap, then GUIDE
+    OBSTACLE = "obstacle"  # not guiding: the nearest obstacle's side, fast on one motor
 
 
 class BeltPattern(Message):
@@ -284,6 +285,30 @@ class RfidStats(Message):
         default=None, description="what the last pose came from"
     )
     quality: float | None = Field(default=None, ge=0, le=1)
+    stamp: Stamp
+
+
+class Proximity(Message):
+    """The nearest obstacles in the mapper's latest frame: the belt's safety input.
+
+    From the frame itself, not the merged map, so the daemon can stop the user before
+    contact whatever the planner knows. Distances from the user to the obstacle's nearest
+    edge; None when the frame shows no obstacle there.
+    """
+
+    ahead_m: Amount | None = Field(
+        default=None,
+        description="nearest obstacle in the walking corridor, in front of the user",
+    )
+    nearest_m: Amount | None = None
+    bearing: float | None = Field(
+        default=None,
+        ge=-4.0,
+        le=4.0,
+        allow_inf_nan=False,
+        description="of the nearest obstacle, radians from the heading, CCW positive (left)",
+    )
+    frame_stamp: Stamp = Field(description="when the frame was taken")
     stamp: Stamp
 
 

@@ -39,6 +39,7 @@ from .messages import (
     NavPath,
     NavStatus,
     Pose,
+    Proximity,
     RfidStats,
     UserSettings,
     VoiceCue,
@@ -235,6 +236,8 @@ VOICE = _t("voice", "voice", VoiceCue, PS, "daemon", "voice driver, recorder",
            to=(V, S, MON))
 RFID_STATS = _t("rfid_stats", "rfid/stats", RfidStats, PS, "RFID node", "view, tools",
                 by=(R, S), to=(MON,), qos=LATEST_WINS)
+PROXIMITY = _t("proximity", "proximity", Proximity, PS, "mapper", "daemon (STOP before contact)",
+               by=(M, S), to=(D,))
 HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", to=(S, MON),
             per_user=False)
 ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)",
@@ -243,7 +246,7 @@ ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes
 TOPICS: tuple[Topic, ...] = (
     MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,
     BELT, BELT_HEALTH, BELT_BUTTON, SETTINGS_SET, SETTINGS, SETTINGS_QUERY, VOICE, RFID_STATS,
-    HEALTH, ALIVE,
+    PROXIMITY, HEALTH, ALIVE,
 )  # fmt: skip
 
 

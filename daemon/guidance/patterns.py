@@ -47,6 +47,8 @@ EVENT_SHAPES: dict[PatternKind, EventShape] = {
     PatternKind.PAUSED: EventShape((0, 0, 255, 0), 0, 100),
     PatternKind.RESUMED: EventShape((0, 200, 200, 200), 0, 150),
 }
+OBSTACLE_PULSE_MS = 120
+"""OBSTACLE's pulse: faster than GUIDE's fastest (200 ms), so the two never feel alike."""
 PAUSE_QUIET_MS = 200
 """After a pause the belt is quiet within this long (the PAUSED tap's TTL is shorter)."""
 
@@ -177,6 +179,22 @@ class PatternMaker:
             motors=(motors[0], motors[1], motors[2], motors[3]),
             period_ms=300,
             ttl_ms=1000,
+            stamp=now,
+        )
+
+    def obstacle(self, cw: float, distance_m: float, now: float) -> BeltPattern:
+        """An obstacle near on side ``cw`` (clockwise from the front): its nearest motor alone,
+        pulsing every 120 ms (faster than GUIDE ever does), stronger the closer it is."""
+        motor = round((cw % (2.0 * math.pi)) / QUARTER) % 4
+        strength = round(255 - 115 * min(1.0, max(0.0, distance_m)))  # 255 at 0 m, 140 at 1 m
+        motors = [0, 0, 0, 0]
+        motors[motor] = strength
+        return BeltPattern(
+            seq=self._next(),
+            kind=PatternKind.OBSTACLE,
+            motors=(motors[0], motors[1], motors[2], motors[3]),
+            period_ms=OBSTACLE_PULSE_MS,
+            ttl_ms=400,
             stamp=now,
         )
 

@@ -15,6 +15,7 @@ from protocol.messages import (
     NavPath,
     NavStatus,
     Pose,
+    Proximity,
     UserSettings,
     VoiceCue,
 )
@@ -46,6 +47,8 @@ class Inbox:
     """When the step's inputs were taken from the inbox (daemon clock). None: at ``now``."""
     overloaded: bool = False
     """The daemon is shedding this user: keep the map, goal and pose, guide nobody."""
+    proximity: Proximity | None = None
+    """The mapper's latest nearest-obstacle report (the latest wins)."""
 
     def urgent(self) -> bool:
         """Inputs that step the user at once; a pose alone (or a tick) may wait its turn."""
@@ -57,6 +60,7 @@ class Inbox:
             or self.goal
             or self.buttons
             or self.settings
+            or self.proximity  # the belt's safety input: never waits for a pose's turn
         )
 
     def __bool__(self) -> bool:
@@ -71,6 +75,7 @@ class Inbox:
             or self.buttons
             or self.settings
             or self.battery_v is not None
+            or self.proximity is not None
         )
 
 

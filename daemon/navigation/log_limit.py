@@ -9,6 +9,8 @@ carries the totals.
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass, field
 
 
@@ -35,3 +37,17 @@ class LogLimiter:
             return None
         self._tokens[key] = tokens - 1.0
         return self._held.pop(key, 0)
+
+    def refusal(
+        self, log: logging.Logger, user: str, code: str, reason: str, counted: bool
+    ) -> None:
+        """One refusal of ``user``'s as a log line, unless its code's bucket is empty: a refused
+        message at WARNING ("rejected"), a condition (no path, shutdown) at INFO."""
+        held = self.allow(code, time.monotonic())
+        if held is None:
+            return
+        fields: dict[str, object] = {"user": user, "code": code, "reason": reason}
+        if held:
+            fields["suppressed"] = held  # lines of this code held back since the last
+        level = logging.WARNING if counted else logging.INFO
+        log.log(level, "rejected" if counted else code, extra={"fields": fields})

@@ -22,12 +22,11 @@ from typing import Literal
 import numpy as np
 
 from daemon.guidance.guide import Guidance
-from daemon.planning.grid import Cell, in_bounds, xy_to_cell
+from daemon.planning.grid import Cell, cell_to_xy, in_bounds, xy_to_cell
 from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
 from protocol.messages import (
     Goal,
-    MapSnapshot,
     NavState,
     NavStatus,
     PatternKind,
@@ -42,6 +41,7 @@ from .log_limit import LogLimiter
 from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .pose_margin import PoseMargin
+from .proximity import ProximityGuard, ProximitySettings
 from .route import PlannerFactory, PlanReport, Route
 from .session_state import SessionState
 
@@ -76,6 +76,8 @@ class NavigatorSettings:
     landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     intensity: int = 100
     battery: BatteryPolicy = field(default_factory=BatteryPolicy)
+    stop_m: float = 0.6
+    """An obstacle nearer than this ahead in the camera's latest frame: STOP (``proximity``)."""
 
 
 @dataclass(slots=True)
@@ -130,6 +132,7 @@ class Navigator:
         self.rejected_by_code: dict[str, int] = {}
         """Refused inputs by status code, for the daemon's health (``rejected``: their sum)."""
         self.log_limit = LogLimiter()
+        self.safety = ProximityGuard(ProximitySettings(stop_m=settings.stop_m))
         self.steps = 0
         self.replans = 0
         self.last = StepReport()
@@ -192,6 +195,8 @@ class Navigator:
             self._take_pose(inbox.pose, received, now, out)
         elif self.pose is not None and self.pose_cell is None and self.maps.map is not None:
             self._take_pose(self.pose, self.pose_received, now, out)  # it came before the map
+        if self.safety.step(inbox.proximity, now, self.guidance, out, self.goal_cell is not None):
+            self.session.hold()  # an obstacle at arm's length: no GUIDE in this step
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)
@@ -218,13 +223,8 @@ class Navigator:
     def _whereabouts(self) -> Whereabouts:
         goal_xy = None
         if self.goal_cell is not None and self.maps.map is not None:
-            r, c = self.goal_cell
-            cell_m = self.settings.cell_m
-            goal_xy = ((c + 0.5) * cell_m, (self.maps.map.shape[0] - r - 0.5) * cell_m)
+            goal_xy = cell_to_xy(self.maps.map.shape, self.goal_cell, self.settings.cell_m)
         return Whereabouts(self.pose, goal_xy, self._distance_m, self._turn_xy)
-
-    def snapshot(self, now: float) -> MapSnapshot | None:
-        return self.maps.snapshot(now)
 
     # -- map, goal, pose ------------------------------------------------------------------
 
@@ -361,16 +361,7 @@ class Navigator:
             self.session.hold()
         if rej.counted:
             self.rejected_by_code[rej.code] = self.rejected_by_code.get(rej.code, 0) + 1
-        held = self.log_limit.allow(str(rej.code), time.monotonic())
-        if held is not None:
-            fields = {"user": self.user, "code": rej.code, "reason": rej.reason}
-            if held:
-                fields["suppressed"] = held  # lines of this code held back since the last
-            log.log(
-                logging.WARNING if rej.counted else logging.INFO,
-                "rejected" if rej.counted else rej.code,
-                extra={"fields": fields},
-            )
+        self.log_limit.refusal(log, self.user, str(rej.code), rej.reason, rej.counted)
         g = self.guidance.event(outcome.pattern, now, reason=rej.code)
         out.belt.append(g.pattern)
         if g.cue is not None:

@@ -22,7 +22,9 @@ from protocol.topics import Topic
 
 log = logging.getLogger("guidebelt.bridge")
 
-INPUTS = (T.MAP_DELTA, T.POSE, T.GOAL, T.BELT_BUTTON, T.SETTINGS_SET, T.BELT_HEALTH)
+INPUTS = (
+    T.MAP_DELTA, T.POSE, T.GOAL, T.BELT_BUTTON, T.SETTINGS_SET, T.BELT_HEALTH, T.PROXIMITY,
+)  # fmt: skip
 """What the daemon subscribes to, for every user."""
 QUERIES = (T.HEALTH, T.MAP_SNAPSHOT, T.STATUS_QUERY, T.SETTINGS_QUERY)
 """What the daemon answers (every user's, for the per-user ones)."""

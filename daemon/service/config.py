@@ -68,6 +68,9 @@ class DaemonConfig(BaseSettings):
         default=15.0, ge=0, le=600, description="the way said again on a long leg (0: never)"
     )
     stale_pose_s: float = Field(default=1.0, gt=0, le=60, description="older poses are refused")
+    stop_m: float = Field(
+        default=0.6, gt=0, le=5, description="an obstacle nearer than this ahead: STOP"
+    )
     max_users: int = Field(default=16, ge=1, le=10_000)
     max_map_cells: int = Field(
         default=2048 * 2048, ge=1, le=4096 * 4096, description="the largest map one user may have"
@@ -155,6 +158,7 @@ class DaemonConfig(BaseSettings):
             units=self.units,
             reassure_s=self.reassure_s,
             stale_pose_s=self.stale_pose_s,
+            stop_m=self.stop_m,
             landmarks=dict(self.landmarks),
             battery=BatteryPolicy(
                 low_v=self.low_battery_v, empty_v=self.battery_empty_v, full_v=self.battery_full_v

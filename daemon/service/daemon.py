@@ -341,6 +341,8 @@ class Daemon:
             runner.put_settings(msg)
         elif topic is T.BELT_HEALTH:
             runner.put_belt_health(msg)
+        elif topic is T.PROXIMITY:
+            runner.put_proximity(msg)
         else:
             runner.put_goal(msg)
 

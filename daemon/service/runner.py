@@ -29,6 +29,7 @@ from protocol.messages import (
     MapDelta,
     MapSnapshot,
     Pose,
+    Proximity,
     StatusCode,
     UserSettings,
 )
@@ -130,6 +131,11 @@ class UserRunner:
         with self._lock:
             self._inbox.buttons.append(press)
             self._heard(urgent=True)
+
+    def put_proximity(self, proximity: Proximity) -> None:
+        with self._lock:
+            self._inbox.proximity = proximity  # the latest frame's wins
+            self._heard(urgent=True)  # the belt's safety input steps the user at once
 
     def put_settings(self, settings: UserSettings) -> None:
         with self._lock:
@@ -287,7 +293,8 @@ class UserRunner:
         """Answer with this user's map, read on the worker thread between steps."""
         loop = asyncio.get_running_loop()
         try:
-            snap = await loop.run_in_executor(self._executor, self.navigator.snapshot, time.time())
+            maps = self.navigator.maps
+            snap = await loop.run_in_executor(self._executor, maps.snapshot, time.time())
             if snap is None:
                 query.reply_err(b"no map yet")
             else:

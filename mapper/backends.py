@@ -1,0 +1,43 @@
+"""Which backend runs the per-pixel pass: chosen here and nowhere else.
+
+``cpu`` is the numba loop of ``binning.py``; ``cuda`` the CuPy pass of ``cuda_binning.py``
+(``cupy`` is optional: imported only when asked for, or when ``auto`` finds a device).
+Both take the same arguments and return the same ``Binned``, so the mapper never knows
+which one ran. ``auto`` takes cuda when a device answers, else cpu, as the planner does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from .binning import Binned, bin_frame_cpu
+
+BACKENDS = ("auto", "cpu", "cuda")
+
+
+class Binner:
+    def __init__(self, name: str, fn: Callable[..., Binned]) -> None:
+        self.name, self._fn = name, fn
+
+    def __call__(self, *args: Any) -> Binned:
+        return self._fn(*args)
+
+
+def cuda_usable() -> bool:
+    try:
+        import cupy
+
+        return cupy.cuda.runtime.getDeviceCount() > 0
+    except Exception:  # no cupy, no driver, no device: all mean "not here"
+        return False
+
+
+def make_binner(name: str = "auto") -> Binner:
+    if name not in BACKENDS:
+        raise ValueError(f"mapper backend must be one of {BACKENDS}, not {name!r}")
+    if name == "cuda" or (name == "auto" and cuda_usable()):
+        from .cuda_binning import bin_frame_cuda
+
+        return Binner("cuda", bin_frame_cuda)
+    return Binner("cpu", bin_frame_cpu)

@@ -1,0 +1,158 @@
+"""The per-pixel pass on the CPU: depth → 3D points → floor height → cells and rays.
+
+One numba loop over the pixels does what seed 000's mapper does per frame ("projecting 3D
+points to the floor and defining a threshold in height", §1): back-project each pixel with
+the pinhole model, move it into the world with the camera's (floor-corrected) pose, and
+count it in the cell under it when its height above the floor lies between the minimum and
+the maximum. The same loop keeps, per bin of image columns, the nearest obstacle point and
+the farthest point seen free (floor, or anything past the range), which is where that
+column's ray clears the map. ``cuda_binning.py`` is the same pass in CuPy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+MIN_DEPTH_M = 0.15
+"""Nearer than this no depth camera measures (a D435 from 0.1-0.3 m): a value there is noise."""
+PUSH_M = 0.002
+"""How far a surface point is moved on along its ray before it is binned: a face lying on
+a cell boundary then counts in the cell behind it, not the free one in front (above the
+millimetre of a 16-bit depth image); small enough not to carry the far edge of a table's
+top, seen at a grazing angle, into the next cell."""
+
+
+@dataclass(frozen=True)
+class Window:
+    """The square of map cells a frame can touch: rows ``r0..r0+side``, cols likewise."""
+
+    r0: int
+    c0: int
+    side: int
+    map_rows: int
+    cell_m: float
+
+
+@dataclass
+class Binned:
+    """What one frame says, in its window and per column bin."""
+
+    counts: np.ndarray
+    """``(2, side, side)`` int32: obstacle points ([0]) and floor points ([1]) per cell."""
+    hit: np.ndarray
+    """``(bins, 3)`` float32: squared range, x, y of the nearest obstacle point (inf: none)."""
+    far: np.ndarray
+    """``(bins, 3)`` float32: squared range, x, y of the farthest free point (-1: none)."""
+    valid: int
+    """Pixels with a usable depth."""
+
+
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map_rows, cell_m,
+                min_h, max_h, max_range, cols_per_bin, stride, min_depth):  # fmt: skip
+    h, w = depth.shape
+    bins = (w + cols_per_bin - 1) // cols_per_bin
+    counts = np.zeros((2, side, side), np.int32)
+    hit = np.empty((bins, 3), np.float64)
+    far = np.empty((bins, 3), np.float64)
+    for b in range(bins):
+        hit[b, 0] = np.inf
+        far[b, 0] = -1.0
+    valid = 0
+    max_r2 = max_range * max_range
+    inv = 1.0 / cell_m
+    # Row and column terms of each pixel's ray, so the loop only multiplies and adds.
+    rxs = (np.arange(w) - cx) / fx
+    ax, ay, az = rot[0, 0] * rxs, rot[1, 0] * rxs, rot[2, 0] * rxs
+    top = map_rows - 1 - r0
+    for v in range(0, h, stride):
+        ry = (v - cy) / fy
+        bx = rot[0, 1] * ry + rot[0, 2]
+        by = rot[1, 1] * ry + rot[1, 2]
+        bz = rot[2, 1] * ry + rot[2, 2]
+        for u in range(0, w, stride):
+            d = depth[v, u] * scale
+            if not (d >= min_depth) or d > 1e4:  # 0, too near, NaN or inf: missing
+                continue
+            valid += 1
+            dx = (ax[u] + bx) * d
+            dy = (ay[u] + by) * d
+            pz = (az[u] + bz) * d + t[2] - floor_z
+            px, py = dx + t[0], dy + t[1]
+            r2 = dx * dx + dy * dy
+            b = u // cols_per_bin
+            if r2 > max_r2:  # past the range: free as far as the range, no obstacle
+                if max_r2 > far[b, 0]:
+                    k = max_range / np.sqrt(r2)
+                    far[b, 0], far[b, 1], far[b, 2] = max_r2, t[0] + dx * k, t[1] + dy * k
+                continue
+            if pz < min_h:
+                if r2 > far[b, 0]:
+                    far[b, 0], far[b, 1], far[b, 2] = r2, px, py
+                row = top - int(np.floor(py * inv))
+                col = int(np.floor(px * inv)) - c0
+                if 0 <= row < side and 0 <= col < side:
+                    counts[1, row, col] += 1
+            elif pz <= max_h:
+                if r2 < hit[b, 0]:
+                    hit[b, 0], hit[b, 1], hit[b, 2] = r2, px, py
+                # A face on a cell boundary belongs to the cell behind it: push the point
+                # PUSH_M on along its ray before binning it.
+                k = 1.0 + PUSH_M / np.sqrt(r2 + 1e-12)
+                row = top - int(np.floor((t[1] + dy * k) * inv))
+                col = int(np.floor((t[0] + dx * k) * inv)) - c0
+                if 0 <= row < side and 0 <= col < side:
+                    counts[0, row, col] += 1
+    return counts, hit, far, valid
+
+
+def bin_frame_cpu(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
+                  floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
+                  cols_per_bin: int, stride: int,
+                  min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
+    counts, hit, far, valid = _bin_pixels(
+        depth, float(scale), float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy),
+        np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(t, np.float64),
+        float(floor_z), win.r0, win.c0, win.side, win.map_rows, float(win.cell_m),
+        float(min_h), float(max_h), float(max_range), int(cols_per_bin), int(stride),
+        float(min_depth),
+    )  # fmt: skip
+    return Binned(counts, hit, far, int(valid))
+
+
+@njit(cache=True, nogil=True)
+def clear_rays(hit, far, cam_x, cam_y, r0, c0, side, map_rows, cell_m, clearance):
+    """``(side, side)`` uint8: 1 where some column's ray passed before its first hit.
+
+    A ray ends ``clearance`` short of the nearest obstacle point of its column (the cell
+    holding the obstacle's face is not the ray's to clear), or at the farthest free point
+    when the column saw no obstacle. A column with no valid depth clears nothing.
+    """
+    free = np.zeros((side, side), np.uint8)
+    step = cell_m * 0.5
+    inv = 1.0 / cell_m
+    for b in range(hit.shape[0]):
+        if hit[b, 0] < np.inf:
+            tx, ty = hit[b, 1], hit[b, 2]
+            end = np.sqrt(hit[b, 0]) - clearance
+        elif far[b, 0] >= 0.0:
+            tx, ty = far[b, 1], far[b, 2]
+            end = np.sqrt(far[b, 0])
+        else:
+            continue
+        full = np.sqrt((tx - cam_x) ** 2 + (ty - cam_y) ** 2)
+        if full <= 0.0 or end <= 0.0:
+            continue
+        ux, uy = (tx - cam_x) / full, (ty - cam_y) / full
+        n = int(end / step) + 1
+        for i in range(n):
+            s = min(i * step, end)
+            x, y = cam_x + ux * s, cam_y + uy * s
+            row = map_rows - 1 - int(np.floor(y * inv)) - r0
+            col = int(np.floor(x * inv)) - c0
+            if 0 <= row < side and 0 <= col < side:
+                free[row, col] = 1
+    return free

@@ -1,0 +1,93 @@
+"""The per-pixel pass of ``binning.py`` on the GPU: same arguments, same result.
+
+One CUDA kernel (``kernels/bin_pixels.cu``, built with CuPy's ``RawModule``) back-projects
+every pixel, moves it into the world, tests its height and counts it in its cell with
+``atomicAdd``; the nearest obstacle point and the farthest free point of each column bin
+are 64-bit ``atomicMin``/``atomicMax`` of (squared range, pixel index) keys, and a second,
+tiny kernel reads back the winning points. The depth image goes up once; the window's
+counts and the per-bin arrays (a few kB) come back in one copy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cupy as cp
+import numpy as np
+
+from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window
+
+KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
+THREADS = 256
+_MODULES: dict[str, cp.RawModule] = {}
+_BUFFERS: dict[tuple, tuple] = {}
+
+
+def _module(dtype: np.dtype) -> cp.RawModule:
+    name = "uint16" if dtype == np.uint16 else "float"
+    if name not in _MODULES:
+        options = ("-std=c++17",) + (("-DDEPTH_FLOAT",) if name == "float" else ())
+        _MODULES[name] = cp.RawModule(code=KERNEL.read_text(), options=options)
+    return _MODULES[name]
+
+
+def _buffers(side: int, bins: int) -> tuple:
+    """Device buffers reused from frame to frame (one allocation per window and bin count)."""
+    key = (side, bins)
+    if key not in _BUFFERS:
+        n = 2 * side * side
+        out = cp.empty(n + 1 + 6 * bins * 2, cp.int32)  # counts | valid | hit, far (doubles)
+        _BUFFERS[key] = (
+            out,
+            cp.empty(bins, cp.uint64),
+            cp.empty(bins, cp.uint64),
+            cp.empty(24, cp.float64),
+        )
+    return _BUFFERS[key]
+
+
+def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
+                   floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
+                   cols_per_bin: int, stride: int,
+                   min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
+    if stride != 1:
+        depth = np.ascontiguousarray(depth[::stride, ::stride])
+        intr = intr.scaled(1.0 / stride)
+    if depth.dtype == np.float64:
+        depth = depth.astype(np.float32)
+    h, w = depth.shape
+    bins = (w + cols_per_bin - 1) // cols_per_bin
+    out, hit_key, far_key, params = _buffers(win.side, bins)
+    n = 2 * win.side * win.side
+    p = np.empty(24, np.float64)
+    p[:4] = (intr.fx, intr.fy, intr.cx, intr.cy)
+    p[4:13] = np.asarray(rot, np.float64).ravel()
+    p[13:16] = t
+    p[16:24] = (floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale)
+    params.set(p)
+    d = cp.asarray(np.ascontiguousarray(depth))
+    out[: n + 1].fill(0)
+    hit_key.fill(np.iinfo(np.uint64).max)
+    far_key.fill(0)
+    mod = _module(depth.dtype)
+    counts, valid = out[:n], out[n : n + 1]
+    hit = out[n + 1 : n + 1 + 6 * bins].view(cp.float64)
+    far = out[n + 1 + 6 * bins :].view(cp.float64)
+    grid = ((h * w + THREADS - 1) // THREADS,)
+    mod.get_function("bin_pixels")(
+        grid, (THREADS,),
+        (d, np.int32(h), np.int32(w), params, np.int32(win.r0), np.int32(win.c0),
+         np.int32(win.side), np.int32(win.map_rows), np.int32(cols_per_bin), counts, hit_key,
+         far_key, valid),
+    )  # fmt: skip
+    mod.get_function("read_bins")(
+        ((bins + 63) // 64,), (64,),
+        (d, np.int32(w), params, np.int32(bins), hit_key, far_key, hit, far),
+    )  # fmt: skip
+    host = out.get()  # the one copy back
+    return Binned(
+        host[:n].reshape(2, win.side, win.side).copy(),
+        host[n + 1 : n + 1 + 6 * bins].view(np.float64).reshape(bins, 3).copy(),
+        host[n + 1 + 6 * bins :].view(np.float64).reshape(bins, 3).copy(),
+        int(host[n]),
+    )

@@ -1,0 +1,202 @@
+"""The mapper proper: one frame in, the changed cells of the global map and proximity out.
+
+``OccupancyMapper.process`` checks the frame (``frame.check_frame``), fits the floor
+(``floor.fit_floor``), runs the per-pixel pass on the chosen backend (``backends``), clears
+along the rays, and merges the frame into the global map: a cell with at least
+``min_points`` obstacle points is OCCUPIED, a cell some ray passed before its hit is FREE,
+everything else keeps what it had. Only the cells that changed come out, ready for a
+``MapDelta``. Everything is computed before the map is touched, so a frame refused at any
+point leaves the map exactly as it was.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .backends import make_binner
+from .binning import Window, clear_rays
+from .floor import NOMINAL, FloorFit, fit_floor, sample_points
+from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
+from .proximity import Proximity, nearest_obstacles
+
+FREE, OCCUPIED, UNKNOWN = 0, 1, 2
+"""As ``protocol.messages.OCCUPANCY_VALUES`` and ``daemon.planning.grid``."""
+
+JUMPS_TO_RELOCALISE = 5
+"""Consecutive pose jumps after which the new place is believed (the localiser re-fixed)."""
+
+
+@dataclass(frozen=True)
+class MapperSettings:
+    shape: tuple[int, int] = (100, 100)
+    cell_m: float = 0.10
+    min_height_m: float = 0.10
+    """Below this above the floor a point is floor (seed 000's height threshold)."""
+    max_height_m: float = 2.0
+    """Above this a point is overhead: nothing a walker runs into."""
+    max_range_m: float = 3.0
+    """Seed 000's sensing range (3.0 m)."""
+    min_points: int = 3
+    """Obstacle points a cell needs in one frame to be OCCUPIED (single noisy points are not)."""
+    min_share: float = 0.25
+    """Share of a cell's points (obstacle and floor) that must be obstacle points."""
+    cols_per_bin: int = 4
+    """Image columns that share one clearing ray."""
+    stride: int = 1
+    """Pixel step of the per-pixel pass (1 = every pixel)."""
+    floor_ransac: bool = True
+    floor_sample_step: int = 12
+    max_tilt_deg: float = 25.0
+    backend: str = "auto"
+    limits: FrameLimits = field(default_factory=FrameLimits)
+    forget_s: float = 10.0
+    """An obstacle the mapper saw but has not seen again for this long, out of view, goes back
+    to UNKNOWN (0: never). A person who walked off while nobody looked is not a wall for
+    good; a box still there is seen again on the way. Obstacles of the start map stay."""
+    corridor_m: float = 0.2
+    """Half-width of the walking corridor in which an obstacle counts as ahead: half a
+    walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
+
+
+@dataclass
+class FrameResult:
+    cells: np.ndarray
+    """Flat indices (``row * width + col``) of the cells this frame changed."""
+    values: np.ndarray
+    """Their new occupancy."""
+    proximity: Proximity
+    floor: FloorFit
+    valid: int
+    ms: dict[str, float]
+
+
+class OccupancyMapper:
+    """One user's global map, built frame by frame."""
+
+    def __init__(self, settings: MapperSettings | None = None,
+                 initial: np.ndarray | None = None) -> None:  # fmt: skip
+        self.settings = s = settings or MapperSettings()
+        if initial is not None:
+            if initial.shape != s.shape:
+                raise ValueError(f"initial map {initial.shape} is not {s.shape}")
+            self.occupancy = np.ascontiguousarray(initial, dtype=np.uint8).copy()
+        else:
+            self.occupancy = np.full(s.shape, UNKNOWN, np.uint8)
+        self._fixed = self.occupancy == OCCUPIED
+        self.seen_at = np.zeros(s.shape, np.float64)
+        """When each cell was last seen occupied or free."""
+        self._forgot_at = 0.0
+        self.binner = make_binner(s.backend)
+        self.refused: Counter[str] = Counter()
+        self.frames = 0
+        self.last_stamp: float | None = None
+        self.last_xy: tuple[float, float] | None = None
+        self._jumps = 0
+        reach = math.ceil(s.max_range_m / s.cell_m) + 2
+        self._side = 2 * reach + 1
+        self._reach = reach
+
+    @property
+    def backend(self) -> str:
+        return self.binner.name
+
+    def window(self, x: float, y: float) -> Window:
+        h = self.settings.shape[0]
+        row = h - 1 - math.floor(y / self.settings.cell_m)
+        col = math.floor(x / self.settings.cell_m)
+        return Window(row - self._reach, col - self._reach, self._side, h, self.settings.cell_m)
+
+    def process(self, frame: DepthFrame) -> FrameResult:
+        """Merge one frame; ``FrameRejected`` (counted, map untouched) if it is unusable."""
+        try:
+            return self._process(frame)
+        except FrameRejected as exc:
+            self.refused[exc.refusal] += 1
+            if exc.refusal is Refusal.POSE_JUMP:
+                self._jumps += 1
+                if self._jumps >= JUMPS_TO_RELOCALISE:
+                    self.last_xy, self._jumps = None, 0
+            raise
+
+    def _process(self, frame: DepthFrame) -> FrameResult:
+        s = self.settings
+        t0 = time.perf_counter()
+        intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
+        depth = frame.depth
+        scale = intr.depth_scale if depth.dtype == np.uint16 else 1.0
+        rot = pose.world_from_optical()
+        cam = np.asarray(pose.position, np.float64)
+        t1 = time.perf_counter()
+        fit = NOMINAL
+        if s.floor_ransac:
+            pts = sample_points(depth, scale, intr, rot, cam, s.floor_sample_step)
+            fit = fit_floor(pts, cam, max_tilt_deg=s.max_tilt_deg)
+        t2 = time.perf_counter()
+        win = self.window(cam[0], cam[1])
+        binned = self.binner(depth, scale, intr, fit.rotation @ rot, cam, fit.floor_z, win,
+                             s.min_height_m, s.max_height_m, s.max_range_m, s.cols_per_bin,
+                             s.stride)  # fmt: skip
+        t3 = time.perf_counter()
+        free = clear_rays(binned.hit, binned.far, cam[0], cam[1], win.r0, win.c0, win.side,
+                          win.map_rows, win.cell_m, 0.5 * win.cell_m)  # fmt: skip
+        obst, floor = binned.counts[0], binned.counts[1]
+        # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
+        # in front of a face, where range noise scatters some of the face's points, is not.
+        occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
+        cleared = free.astype(bool) & (obst == 0)
+        cells, values, seen = self._changes(win, occupied, cleared, floor >= s.min_points)
+        cells, values = self._forget(cells, values, seen, frame.stamp)
+        prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
+                                 frame.stamp)  # fmt: skip
+        t4 = time.perf_counter()
+        # Everything is known: only now does the map change.
+        self.occupancy.reshape(-1)[cells] = values
+        self.seen_at.reshape(-1)[seen] = frame.stamp
+        self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
+        self.frames += 1
+        ms = {
+            "check": (t1 - t0) * 1e3, "floor": (t2 - t1) * 1e3, "bin": (t3 - t2) * 1e3,
+            "merge": (t4 - t3) * 1e3, "total": (t4 - t0) * 1e3,
+        }  # fmt: skip
+        return FrameResult(cells, values, prox, fit, binned.valid, ms)
+
+    def _forget(self, cells: np.ndarray, values: np.ndarray, seen: np.ndarray,
+                stamp: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Add to the change the obstacles gone unseen for ``forget_s`` (checked once a
+        second: the whole map is scanned)."""
+        s = self.settings
+        if s.forget_s <= 0 or stamp - self._forgot_at < 1.0:
+            return cells, values
+        self._forgot_at = stamp
+        old = (self.occupancy == OCCUPIED) & ~self._fixed & (self.seen_at < stamp - s.forget_s)
+        old.reshape(-1)[seen] = False
+        gone = np.flatnonzero(old)
+        if gone.size == 0:
+            return cells, values
+        return (np.concatenate((cells, gone)),
+                np.concatenate((values, np.full(gone.size, UNKNOWN, np.uint8))))  # fmt: skip
+
+    def _changes(self, win: Window, occupied: np.ndarray, free: np.ndarray,
+                 floor_seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """Flat cells and new values where the frame changes the map (window clipped), and
+        the flat cells it saw. A ray crossing a cell frees it when it was unknown; a cell
+        the map holds as an obstacle is freed only where the frame also sees its floor (a
+        ray grazing the corner of a box's cell is no proof the box has gone)."""
+        h, w = self.settings.shape
+        r0, c0 = max(0, win.r0), max(0, win.c0)
+        r1, c1 = min(h, win.r0 + win.side), min(w, win.c0 + win.side)
+        if r0 >= r1 or c0 >= c1:
+            return np.empty(0, np.int64), np.empty(0, np.uint8), np.empty(0, np.int64)
+        local = (slice(r0 - win.r0, r1 - win.r0), slice(c0 - win.c0, c1 - win.c0))
+        old = self.occupancy[r0:r1, c0:c1]
+        frees = free[local] & ((old != OCCUPIED) | floor_seen[local])
+        new = np.where(occupied[local], OCCUPIED, np.where(frees, FREE, old))
+        rr, cc = np.nonzero(new != old)
+        sr, sc = np.nonzero(occupied[local] | free[local])
+        return (((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8),
+                ((sr + r0) * w + (sc + c0)).astype(np.int64))  # fmt: skip

@@ -1,0 +1,84 @@
+"""STOP before contact: the mapper's proximity overrides guidance in the same step."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from daemon.navigation import Inbox, Navigator, NavigatorSettings
+from protocol.messages import Goal, GoalCell, MapDelta, NavState, PatternKind, Pose, Proximity
+
+SHAPE = (30, 30)
+
+
+def pose(r: int, c: int, now: float) -> Pose:
+    return Pose(x=(c + 0.5) / 10, y=(SHAPE[0] - r - 0.5) / 10, heading=1.57, stamp=now)
+
+
+def near(ahead: float | None, now: float, nearest: float | None = None,
+         bearing: float | None = None) -> Proximity:  # fmt: skip
+    nearest = ahead if nearest is None else nearest
+    return Proximity(ahead_m=ahead, nearest_m=nearest, bearing=0.0 if bearing is None else bearing,
+                     frame_stamp=now, stamp=now)  # fmt: skip
+
+
+def guiding(now: float, stop_m: float = 0.6) -> Navigator:
+    s = Navigator("u", NavigatorSettings(backend="cpu", stop_m=stop_m))
+    first = MapDelta.from_arrays(0, SHAPE, np.array([0]), np.array([1]), now)
+    out = s.step(Inbox(deltas=[first], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
+                       pose=pose(26, 15, now)), now)  # fmt: skip
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+    return s
+
+
+def test_obstacle_closer_than_stop_m_stops_whatever_the_planner_says():
+    now = time.time()
+    s = guiding(now)
+    # The planner's map is clear ahead; the camera's latest frame is not.
+    out = s.step(Inbox(pose=pose(25, 15, now + 0.1), proximity=near(0.4, now + 0.1)), now + 0.1)
+    kinds = [b.kind for b in out.belt]
+    assert kinds == [PatternKind.STOP], kinds  # no GUIDE after it in the same step
+    assert out.path_cells is None
+    assert any(c.kind == "stop" for c in out.voice)
+    assert s.safety.stops == 1
+
+
+def test_stop_is_held_then_guidance_leads_around_and_a_closer_obstacle_stops_again():
+    now = time.time()
+    s = guiding(now)
+    s.step(Inbox(proximity=near(0.5, now)), now)
+    held = s.step(Inbox(pose=pose(25, 15, now + 0.2)), now + 0.2)  # same obstacle, in the hold
+    assert [b.kind for b in held.belt] == [PatternKind.STOP]
+    after = s.step(Inbox(pose=pose(25, 15, now + 0.8), proximity=near(0.5, now + 0.8)), now + 0.8)
+    assert [b.kind for b in after.belt] == [PatternKind.GUIDE]  # stopped and felt: go on
+    closer = s.step(Inbox(proximity=near(0.3, now + 0.9), pose=pose(25, 15, now + 0.9)), now + 0.9)
+    assert [b.kind for b in closer.belt] == [PatternKind.STOP] and s.safety.stops == 2
+
+
+def test_configurable_distance_and_clear_way():
+    now = time.time()
+    s = guiding(now, stop_m=0.3)
+    out = s.step(Inbox(pose=pose(25, 15, now), proximity=near(0.4, now)), now)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]  # 0.4 m is beyond 0.3 m
+    out = s.step(Inbox(pose=pose(25, 15, now), proximity=near(None, now)), now)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+
+
+def test_an_old_proximity_is_not_acted_on():
+    now = time.time()
+    s = guiding(now)
+    out = s.step(Inbox(pose=pose(25, 15, now), proximity=near(0.2, now - 5.0)), now)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+
+
+def test_not_guiding_the_obstacle_is_felt_on_its_side():
+    now = time.time()
+    s = Navigator("u", NavigatorSettings(backend="cpu"))
+    # Nearest 0.8 m away, 90° to the left (bearing +π/2): the left motor alone, fast pulse.
+    out = s.step(Inbox(proximity=near(None, now, nearest=0.8, bearing=1.5708)), now)
+    assert [b.kind for b in out.belt] == [PatternKind.OBSTACLE]
+    motors = out.belt[0].motors
+    assert motors[3] > 0 and motors[0] == motors[1] == motors[2] == 0
+    assert out.belt[0].period_ms < 200  # faster than any GUIDE pulse
+    assert s.state == NavState.IDLE

@@ -1,0 +1,73 @@
+"""Points land in the right cells: a box of known size and distance, a tilted camera."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mapper.occupancy_mapper import FREE, OCCUPIED, UNKNOWN
+
+from .scenes import box_scene, frame, mapper
+
+
+def test_box_of_known_size_lands_in_its_cells():
+    m = mapper()
+    m.process(frame(box_scene(), 1.0))
+    occ = m.occupancy
+    # The camera sees the box's near face (row 38) across its width, and its top: every
+    # cell it marks is one of the box's, and the near face is whole.
+    marked = np.argwhere(occ == OCCUPIED)
+    assert len(marked) > 0
+    assert marked[:, 0].min() >= 33 and marked[:, 0].max() <= 38
+    assert marked[:, 1].min() >= 28 and marked[:, 1].max() <= 33
+    assert (occ[38, 28:34] == OCCUPIED).all()
+    # Between the camera and the face the floor was seen through: free, not unknown.
+    assert (occ[40:47, 29:33] == FREE).all()
+    # Behind the box, hidden, stays unknown.
+    assert (occ[25:30, 30:32] == UNKNOWN).all()
+
+
+def test_noisy_frames_keep_the_box_in_place():
+    m = mapper()
+    for i in range(5):
+        m.process(frame(box_scene(), 1.0 + i, rng=i))
+    marked = np.argwhere(m.occupancy == OCCUPIED)
+    assert (m.occupancy[38, 28:34] == OCCUPIED).all()
+    # Range noise may smear an edge by one cell (2 cm of noise at 1.8 m), never further.
+    assert marked[:, 0].max() <= 39 and marked[:, 0].min() >= 32
+    assert marked[:, 1].max() <= 34 and marked[:, 1].min() >= 27
+
+
+def test_tilted_camera_still_finds_the_floor():
+    """The chest camera slipped: really pitched 42°, the mounting says 30°. Without the
+    floor fit the floor ahead rises above the height threshold and fills the map with
+    obstacles; with RANSAC the floor is found, the box is where it is, and nothing else."""
+    tilted = frame(box_scene(), 1.0, pitch=42.0, reported_pitch=30.0)
+    naive = mapper(floor_ransac=False)
+    naive.process(tilted)
+    assert (naive.occupancy == OCCUPIED).sum() > 20  # the floor itself taken for obstacles
+    m = mapper()
+    result = m.process(tilted)
+    assert result.floor.fitted and 8.0 < result.floor.tilt_deg < 16.0
+    marked = np.argwhere(m.occupancy == OCCUPIED)
+    assert marked[:, 0].min() >= 33 and marked[:, 0].max() <= 39
+    assert marked[:, 1].min() >= 27 and marked[:, 1].max() <= 34
+    assert (m.occupancy[38, 29:33] == OCCUPIED).all()
+
+
+def test_table_a_cane_would_miss_is_an_obstacle():
+    """A table top at 0.70-0.76 m with nothing below: the camera sees it, so it is mapped."""
+    from sim.scene3d import TABLE, empty_scene
+
+    scene = empty_scene((60, 60), 0.1)
+    scene.put((slice(36, 39), slice(28, 34)), TABLE, 0.70, 0.76)
+    m = mapper()
+    m.process(frame(scene, 1.0))
+    assert (m.occupancy[36:39, 28:34] == OCCUPIED).sum() >= 12
+
+
+def test_proximity_reports_the_box_ahead():
+    m = mapper()
+    r = m.process(frame(box_scene(), 1.0))
+    # The face (row 38's south edge, y = 2.1 m) is 1.05 m straight ahead of the camera.
+    assert r.proximity.ahead_m is not None and 0.95 <= r.proximity.ahead_m <= 1.1
+    assert abs(r.proximity.bearing) < 0.3
