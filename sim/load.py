@@ -30,7 +30,15 @@ from zenoh.handlers import Callback
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import Goal, GoalCell, MapDelta, NavStatus, Pose, StatusCode
+from protocol.messages import (
+    Goal,
+    GoalCell,
+    MapDelta,
+    MapSnapshot,
+    NavStatus,
+    Pose,
+    StatusCode,
+)
 
 _MAP_SEQ = re.compile(rb'"map_seq":\s*(-?\d+)')
 
@@ -85,6 +93,13 @@ class LoadGenerator:
             wire.declare_subscriber(session, T.PATH, self._sink(self._on_path)),
             wire.declare_subscriber(session, T.STATUS, self._sink(self._on_status)),
         ]
+        self._maps: dict[str, tuple[int, np.ndarray]] = {}
+        """Each user's map as published (last seq, occupancy): the snapshot a daemon that
+        skipped deltas (a user it shed) asks for when it guides the user again."""
+        self._lock_maps = threading.Lock()
+        self._subs.append(
+            wire.declare_queryable(session, T.MAP_SOURCE, Callback(self._on_source, indirect=False))
+        )
         self._pose_pubs = {u: wire.declare_publisher(session, T.POSE, u) for u in self.names}
         self._delta_pubs = {u: wire.declare_publisher(session, T.MAP_DELTA, u) for u in self.names}
 
@@ -113,6 +128,22 @@ class LoadGenerator:
             with self._lock:
                 self.traces[user].codes[str(status.code) or status.state] += 1
 
+    def _on_source(self, query: zenoh.Query) -> None:
+        user = str(query.key_expr).split("/")[1]
+        with self._lock_maps:
+            seq, occ = self._maps.get(user, (-1, None))
+            occ = None if occ is None else occ.copy()
+        if occ is not None:
+            snap = MapSnapshot.from_array(seq, occ, time.time())
+            wire.reply(query, T.MAP_SOURCE, user, codec.encode(snap))
+        query.drop()
+
+    def _published(self, user: str, seq: int, cells: np.ndarray, values: np.ndarray) -> None:
+        with self._lock_maps:
+            occ = self._maps[user][1]
+            occ.reshape(-1)[cells] = values
+            self._maps[user] = (seq, occ)
+
     def run(self) -> None:
         spec, n = self.spec, self.spec.grid
         cell_m = 10.0 / n
@@ -121,6 +152,8 @@ class LoadGenerator:
         goal = codec.encode(Goal(target=GoalCell(row=n // 10, col=n // 2), stamp=time.time()))
         for u in self.names:
             first = MapDelta.from_arrays(0, (n, n), walls, np.ones(walls.size), time.time())
+            self._maps[u] = (0, np.zeros((n, n), np.uint8))
+            self._published(u, 0, walls, np.ones(walls.size, np.uint8))
             self._delta_pubs[u].put(codec.encode(first))
             wire.put(self.session, T.GOAL, u, goal)
         rngs = {u: np.random.default_rng([spec.seed, i]) for i, u in enumerate(self.names)}
@@ -153,6 +186,7 @@ class LoadGenerator:
                     data = codec.encode(
                         MapDelta.from_arrays(seq[u], (n, n), blob, values, time.time())
                     )
+                    self._published(u, seq[u], blob, values)
                     sent = time.perf_counter_ns()
                     self._delta_pubs[u].put(data)
                     trace = self.traces[u]

@@ -47,6 +47,8 @@ class Inbox:
     """When the step's inputs were taken from the inbox (daemon clock). None: at ``now``."""
     overloaded: bool = False
     """The daemon is shedding this user: keep the map, goal and pose, guide nobody."""
+    daemon_behind: bool = False
+    """The daemon's loop is late on its inputs: a pose gone missing is said as overload."""
     proximity: Proximity | None = None
     """The mapper's latest nearest-obstacle report (the latest wins)."""
 

@@ -141,7 +141,7 @@ class Navigator:
         self._distance_m: float | None = None
         self._turn_xy: tuple[float, float] | None = None
         self._taken_at = 0.0
-        self._shed = False
+        self._shed = self._behind = False
         self.controls = UserControls(
             settings.lang,  # type: ignore[arg-type]  # validated by the config
             settings.intensity,
@@ -164,7 +164,7 @@ class Navigator:
         self.last = StepReport()
         self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
         self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
-        self._shed = inbox.overloaded
+        self._shed, self._behind = inbox.overloaded, inbox.daemon_behind
         out = StepOutput()
         if self._shed:  # said first: nothing later in this step may guide
             why = "the daemon is at capacity: guidance paused"
@@ -309,6 +309,9 @@ class Navigator:
         if age > self.settings.stale_pose_s:
             # No fresh position: never keep guiding on an old one.
             self.pose, self.pose_cell = None, None
+            if self._behind:  # the daemon's own backlog may have kept the poses from us
+                why = f"no pose for {age:.2f} s while the daemon is behind on its inputs"
+                return self._reject(Rejection(StatusCode.OVERLOADED, why, counted=False), now, out)
             why = f"no pose for {age:.2f} s"
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         path, cost = self.route.path_from(

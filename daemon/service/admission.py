@@ -104,6 +104,11 @@ class Admission:
         self._lags.append((now, lag_ms))
         self._cpu.append((now, user, cpu_ms))
 
+    def record_loop(self, late_ms: float, now: float) -> None:
+        """How late the daemon's loop woke for its tick: a delay every user's inputs feel,
+        counted as one more lag (the steps' own lags miss it when inputs queue on the loop)."""
+        self._lags.append((now, late_ms))
+
     def _measure(self, now: float) -> None:
         start = now - self.s.window_s
         while self._lags and self._lags[0][0] < start:

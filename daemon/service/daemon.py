@@ -216,8 +216,15 @@ class Daemon:
         watchdog = self.notifier.watchdog_interval_s()
         if watchdog is not None:
             period = min(period, watchdog)
+        loop = asyncio.get_running_loop()
         while True:
+            due = loop.time() + period
             await asyncio.sleep(period)
+            # How late the loop woke: every input waits that long before it reaches a user.
+            late_ms = (loop.time() - due) * 1e3
+            self.admission.record_loop(late_ms, time.monotonic())
+            if self._pacing is not None:
+                self._pacing.behind = late_ms > self.config.lag_budget_ms
             self.notifier.watchdog()
             self._review_load()
             if self.state is not None:
@@ -225,8 +232,10 @@ class Daemon:
             now = asyncio.get_running_loop().time()
             for user, runner in list(self.runners.items()):
                 active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
-                if active:
-                    runner.tick()  # refreshes the belt; a pose gone stale stops the user
+                if active or runner.shed:
+                    # Refreshes the belt; a pose gone stale stops the user; a shed user (whose
+                    # poses are not even read) keeps hearing "overloaded", never silence.
+                    runner.tick()
                 elif now - runner.last_input > self.config.user_idle_s:
                     self._forget(user)
 
@@ -295,6 +304,8 @@ class Daemon:
         )
         runner.shed = not self.admission.join(user, time.monotonic())
         self.runners[user] = runner
+        if runner.shed:
+            runner.tick()  # told at once that the daemon is full, not at its first input
         # The belt driver may have started first: it learns the user's intensity now.
         self._bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
         log.info("new user", extra={"fields": {"user": user, "backend": navigator.route.name}})
@@ -319,6 +330,12 @@ class Daemon:
             self._refuse_user(user)
             return
         assert topic.model is not None
+        if runner.shed and topic in (T.POSE, T.MAP_DELTA):
+            # Not even decoded: a shed user costs the loop nothing per pose. The deltas skipped
+            # leave a sequence gap, so the map is brought back by a snapshot (the user WAITs)
+            # once the user is guided again.
+            runner.skipped += 1
+            return
         if topic is T.MAP_DELTA:
             too_big = self._map_too_big(user, codec.map_cells(payload))
             if too_big is not None:  # before decoding: nothing allocated for it

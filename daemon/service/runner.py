@@ -54,6 +54,8 @@ class Pacing:
         self.guide_period_s = 1.0 / guide_hz
         self.shed_period_s = shed_period_s
         self._record = record
+        self.behind = False
+        """The daemon's loop is late on its inputs: a pose missing now may be ours to blame."""
 
     def record(self, user: str, lag_ms: float, cpu_ms: float) -> None:
         if self._record is not None:
@@ -94,6 +96,8 @@ class UserRunner:
         self._next_step_at = 0.0
         self.shed = False
         """Set by the daemon's admission control: step rarely, guide nobody, say overloaded."""
+        self.skipped = 0
+        """Poses and deltas not even decoded while shed."""
         self._closed = False
         self.last_status: bytes | None = None
         self._loop = asyncio.get_running_loop()
@@ -201,6 +205,7 @@ class UserRunner:
             started = time.monotonic()
             inbox.taken_at = time.time()
             inbox.overloaded = self.shed
+            inbox.daemon_behind = self.pacing.behind
             cpu_ms = self._step(inbox)
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
