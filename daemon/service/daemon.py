@@ -27,16 +27,16 @@ from daemon.navigation.log_limit import LogLimiter
 from daemon.navigation.warm import warm_up
 from daemon.planning import resolve_backend
 from protocol import codec
-from protocol import session as wire
 from protocol import topics as T
 from protocol.messages import Health, NavState, NavStatus, StatusCode
 from protocol.session import open_session
 from protocol.topics import Topic
 
-from .admission import Admission, AdmissionSettings
+from .admission import Admission, AdmissionSettings, map_too_big
 from .bridge import Bridge
 from .config import DaemonConfig
 from .persistence import Persistence
+from .queries import QueryAnswers, say_who_may_connect
 from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
@@ -44,10 +44,6 @@ from .user_settings import SettingsStore
 log = logging.getLogger("guidebelt.daemon")
 
 ACTIVE = (NavState.PLANNING, NavState.GUIDING, NavState.REROUTING)
-BYTES_PER_CELL = 64
-"""What one map cell costs a user, all told, for the memory budget: the map keeper's occupancy,
-cover and inflation (~8 B), the CPU planner's state (17 B at 2000²), the CUDA planner's host
-and device copies, with room for the copies a step makes."""
 STOP_BUDGET_S = 0.6
 
 
@@ -110,9 +106,10 @@ class Daemon:
             ),
         )
         self._warm_up()
-        self._say_who_may_connect()
+        say_who_may_connect(self.config.zenoh)
         self._zenoh = open_session(self.config.zenoh)
-        self._bridge = Bridge(self._zenoh, loop, self._on_sample, self._on_query)
+        answers = QueryAnswers(self.runners, self.health)
+        self._bridge = Bridge(self._zenoh, loop, self._on_sample, answers.on_query)
         self._restore()  # before the bridge hears anyone: a goal sent now finds its session
         self._bridge.start()
         self._observing = [observe(self._zenoh) for observe in self.observers]
@@ -139,27 +136,6 @@ class Daemon:
             if install_signals:
                 for sig in (signal.SIGTERM, signal.SIGINT):
                     loop.remove_signal_handler(sig)
-
-    def _say_who_may_connect(self) -> None:
-        """One line at start on who can reach the daemon: the first thing to read when a
-        phone cannot connect, or when the daemon is exposed more than meant."""
-        z = self.config.zenoh
-        where = {"listen": ",".join(z.listen) or "-", "connect": ",".join(z.connect) or "-"}
-        if z.tls is None and z.loopback_only():
-            log.info("no TLS: loopback only", extra={"fields": where})
-        elif z.tls is None:
-            log.warning(
-                "no TLS and endpoints beyond this host: whoever reaches them can steer any user",
-                extra={"fields": where},
-            )
-        elif z.access is None:
-            log.warning(
-                "mutual TLS without access control: any certified node may steer any user",
-                extra={"fields": where},
-            )
-        else:
-            fields = {**where, "users": len(z.access.users), "services": len(z.access.services)}
-            log.info("mutual TLS, access control by certificate name", extra={"fields": fields})
 
     def _warm_up(self) -> None:
         """Compile (or load) the configured planner's code before READY, so the first user's
@@ -364,24 +340,10 @@ class Daemon:
             runner.put_goal(msg)
 
     def _map_too_big(self, user: str, cells: int | None) -> str | None:
-        """Why a map of ``cells`` cells may not be ``user``'s (None: it may): past the per-user
-        cap, or past the memory budget with every other user's map as it is now."""
-        if cells is None:
-            return None  # no header: the decoder says what is wrong with it
-        if cells > self.config.max_map_cells:
-            return f"a map of {cells} cells exceeds max_map_cells {self.config.max_map_cells}"
-        others = sum(
-            r.navigator.maps.map.shape[0] * r.navigator.maps.map.shape[1]
-            for u, r in self.runners.items()
-            if u != user and r.navigator.maps.map is not None
-        )
-        need_mb = (others + cells) * BYTES_PER_CELL / 2**20
-        if need_mb > self.config.memory_budget_mb:
-            return (
-                f"a map of {cells} cells would bring all users' maps to {need_mb:.0f} MB, "
-                f"past memory_budget_mb {self.config.memory_budget_mb:g}"
-            )
-        return None
+        """Why a map of ``cells`` cells may not be ``user``'s (None: it may)."""
+        others = (r.navigator.maps.map for u, r in self.runners.items() if u != user)
+        sizes = [m.shape[0] * m.shape[1] for m in others if m is not None]
+        return map_too_big(cells, sizes, self.config.max_map_cells, self.config.memory_budget_mb)
 
     def _refuse_user(self, user: str) -> None:
         self.rejected_unrouted += 1
@@ -421,50 +383,6 @@ class Daemon:
             for code, n in runner.navigator.rejected_by_code.items():
                 totals[str(code)] = totals.get(str(code), 0) + n
         return totals
-
-    def _on_query(self, topic: Topic, query: zenoh.Query) -> None:
-        try:
-            if topic is T.HEALTH:
-                wire.reply(query, T.HEALTH, None, codec.encode(self.health()))
-            elif topic is T.STATUS_QUERY:
-                self._reply_statuses(query)
-            elif topic is T.SETTINGS_QUERY:
-                self._reply_settings(query)
-            else:
-                self._reply_snapshots(query)
-                return  # those replies come later, from the workers
-        except zenoh.ZError as exc:
-            log.warning(
-                "query reply failed", extra={"fields": {"topic": topic.name, "err": str(exc)}}
-            )
-        query.drop()
-
-    def _matching_users(self, query: zenoh.Query, topic: Topic) -> list[str]:
-        asked = query.key_expr
-        return [u for u in self.runners if asked.intersects(zenoh.KeyExpr(topic.key(u)))]
-
-    def _reply_statuses(self, query: zenoh.Query) -> None:
-        for user in self._matching_users(query, T.STATUS_QUERY):
-            runner = self.runners[user]
-            payload = runner.last_status or codec.encode(runner.navigator.status(time.time()))
-            wire.reply(query, T.STATUS_QUERY, user, payload)
-
-    def _reply_settings(self, query: zenoh.Query) -> None:
-        for user in self._matching_users(query, T.SETTINGS_QUERY):
-            settings = self.runners[user].settings(time.time())
-            wire.reply(query, T.SETTINGS_QUERY, user, codec.encode(settings))
-
-    def _reply_snapshots(self, query: zenoh.Query) -> None:
-        users = self._matching_users(query, T.MAP_SNAPSHOT)
-        if not users:
-            query.drop()
-            return
-        # One query, one user: wildcard snapshot queries are answered for the first match.
-        runner = self.runners[users[0]]
-        task = asyncio.get_running_loop().create_task(
-            runner.reply_snapshot(query, T.MAP_SNAPSHOT.key(users[0]))
-        )
-        task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
 
 
 async def serve(config: DaemonConfig, observers: Sequence[Observer] = ()) -> None:

@@ -351,7 +351,7 @@ def test_guidance_works_end_to_end_under_the_rules(sessions):
 )
 def test_the_daemon_says_at_start_who_may_connect(certs, caplog, zenoh_table, level, said):
     from daemon.service.config import DaemonConfig
-    from daemon.service.daemon import Daemon
+    from daemon.service.queries import say_who_may_connect
 
     _, nodes, _ = certs
     if zenoh_table == "tls+access":
@@ -361,7 +361,7 @@ def test_the_daemon_says_at_start_who_may_connect(certs, caplog, zenoh_table, le
     else:
         settings = ZenohSettings(**zenoh_table)
     caplog.set_level("INFO", logger="guidebelt.daemon")
-    Daemon(DaemonConfig(backend="cpu", zenoh=settings))._say_who_may_connect()
+    say_who_may_connect(DaemonConfig(backend="cpu", zenoh=settings).zenoh)
     lines = [(r.levelname, r.getMessage()) for r in caplog.records]
     assert len(lines) == 1 and lines[0][0] == level and lines[0][1].startswith(said), lines
 
