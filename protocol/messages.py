@@ -7,37 +7,39 @@ Units: metres, radians (0 = east, counter-clockwise), seconds since the Unix epo
 
 from __future__ import annotations
 
-import zlib
 from enum import StrEnum
-from typing import Annotated, Literal, Self
+from typing import Literal
 
-import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field
 
-MOTORS = ("front", "right", "back", "left")
-"""Belt motor order, clockwise from the front, in every message and frame."""
+from .map_messages import (  # the map messages are wire messages like the others
+    MAX_DELTA_CELLS,
+    MAX_EPOCH,
+    OCCUPANCY_VALUES,
+    Epoch,
+    MapDelta,
+    MapSnapshot,
+)
+from .wire_types import (
+    MAX_SIDE,
+    MAX_STAMP,
+    MOTORS,
+    Amount,
+    Count,
+    Intensity,
+    Message,
+    Metres,
+    Radians,
+    Stamp,
+)
 
-Intensity = Annotated[int, Field(ge=0, le=255)]
-
-# Every number on the wire is finite and bounded, so none can reach a conversion that raises
-# (an int64 cast, a float → cell index) however hostile the sender.
-MAX_STAMP = 1e10
-"""Seconds since the Unix epoch (the year 2286)."""
-Stamp = Annotated[float, Field(ge=0, le=MAX_STAMP, allow_inf_nan=False)]
-Metres = Annotated[float, Field(ge=-1e6, le=1e6, allow_inf_nan=False)]
-"""A position: a thousand kilometres from the map's origin is off any map guidebelt keeps."""
-Radians = Annotated[float, Field(ge=-1e3, le=1e3, allow_inf_nan=False)]
-Count = Annotated[int, Field(ge=0, le=2**53)]
-"""A counter: exact in a float64 (JSON readers in other languages)."""
-Amount = Annotated[float, Field(ge=0, le=1e9, allow_inf_nan=False)]
-"""A non-negative quantity: a duration, a distance."""
-MAX_SIDE = 4096
-"""Largest map side (cells) any message may describe."""
-
-
-class Message(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
-
+__all__ = [
+    "MAX_DELTA_CELLS", "MAX_EPOCH", "MAX_SIDE", "MAX_STAMP", "MOTORS", "OCCUPANCY_VALUES",
+    "Amount", "BeltButton", "BeltHealth", "BeltPattern", "Count", "CuePriority", "Epoch", "Goal",
+    "GoalCell", "GoalLandmark", "GoalMetres", "Health", "Intensity", "MapDelta", "MapSnapshot",
+    "Message", "Metres", "NavPath", "NavState", "NavStatus", "PatternKind", "Pose", "Proximity",
+    "Radians", "RfidStats", "Stamp", "StatusCode", "UserSettings", "VoiceCue",
+]  # fmt: skip
 
 class Pose(Message):
     x: Metres = Field(description="metres east of the map origin")
@@ -310,121 +312,6 @@ class Proximity(Message):
     )
     frame_stamp: Stamp = Field(description="when the frame was taken")
     stamp: Stamp
-
-
-MAX_EPOCH = 2**64
-"""Epochs are unsigned 64-bit: a random session id, or a start counter, chosen by the source."""
-
-Epoch = Annotated[
-    int | None,
-    Field(
-        default=None,
-        ge=0,
-        lt=MAX_EPOCH,
-        description="the map source's epoch, new each time it starts (None: an older sender)",
-    ),
-]
-
-MAX_DELTA_CELLS = 65536
-"""A delta changing more cells than this is rejected whole; send a snapshot instead."""
-
-OCCUPANCY_VALUES = (0, 1, 2)
-"""FREE, OCCUPIED, UNKNOWN — as in ``daemon.planning.grid``."""
-
-
-class MapDelta(Message):
-    """Changed occupancy cells since delta ``seq - 1``; binary on the wire (``codec.py``).
-
-    ``cells`` holds little-endian ``uint32`` flat indices (``row * width + col``),
-    ``values`` one ``uint8`` occupancy per cell. A delta is applied whole or not at all.
-    """
-
-    seq: int = Field(ge=0, lt=2**32, description="consecutive per user and epoch, from 0")
-    epoch: Epoch = None
-    height: int = Field(ge=1, le=MAX_SIDE)
-    width: int = Field(ge=1, le=MAX_SIDE)
-    stamp: Stamp
-    cells: bytes = Field(description="uint32 little-endian flat indices")
-    values: bytes = Field(description="uint8 occupancy: 0 free, 1 occupied, 2 unknown")
-
-    @model_validator(mode="after")
-    def _check_cells(self) -> Self:
-        n = len(self.values)
-        if n > MAX_DELTA_CELLS:
-            raise ValueError(f"delta of {n} cells exceeds the limit of {MAX_DELTA_CELLS}")
-        if len(self.cells) != 4 * n:
-            raise ValueError("cells must hold one uint32 per value")
-        if n and int(self.cell_array().max()) >= self.height * self.width:
-            raise ValueError("cell index outside the map")
-        if n and int(self.value_array().max()) > max(OCCUPANCY_VALUES):
-            raise ValueError("occupancy value not in {0, 1, 2}")
-        return self
-
-    def cell_array(self) -> np.ndarray:
-        return np.frombuffer(self.cells, dtype="<u4").astype(np.int64)
-
-    def value_array(self) -> np.ndarray:
-        return np.frombuffer(self.values, dtype=np.uint8)
-
-    @classmethod
-    def from_arrays(
-        cls,
-        seq: int,
-        shape: tuple[int, int],
-        cells: np.ndarray,
-        values: np.ndarray,
-        stamp: float,
-        epoch: int | None = None,
-    ) -> MapDelta:
-        return cls(
-            seq=seq,
-            epoch=epoch,
-            height=shape[0],
-            width=shape[1],
-            stamp=stamp,
-            cells=np.ascontiguousarray(cells, dtype="<u4").tobytes(),
-            values=np.ascontiguousarray(values, dtype=np.uint8).tobytes(),
-        )
-
-
-class MapSnapshot(Message):
-    """The whole occupancy map as of delta ``seq``, zlib-compressed ``uint8`` in C order."""
-
-    seq: int = Field(ge=0, lt=2**32, description="the last delta this snapshot includes")
-    epoch: Epoch = None
-    height: int = Field(ge=1, le=MAX_SIDE)
-    width: int = Field(ge=1, le=MAX_SIDE)
-    stamp: Stamp
-    occupancy: bytes = Field(description="zlib-compressed uint8 occupancy, height * width bytes")
-
-    @classmethod
-    def from_array(
-        cls, seq: int, occupancy: np.ndarray, stamp: float, epoch: int | None = None
-    ) -> MapSnapshot:
-        occ = np.ascontiguousarray(occupancy, dtype=np.uint8)
-        return cls(
-            seq=seq,
-            epoch=epoch,
-            height=occ.shape[0],
-            width=occ.shape[1],
-            stamp=stamp,
-            occupancy=zlib.compress(occ.tobytes(), level=1),
-        )
-
-    def array(self) -> np.ndarray:
-        """The occupancy map; refuses anything but exactly height * width valid bytes."""
-        n = self.height * self.width
-        inflater = zlib.decompressobj()
-        try:
-            raw = inflater.decompress(self.occupancy, n + 1)  # + 1: detect an oversized body
-        except zlib.error as exc:
-            raise ValueError(f"snapshot occupancy is not zlib data: {exc}") from exc
-        if len(raw) != n or inflater.unconsumed_tail or not inflater.eof:
-            raise ValueError(f"snapshot occupancy must inflate to exactly {n} bytes")
-        occ = np.frombuffer(raw, dtype=np.uint8).reshape(self.height, self.width)
-        if n and int(occ.max()) > max(OCCUPANCY_VALUES):
-            raise ValueError("occupancy value not in {0, 1, 2}")
-        return occ.copy()
 
 
 class NavPath(Message):

@@ -11,12 +11,14 @@ import annotated_types as at
 import pytest
 from pydantic import BaseModel, ValidationError
 
+import protocol.map_messages
 import protocol.messages as M
 
+WIRE = (M.__name__, protocol.map_messages.__name__)
 MODELS = [
     cls
     for _, cls in inspect.getmembers(M, inspect.isclass)
-    if issubclass(cls, BaseModel) and cls.__module__ == M.__name__ and cls is not M.Message
+    if issubclass(cls, BaseModel) and cls.__module__ in WIRE and cls is not M.Message
 ]
 
 
