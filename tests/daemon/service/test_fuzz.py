@@ -26,6 +26,7 @@ from protocol.messages import (
     MapDelta,
     NavStatus,
     Pose,
+    Proximity,
     UserSettings,
 )
 
@@ -47,7 +48,11 @@ def valid_examples(now: float) -> dict:
         T.BELT_BUTTON: codec.encode(BeltButton(press=1, button=0, kind="short", stamp=now)),
         T.SETTINGS_SET: codec.encode(UserSettings(intensity=50, stamp=now)),
         T.BELT_HEALTH: json.dumps(health).encode(),
+        T.PROXIMITY: codec.encode(
+            Proximity(ahead_m=2.0, nearest_m=1.0, bearing=0.1, frame_stamp=now, stamp=now)
+        ),
     }
+    assert set(examples) == set(INPUTS)  # a new input topic needs its example here
     return examples
 
 
