@@ -29,6 +29,9 @@ def warm_up() -> None:
         pose=Pose(x=1.0, y=0.5, heading=1.5, stamp=now),
     )
     s.step(inbox, now)
+    from daemon.navigation.warm import warm_up as warm_daemon
+
+    warm_daemon("eds", "cpu")  # what the daemon compiles before READY, compiled here first
 
 
 def daemon_threads() -> list[threading.Thread]:

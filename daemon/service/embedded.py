@@ -7,6 +7,7 @@ on a free 127.0.0.1 port with multicast scouting off; other nodes connect to it 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import socket
 import threading
 from collections.abc import Callable, Sequence
@@ -32,6 +33,9 @@ def free_port() -> int:
 def open_peer(port: int) -> zenoh.Session:
     """A zenoh session connected to the daemon listening on ``port`` of 127.0.0.1."""
     return open_session(loopback(connect_port=port))
+
+
+START_TIMEOUT_S = 180.0
 
 
 class DaemonThread:
@@ -71,7 +75,11 @@ class DaemonThread:
 
     def __enter__(self) -> DaemonThread:
         self._thread.start()
-        if not self.daemon.ready.wait(10.0) or self._error is not None:
+        # A fresh checkout compiles every kernel before READY (the warm-up): minutes on a
+        # slow machine, and nothing may be left running if it never comes up.
+        if not self.daemon.ready.wait(START_TIMEOUT_S) or self._error is not None:
+            with contextlib.suppress(RuntimeError):
+                self.stop(timeout_s=START_TIMEOUT_S)
             raise RuntimeError(f"daemon did not start: {self._error!r}")
         return self
 
