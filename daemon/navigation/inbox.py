@@ -66,19 +66,7 @@ class Inbox:
         )
 
     def __bool__(self) -> bool:
-        return bool(
-            self.rejections
-            or self.deltas
-            or self.snapshot
-            or self.snapshot_failed
-            or self.goal
-            or self.pose
-            or self.tick
-            or self.buttons
-            or self.settings
-            or self.battery_v is not None
-            or self.proximity is not None
-        )
+        return self.urgent() or self.pose is not None or self.tick or self.battery_v is not None
 
 
 @dataclass

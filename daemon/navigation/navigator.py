@@ -153,8 +153,7 @@ class Navigator:
         return self.session.state
 
     @property
-    def rejected(self) -> int:
-        """Refused inputs, all codes."""
+    def rejected(self) -> int:  # refused inputs, all codes
         return sum(self.rejected_by_code.values())
 
     # -- the step -------------------------------------------------------------------------
@@ -169,8 +168,7 @@ class Navigator:
         if self._shed:  # said first: nothing later in this step may guide
             why = "the daemon is at capacity: guidance paused"
             self._reject(Rejection(StatusCode.OVERLOADED, why, counted=False), now, out)
-        if inbox.settings is not None:  # this step's words already in the user's choice
-            asked = inbox.settings
+        if (asked := inbox.settings) is not None:  # this step's words in the user's choice
             self.guidance.apply(voice=asked.voice, wording=asked.wording, units=asked.units)
         for rej in inbox.rejections:
             self._reject(rej, now, out)
@@ -261,11 +259,8 @@ class Navigator:
         if age > self.settings.stale_pose_s or -age > FUTURE_SKEW_S:
             # Judged when it arrived: a pose already old then, or from the future (it would
             # never go stale), is no position to guide on.
-            why = (
-                f"pose was {age:.2f} s old when it arrived"
-                if age > 0
-                else f"pose is {-age:.2f} s ahead of the daemon's clock"
-            )
+            ahead = f"pose is {-age:.2f} s ahead of the daemon's clock"
+            why = f"pose was {age:.2f} s old when it arrived" if age > 0 else ahead
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         self.pose, self.pose_received = pose, received
         if self.maps.map is None:
@@ -309,10 +304,10 @@ class Navigator:
         if age > self.settings.stale_pose_s:
             # No fresh position: never keep guiding on an old one.
             self.pose, self.pose_cell = None, None
-            if self._behind:  # the daemon's own backlog may have kept the poses from us
-                why = f"no pose for {age:.2f} s while the daemon is behind on its inputs"
-                return self._reject(Rejection(StatusCode.OVERLOADED, why, counted=False), now, out)
             why = f"no pose for {age:.2f} s"
+            if self._behind:  # the daemon's own backlog may have kept the poses from us
+                rej = Rejection(StatusCode.OVERLOADED, f"{why}, the daemon behind", counted=False)
+                return self._reject(rej, now, out)
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
         path, cost = self.route.path_from(
             grid.blocked, grid.occupancy, self.goal_cell, self.pose_cell

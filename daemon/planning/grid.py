@@ -104,3 +104,18 @@ def checked_plan_input(blocked: np.ndarray, goal: Cell) -> tuple[np.ndarray, tup
     if not in_bounds(shape, goal):
         raise ValueError(f"goal {goal} is outside the {shape[0]}x{shape[1]} map")
     return blocked, shape, goal
+
+
+def checked_update_input(
+    shape: tuple[int, int], cells: np.ndarray, blocked: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(cells as int64, blocked as bool, one per cell)`` for ``update`` on a map of
+    ``shape`` that was planned (``(0, 0)``: not yet, RuntimeError); IndexError off the map."""
+    if shape == (0, 0):
+        raise RuntimeError("call plan(blocked, goal) before update")
+    cells = np.asarray(cells, dtype=np.int64).ravel()
+    values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
+    h, w = shape
+    if cells.size and (cells.min() < 0 or cells.max() >= h * w):
+        raise IndexError(f"a cell index is outside the {h}x{w} map")
+    return cells, values

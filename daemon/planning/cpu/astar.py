@@ -73,6 +73,7 @@ from ..grid import (
     NEIGHBOUR_DR,
     Cell,
     checked_plan_input,
+    checked_update_input,
     in_bounds,
 )
 from ..interface import GlobalPlanner, UpdateStats
@@ -184,12 +185,8 @@ class AStarPlanner(GlobalPlanner):
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         """Apply ``blocked[cells] = blocked``; no search. ``cells_touched`` = cells written."""
         t0 = time.perf_counter()
-        self._require_plan()
-        cells = np.asarray(cells, dtype=np.int64).ravel()
-        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
-        h, w = self._shape
-        if cells.size and (cells.min() < 0 or cells.max() >= h * w):
-            raise IndexError(f"a cell index is outside the {h}x{w} map")
+        cells, values = checked_update_input(self._shape, cells, blocked)
+        w = self._shape[1]
         if cells.size:
             self._blk[(cells // w + 1) * self._width + cells % w + 1] = values
             self._version += 1

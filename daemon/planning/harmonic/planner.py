@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from ..grid import INF, Cell, checked_plan_input, in_bounds, path_cost
+from ..grid import INF, Cell, checked_plan_input, checked_update_input, in_bounds, path_cost
 from ..interface import GlobalPlanner, UpdateStats
 from . import relax as rx
 from .reach import Reach
@@ -109,13 +109,8 @@ class HarmonicPlanner(GlobalPlanner):
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         t0 = time.perf_counter()
-        if self._shape == (0, 0):
-            raise RuntimeError("call plan(blocked, goal) before update")
-        cells = np.asarray(cells, dtype=np.int64).ravel()
-        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
-        h, w = self._shape
-        if cells.size and (cells.min() < 0 or cells.max() >= h * w):
-            raise IndexError(f"a cell index is outside the {h}x{w} map")
+        cells, values = checked_update_input(self._shape, cells, blocked)
+        w = self._shape[1]
         padded = (cells // w + 1) * (w + 2) + cells % w + 1
         lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
         if lost.size == 0 and gained.size == 0:

@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 
-from ..grid import INF, Cell, checked_plan_input, in_bounds, path_cost
+from ..grid import INF, Cell, checked_plan_input, checked_update_input, in_bounds, path_cost
 from ..interface import GlobalPlanner, UpdateStats
 from . import graph as vg
 from .polygons import MAX_EDGES, PolygonMap
@@ -98,13 +98,7 @@ class VisGraphPlanner(GlobalPlanner):
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         """Apply ``blocked[cells] = blocked`` and cut again what the change reaches."""
         t0 = time.perf_counter()
-        if self._shape == (0, 0):
-            raise RuntimeError("call plan(blocked, goal) before update")
-        cells = np.asarray(cells, dtype=np.int64).ravel()
-        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
-        h, w = self._shape
-        if cells.size and (cells.min() < 0 or cells.max() >= h * w):
-            raise IndexError(f"a cell index is outside the {h}x{w} map")
+        cells, values = checked_update_input(self._shape, cells, blocked)
         flat = self._blocked.reshape(-1)
         moved = cells[flat[cells] != values]
         flat[cells] = values
