@@ -13,10 +13,15 @@ Two budgets, both from measurements of the steps themselves:
 Every review (the daemon's tick):
 
 - guided users over the CPU budget: the most recently admitted are shed until the rest fit
-  in 90 % of it; or the lag's p95 above ``shed_fraction`` × its budget for ``sustain_s``:
-  a tenth of them (at least one) are shed. Then no decision for ``settle_s``;
+  in 90 % of it; or the lag's p95 above its threshold (``shed_fraction`` × its budget) for
+  ``sustain_s``: a share of them in proportion to the excess, 1 − threshold / p95 (at least
+  one, at most half), so a lag ten times the threshold halves the guided users at once
+  rather than taking ten rounds of a tenth. Then no decision for ``settle_s``;
 - the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``, and room in 80 % of
-  the CPU budget: the user shed longest ago is guided again.
+  the CPU budget and in 90 % of the CPU the steps were taking when the lag last forced a
+  shedding (what the machine could give them then): the user shed longest ago is guided
+  again. That measured capacity is forgotten after ``capacity_memory_s``, as the machine's
+  other load comes and goes.
 
 A shed user hears ``overloaded`` and feels WAIT (never a false ``stale_pose``); their map,
 goal and pose are kept, so guidance resumes where it was. Users admitted first stay guided
@@ -72,6 +77,10 @@ class AdmissionSettings:
     min_shed_s: float = 5.0
     min_samples: int = 20
     """Fewer lags than this in a window say nothing about the lag (a quiet daemon)."""
+    max_shed_share: float = 0.5
+    """The most of the guided users one lag-driven decision sheds: the lag is a queue's, not
+    linear in the load, so the next round measures again rather than trusting one ratio."""
+    capacity_memory_s: float = 30.0
 
 
 class Admission:
@@ -86,6 +95,11 @@ class Admission:
         self._cost: dict[str, float] = {}
         """Each user's CPU ms per second over the last window (kept while shed)."""
         self._quiet_until = 0.0
+        self._decided_at = -math.inf
+        """When users were last shed."""
+        self._capacity: tuple[float, float] | None = None
+        """(CPU ms per second the guided users' steps took when the lag last forced a
+        shedding, when): the machine's measured capacity for them, for readmission."""
         self._over_since: float | None = None
         self._calm_since: float | None = None
         self.sheddings = 0
@@ -98,8 +112,7 @@ class Admission:
         """A new user: guided (True) unless others wait already or there is no room."""
         if user in self._admitted or user in self._shed:
             return user in self._admitted
-        room = self.last_cpu_ms + self._typical_cost() <= self.s.cpu_budget_ms
-        if self._shed or not room:
+        if self._shed or not self._room(self._typical_cost(), 1.0, now):
             self._shed[user] = now
             return False
         self._admitted.append(user)
@@ -124,13 +137,20 @@ class Admission:
         """One step of ``user``'s: its lag and its worker's CPU time."""
         if user in self._shed:
             return  # a shed user's steps are not the guided users' load
-        self._lags.append((now, lag_ms))
         self._cpu.append((now, user, cpu_ms))
+        self._lag(lag_ms, now)
 
     def record_loop(self, late_ms: float, now: float) -> None:
         """How late the daemon's loop woke for its tick: a delay every user's inputs feel,
         counted as one more lag (the steps' own lags miss it when inputs queue on the loop)."""
-        self._lags.append((now, late_ms))
+        self._lag(late_ms, now)
+
+    def _lag(self, lag_ms: float, now: float) -> None:
+        """Only the lags of inputs that came after the last shedding judge it: a backlog queued
+        before it drains with long lags for a while, and read as still too many users it
+        would shed again and again (at 100 users: down to 6 of a capacity of ~30)."""
+        if now - lag_ms / 1e3 >= self._decided_at:
+            self._lags.append((now, lag_ms))
 
     def _measure(self, now: float) -> None:
         start = now - self.s.window_s
@@ -173,6 +193,7 @@ class Admission:
                 self._shed[user] = now
             self.sheddings += len(gone)
             self._lags.clear()
+            self._decided_at = now
             self._quiet_until, self._over_since, self._calm_since = (
                 now + self.s.settle_s,
                 None,
@@ -198,9 +219,23 @@ class Admission:
                 total -= self._cost.get(self._admitted[-n], 0.0)
             return self._admitted[-n:]
         if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
-            n = min(len(self._admitted) - 1, max(1, math.ceil(len(self._admitted) / 10)))
+            threshold = self.s.shed_fraction * self.s.lag_budget_ms
+            share = min(self.s.max_shed_share, 1.0 - threshold / self.last_p95_ms)
+            n = min(len(self._admitted) - 1, max(1, math.ceil(share * len(self._admitted))))
+            if self.last_cpu_ms > 0:
+                self._capacity = (self.last_cpu_ms, now)
             return self._admitted[-n:]
         return []
+
+    def _room(self, cost: float, budget_share: float, now: float) -> bool:
+        """Whether one more user costing ``cost`` fits in ``budget_share`` of the CPU budget
+        and in 90 % of the capacity the lag last measured (while it is remembered)."""
+        need = self.last_cpu_ms + cost
+        if self._capacity is not None and now - self._capacity[1] > self.s.capacity_memory_s:
+            self._capacity = None
+        if self._capacity is not None and need > 0.9 * self._capacity[0]:
+            return False
+        return need <= budget_share * self.s.cpu_budget_ms
 
     def _to_readmit(self, now: float) -> str | None:
         calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms
@@ -210,8 +245,7 @@ class Admission:
         if self._calm_since is None:
             self._calm_since = now
         user, since = next(iter(self._shed.items()))
-        cost = self._cost.get(user, self._typical_cost())
-        room = self.last_cpu_ms + cost <= 0.8 * self.s.cpu_budget_ms
+        room = self._room(self._cost.get(user, self._typical_cost()), 0.8, now)
         if now - self._calm_since < self.s.calm_s or now - since < self.s.min_shed_s or not room:
             return None
         return user

@@ -44,20 +44,67 @@ def test_over_the_cpu_budget_the_newest_users_are_shed_until_the_rest_fit():
     assert not adm.join("late", 10.0)  # a newcomer waits behind those shed before
 
 
-def test_a_sustained_lag_sheds_a_tenth_and_a_single_user_is_never_shed():
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_never_shed():
+    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))  # threshold 30 ms
     users = [f"u{i}" for i in range(20)]
     for u in users:
         adm.join(u, 0.0)
-    steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=80.0)
+    steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=40.0)
     assert adm.review(10.0) == ([], [])  # over, but not for sustain_s yet
-    steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=80.0)
+    steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=40.0)
     shed, _ = adm.review(10.6)
-    assert shed == ["u18", "u19"]
+    assert shed == [f"u{i}" for i in range(15, 20)]  # 1 − 30/40: a quarter
+    far = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+    for u in users:
+        far.join(u, 0.0)
+    for t in (10.0, 10.6):
+        steps(far, users, t, cpu_ms=0.1, lag_ms=600.0)
+        shed, _ = far.review(t)
+    assert len(shed) == 10  # twenty times over: half at once, not a tenth per round
     alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
     alone.join("only", 0.0)
     steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
     assert alone.review(10.0) == ([], []) and alone.review(11.0) == ([], [])
+
+
+def test_the_backlog_left_from_before_a_shedding_does_not_shed_again():
+    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, settle_s=1.0))
+    users = [f"u{i}" for i in range(20)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 10.6):
+        steps(adm, users, t, cpu_ms=0.1, lag_ms=600.0)
+        shed, _ = adm.review(t)
+    assert len(shed) == 10
+    for t in np.arange(11.0, 14.0, 0.5):
+        if t <= 12.5:  # steps finishing now on inputs queued before 10.6 (2 s late) …
+            steps(adm, users[:10], t, cpu_ms=0.1, lag_ms=2000.0, n=5)
+        # … and new inputs, on time.
+        steps(adm, users[:10], t, cpu_ms=0.1, lag_ms=5.0)
+        assert adm.review(t)[0] == [], t
+    assert len(adm.shed) == 10
+
+
+def test_no_user_comes_back_past_the_capacity_the_lag_measured():
+    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i}" for i in range(8)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 11.0):  # 8 × 40 = 320 ms/s of CPU, far under the budget, yet late
+        steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
+        shed, _ = adm.review(t)
+    assert shed == ["u4", "u5", "u6", "u7"]
+    back = []
+    for t in np.arange(12.0, 20.0, 1.0):  # calm now, the four left cost 160 ms/s
+        steps(adm, users[:4] + back, t, cpu_ms=4.0, lag_ms=2.0)
+        back += adm.review(t)[1]
+    # 0.9 × 320 = 288 ms/s: three more fit (280), a fourth (320) would not.
+    assert back == ["u4", "u5", "u6"]
+    for t in np.arange(20.0, 50.0, 1.0):  # the measure is forgotten: the rest come back
+        steps(adm, users[:4] + back, t, cpu_ms=4.0, lag_ms=2.0)
+        back += adm.review(t)[1]
+    assert back == ["u4", "u5", "u6", "u7"]
 
 
 def test_calm_brings_back_the_user_shed_longest_ago_one_at_a_time():
