@@ -49,6 +49,9 @@ class Inbox:
     """The daemon is shedding this user: keep the map, goal and pose, guide nobody."""
     daemon_behind: bool = False
     """The daemon's loop is late on its inputs: a pose gone missing is said as overload."""
+    pose_unread: bool = False
+    """A newer pose reached the daemon than any it has read for this user (still queued on
+    its loop, or dropped while the user was shed): a pose missing now is the daemon's doing."""
     proximity: Proximity | None = None
     """The mapper's latest nearest-obstacle report (the latest wins)."""
 

@@ -163,7 +163,7 @@ class Navigator:
         self.last = StepReport()
         self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
         self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
-        self._shed, self._behind = inbox.overloaded, inbox.daemon_behind
+        self._shed, self._behind = inbox.overloaded, inbox.daemon_behind or inbox.pose_unread
         out = StepOutput()
         if self._shed:  # said first: nothing later in this step may guide
             why = "the daemon is at capacity: guidance paused"

@@ -1,8 +1,14 @@
 """The daemon's one zenoh session, and the hand-over from zenoh's threads to the loop.
 
-Every zenoh callback does the least it can: copy the payload out and
-``loop.call_soon_threadsafe`` it. Nothing in a callback waits for a lock, the planner or
-the loop. Queries are handed over the same way and answered from the loop.
+Every zenoh callback does the least it can: stamp when the sample arrived, copy the payload
+out and ``loop.call_soon_threadsafe`` it. Nothing in a callback waits for a lock, the planner
+or the loop. Queries are handed over the same way and answered from the loop.
+
+Two things are settled on zenoh's thread, before the loop: the poses and map deltas of a user
+admission control has shed are dropped there (``mute``: not even a hop to the loop, so a
+hundred shed users cost the loop nothing), and when each watched user's latest pose reached
+the daemon is kept (``pose_heard_at``), so a step can tell a localiser gone silent from a
+pose still queued in, or dropped by, the daemon itself.
 """
 
 from __future__ import annotations
@@ -11,6 +17,7 @@ import asyncio
 import contextlib
 import logging
 import threading
+import time
 from collections.abc import Callable
 
 import zenoh
@@ -29,8 +36,9 @@ INPUTS = (
 QUERIES = (T.HEALTH, T.MAP_SNAPSHOT, T.STATUS_QUERY, T.SETTINGS_QUERY)
 """What the daemon answers (every user's, for the per-user ones)."""
 
-SampleSink = Callable[[Topic, str, bytes], None]
-"""``(topic, key, payload)`` on the loop thread."""
+SampleSink = Callable[[Topic, str, bytes, float], None]
+"""``(topic, key, payload, arrived)`` on the loop thread; ``arrived``: when zenoh handed the
+sample to the daemon (``time.time()``), however long the loop took to get to it."""
 QuerySink = Callable[[Topic, zenoh.Query], None]
 """``(topic, query)`` on the loop thread; the sink must reply and ``drop()`` it."""
 
@@ -52,6 +60,12 @@ class Bridge:
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._token: zenoh.LivelinessToken | None = None
         self._lock = threading.Lock()
+        self._muted: frozenset[str] = frozenset()
+        """Pose and delta keys of shed users (replaced whole: zenoh's threads read it)."""
+        self._watched: frozenset[str] = frozenset()
+        """Pose keys of the users the daemon has a session for: only theirs are timed, so a
+        peer inventing names cannot grow ``_pose_heard``."""
+        self._pose_heard: dict[str, float] = {}
 
     def start(self) -> None:
         for topic in INPUTS:
@@ -67,15 +81,21 @@ class Bridge:
 
     def _sample_cb(self, topic: Topic) -> Callback:
         loop, sink = self._loop, self._on_sample
+        heard = self._pose_heard if topic is T.POSE else None
+        mutable = topic in (T.POSE, T.MAP_DELTA)
 
         def on_sample(sample: zenoh.Sample) -> None:
             if sample.kind != zenoh.SampleKind.PUT:
                 return  # a delete carries no message
+            arrived = time.time()
+            key = str(sample.key_expr)
+            if heard is not None and key in self._watched and arrived > heard.get(key, 0.0):
+                heard[key] = arrived
+            if mutable and key in self._muted:
+                return
             # RuntimeError: the loop is closed, the daemon is stopping.
             with contextlib.suppress(RuntimeError):
-                loop.call_soon_threadsafe(
-                    sink, topic, str(sample.key_expr), sample.payload.to_bytes()
-                )
+                loop.call_soon_threadsafe(sink, topic, key, sample.payload.to_bytes(), arrived)
 
         # Run on zenoh's own thread: the callback only queues, so no extra hop is needed.
         return Callback(on_sample, indirect=False)
@@ -91,9 +111,32 @@ class Bridge:
 
         return Callback(on_query, indirect=False)
 
+    def watch(self, user: str) -> None:
+        """Time ``user``'s poses as they arrive (``pose_heard_at``)."""
+        with self._lock:
+            self._watched = self._watched | {T.POSE.key(user)}
+
+    def mute(self, user: str, muted: bool) -> None:
+        """Drop (or again pass on) ``user``'s poses and map deltas as they arrive."""
+        keys = {T.POSE.key(user), T.MAP_DELTA.key(user)}
+        with self._lock:
+            self._muted = self._muted | keys if muted else self._muted - keys
+
+    def pose_heard_at(self, user: str) -> float | None:
+        """When ``user``'s latest pose reached the daemon (``time.time()``), read or not."""
+        return self._pose_heard.get(T.POSE.key(user))
+
     def publish(self, key: str, payload: bytes) -> None:
         """Any thread: the users' workers publish their own results, each on a publisher
         declared once per key with its topic's QoS (a key not in the table is refused)."""
+        self._publisher(key).put(payload)
+
+    def listened(self, key: str) -> bool:
+        """Whether any subscriber (this session's own included) matches ``key`` now: a
+        message nobody hears need not be built (zenoh's matching status, ~1 µs to read)."""
+        return self._publisher(key).matching_status.matching
+
+    def _publisher(self, key: str) -> zenoh.Publisher:
         pub = self._publishers.get(key)
         if pub is None:
             with self._lock:
@@ -102,11 +145,9 @@ class Bridge:
                     pub = self._publishers[key] = wire.declare_publisher(
                         self.session, T.topic_of(key), T.user_of(key)
                     )
-        pub.put(payload)
+        return pub
 
-    def request(
-        self, key: str, timeout_s: float, on_reply: Callable[[bytes | None], None]
-    ) -> None:
+    def request(self, key: str, timeout_s: float, on_reply: Callable[[bytes | None], None]) -> None:
         """Ask ``key``'s queryable; ``on_reply(payload)`` runs on the loop with the first
         good reply, or with None if none came within ``timeout_s``."""
         loop = self._loop
@@ -133,6 +174,10 @@ class Bridge:
         with self._lock:
             for key in [k for k in self._publishers if T.user_of(k) == user]:
                 self._publishers.pop(key).undeclare()
+            pose = T.POSE.key(user)
+            self._watched = self._watched - {pose}
+            self._muted = self._muted - {pose, T.MAP_DELTA.key(user)}
+        self._pose_heard.pop(pose, None)
 
     def close(self) -> None:
         if self._token is not None:

@@ -222,7 +222,7 @@ class Daemon:
         for user, flag in [(u, True) for u in shed] + [(u, False) for u in back]:
             runner = self.runners.get(user)
             if runner is not None:
-                runner.shed = flag
+                self._set_shed(runner, flag)
                 runner.tick()  # told now, not at their next input
         if shed or back:
             log.warning(
@@ -257,7 +257,8 @@ class Daemon:
             return runner
         if len(self.runners) >= self.config.max_users:
             return None
-        assert self._bridge is not None
+        bridge = self._bridge
+        assert bridge is not None
         stored = self.settings.load(user)
         nav_settings = self.config.navigator_settings()
         nav_settings = dataclasses.replace(
@@ -270,24 +271,33 @@ class Daemon:
         navigator = Navigator(user, nav_settings)
         runner = UserRunner(
             navigator,
-            self._bridge.publish,
-            self._bridge.request,
+            bridge.publish,
+            bridge.request,
             self.config.snapshot_timeout_s,
             store_settings=self.settings.save,
             map_too_big=lambda cells: self._map_too_big(user, cells),
             pacing=self._pacing,
             after_step=self.state.saver(user) if self.state is not None else None,
+            pose_heard_at=lambda: bridge.pose_heard_at(user),
+            listened=bridge.listened,
         )
-        runner.shed = not self.admission.join(user, time.monotonic())
+        bridge.watch(user)
+        self._set_shed(runner, not self.admission.join(user, time.monotonic()))
         self.runners[user] = runner
         if runner.shed:
             runner.tick()  # told at once that the daemon is full, not at its first input
         # The belt driver may have started first: it learns the user's intensity now.
-        self._bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
+        bridge.publish(T.SETTINGS.key(user), codec.encode(stored))
         log.info("new user", extra={"fields": {"user": user, "backend": navigator.route.name}})
         return runner
 
-    def _on_sample(self, topic: Topic, key: str, payload: bytes) -> None:
+    def _set_shed(self, runner: UserRunner, shed: bool) -> None:
+        """A shed user's poses and deltas are dropped as they arrive, before the loop."""
+        runner.shed = shed
+        if self._bridge is not None:
+            self._bridge.mute(runner.user, shed)
+
+    def _on_sample(self, topic: Topic, key: str, payload: bytes, arrived: float) -> None:
         try:
             user = T.user_of(key)
         except ValueError as exc:
@@ -307,11 +317,14 @@ class Daemon:
             return
         assert topic.model is not None
         if runner.shed and topic in (T.POSE, T.MAP_DELTA):
-            # Not even decoded: a shed user costs the loop nothing per pose. The deltas skipped
-            # leave a sequence gap, so the map is brought back by a snapshot (the user WAITs)
-            # once the user is guided again.
+            # Not even decoded (the bridge drops them before the loop; these were queued before
+            # it knew): a shed user costs the loop nothing per pose. The deltas skipped leave a
+            # sequence gap, so the map is brought back by a snapshot (the user WAITs) once the
+            # user is guided again.
             runner.skipped += 1
             return
+        if topic is T.POSE:
+            runner.read_pose(arrived)
         if topic is T.MAP_DELTA:
             too_big = self._map_too_big(user, codec.map_cells(payload))
             if too_big is not None:  # before decoding: nothing allocated for it
@@ -325,7 +338,7 @@ class Daemon:
         if topic is T.MAP_DELTA:
             runner.put_delta(msg)
         elif topic is T.POSE:
-            runner.put_pose(msg)
+            runner.put_pose(msg, arrived)
         elif topic is T.BELT_BUTTON:
             runner.put_button(msg)
         elif topic is T.SETTINGS_SET:

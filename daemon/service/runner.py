@@ -73,9 +73,13 @@ class UserRunner:
         map_too_big: Callable[[int | None], str | None] | None = None,
         pacing: Pacing | None = None,
         after_step: Callable[[Navigator], None] | None = None,
+        pose_heard_at: Callable[[], float | None] | None = None,
+        listened: Callable[[str], bool] | None = None,
     ) -> None:
         """``after_step(navigator)`` runs on the worker once a step's output is published
-        (the state store takes what changed there)."""
+        (the state store takes what changed there). ``pose_heard_at()``: when the user's latest
+        pose reached the daemon, read or not (the bridge's clock of arrivals). ``listened(key)``:
+        whether anyone subscribes to ``key`` (the path is built only for someone)."""
         self.navigator = navigator
         self.pacing = pacing or Pacing()
         self._after_step = after_step
@@ -100,6 +104,10 @@ class UserRunner:
         """Poses and deltas not even decoded while shed."""
         self._closed = False
         self.last_status: bytes | None = None
+        self._pose_heard_at = pose_heard_at
+        self._listened = listened
+        self._pose_read_at = 0.0
+        """When the latest pose the loop read (taken or refused) had reached the daemon."""
         self._loop = asyncio.get_running_loop()
         self.last_input = self._loop.time()
         self._task = self._loop.create_task(self._run(), name=f"user-{self.user}")
@@ -120,10 +128,16 @@ class UserRunner:
             self._inbox.deltas.append(delta)
             self._heard(urgent=True)
 
-    def put_pose(self, pose: Pose) -> None:
+    def read_pose(self, arrived: float) -> None:
+        """The loop has read a pose that reached the daemon at ``arrived``, good or bad."""
+        self._pose_read_at = max(self._pose_read_at, arrived)
+
+    def put_pose(self, pose: Pose, arrived: float | None = None) -> None:
+        """``arrived``: when it reached the daemon (staleness: on the daemon's clock, and
+        never on how long the daemon's loop took to read it). None: now."""
         with self._lock:
             self._inbox.pose = pose  # the latest pose wins
-            self._inbox.pose_received = time.time()  # staleness: on the daemon's clock
+            self._inbox.pose_received = time.time() if arrived is None else arrived
             self._heard()
 
     def put_goal(self, goal: Goal) -> None:
@@ -206,6 +220,8 @@ class UserRunner:
             inbox.taken_at = time.time()
             inbox.overloaded = self.shed
             inbox.daemon_behind = self.pacing.behind
+            heard = self._pose_heard_at() if self._pose_heard_at is not None else None
+            inbox.pose_unread = heard is not None and heard > self._pose_read_at
             cpu_ms = self._step(inbox)
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
@@ -253,9 +269,11 @@ class UserRunner:
             self._publish(T.BELT.key(user), codec.encode(pattern))
         for cue in out.voice:
             self._publish(T.VOICE.key(user), codec.encode(cue))
-        path = out.path()
-        if path is not None:
-            self._publish(T.PATH.key(user), codec.encode(path))
+        # The path (the largest message a step makes) is for viewers and tests: a belt driver
+        # and a phone do not subscribe to it, so most steps need not build it.
+        key = T.PATH.key(user)
+        if out.path_cells is not None and (self._listened is None or self._listened(key)):
+            self._publish(key, codec.encode(out.path()))
         for status in out.statuses:
             self.last_status = codec.encode(status)
             self._publish(T.STATUS.key(user), self.last_status)

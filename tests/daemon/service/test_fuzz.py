@@ -84,7 +84,7 @@ def feed(daemon, batch: list[tuple]) -> None:
 
     def deliver() -> int:
         for topic, key, payload in batch:
-            daemon.daemon._on_sample(topic, key, payload)
+            daemon.daemon._on_sample(topic, key, payload, time.time())
         return len(batch)
 
     assert daemon.call(deliver) == len(batch)  # an exception here would be the daemon's
