@@ -120,3 +120,18 @@ def test_a_shed_user_waits_and_hears_overloaded_and_keeps_map_goal_and_pose():
     out = s.step(Inbox(pose=pose((25, 15))), time.time())  # guided again: from where it was
     assert kinds(out) == [PatternKind.GUIDE] and out.path_cells is not None
     assert (20, 15) not in map(tuple, out.path_cells.tolist())
+
+
+def test_a_pose_the_daemon_has_not_read_makes_a_missing_pose_overload_not_stale():
+    s = guiding()
+    t = time.time()
+    s.step(Inbox(pose=pose((25, 15), stamp=t), pose_received=t, taken_at=t), t)
+    # 2 s without a pose read, but a newer one reached the daemon (queued on its loop, or
+    # dropped while the user was shed): the daemon's doing, said as such, and no guidance.
+    out = s.step(Inbox(tick=True, taken_at=t + 2.0, pose_unread=True), t + 2.0)
+    assert kinds(out) == [PatternKind.WAIT] and out.path_cells is None
+    assert [st.code for st in out.statuses] == [StatusCode.OVERLOADED]
+    assert StatusCode.STALE_POSE not in s.rejected_by_code
+    # Readmitted and a fresh pose read: guided again.
+    out = s.step(Inbox(pose=pose((25, 15), stamp=t + 2.1), pose_received=t + 2.1), t + 2.1)
+    assert kinds(out) == [PatternKind.GUIDE]
