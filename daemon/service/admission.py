@@ -80,7 +80,7 @@ class AdmissionSettings:
     max_shed_share: float = 0.5
     """The most of the guided users one lag-driven decision sheds: the lag is a queue's, not
     linear in the load, so the next round measures again rather than trusting one ratio."""
-    capacity_memory_s: float = 30.0
+    capacity_memory_s: float = 10.0
 
 
 class Admission:
