@@ -17,11 +17,12 @@ Every review (the daemon's tick):
   ``sustain_s``: a share of them in proportion to the excess, 1 − threshold / p95 (at least
   one, at most half), so a lag ten times the threshold halves the guided users at once
   rather than taking ten rounds of a tenth. Then no decision for ``settle_s``;
-- the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``, and room in 80 % of
-  the CPU budget and in 90 % of the CPU the steps were taking when the lag last forced a
-  shedding (what the machine could give them then): the user shed longest ago is guided
-  again. That measured capacity is forgotten after ``capacity_memory_s``, as the machine's
-  other load comes and goes.
+- the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``: the users shed
+  longest ago are guided again, as many as fit (up to ``readmit_share`` of the guided) in
+  80 % of the CPU budget and in 90 % of the CPU the steps were taking when the lag last
+  forced a shedding (what the machine could give them then; not measured while users join,
+  whose first steps are a burst). That measured capacity is forgotten after
+  ``capacity_memory_s``, as the machine's other load comes and goes.
 
 A shed user hears ``overloaded`` and feels WAIT (never a false ``stale_pose``); their map,
 goal and pose are kept, so guidance resumes where it was. Users admitted first stay guided
@@ -80,7 +81,10 @@ class AdmissionSettings:
     max_shed_share: float = 0.5
     """The most of the guided users one lag-driven decision sheds: the lag is a queue's, not
     linear in the load, so the next round measures again rather than trusting one ratio."""
-    capacity_memory_s: float = 10.0
+    capacity_memory_s: float = 30.0
+    readmit_share: float = 0.25
+    """The most users guided again at once, as a share of those guided (at least one): each
+    comes back with a snapshot to take and a whole path to plan."""
 
 
 class Admission:
@@ -96,6 +100,9 @@ class Admission:
         """Each user's CPU ms per second over the last window (kept while shed)."""
         self._quiet_until = 0.0
         self._decided_at = -math.inf
+        self._joined_at = -math.inf
+        """When a user was last admitted: their first steps (a whole map, a whole plan) are a
+        burst, not what the machine gives steady guidance."""
         """When users were last shed."""
         self._capacity: tuple[float, float] | None = None
         """(CPU ms per second the guided users' steps took when the lag last forced a
@@ -116,6 +123,7 @@ class Admission:
             self._shed[user] = now
             return False
         self._admitted.append(user)
+        self._joined_at = now
         return True
 
     def leave(self, user: str) -> None:
@@ -201,12 +209,12 @@ class Admission:
             )
             return gone, []
         back = self._to_readmit(now)
-        if back is not None:
-            del self._shed[back]
-            self._admitted.append(back)
+        if back:
+            for user in back:
+                del self._shed[user]
+            self._admitted.extend(back)
             self._quiet_until, self._calm_since = now + self.s.settle_s, None
-            return [], [back]
-        return [], []
+        return [], back
 
     def _to_shed(self, now: float) -> list[str]:
         """The newest guided users to shed (none: all fit)."""
@@ -222,7 +230,7 @@ class Admission:
             threshold = self.s.shed_fraction * self.s.lag_budget_ms
             share = min(self.s.max_shed_share, 1.0 - threshold / self.last_p95_ms)
             n = min(len(self._admitted) - 1, max(1, math.ceil(share * len(self._admitted))))
-            if self.last_cpu_ms > 0:
+            if self.last_cpu_ms > 0 and now - self._joined_at > self.s.window_s:
                 self._capacity = (self.last_cpu_ms, now)
             return self._admitted[-n:]
         return []
@@ -237,15 +245,27 @@ class Admission:
             return False
         return need <= budget_share * self.s.cpu_budget_ms
 
-    def _to_readmit(self, now: float) -> str | None:
+    def _to_readmit(self, now: float) -> list[str]:
+        """Those shed longest ago (each for ``min_shed_s`` at least) that fit in the room, by
+        what each cost when last guided: as many at once as fit, up to ``readmit_share`` of
+        the guided users, so a daemon that shed half at a burst is back in a few rounds."""
         calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms
         if not self._shed or not calm:
             self._calm_since = None
-            return None
+            return []
         if self._calm_since is None:
             self._calm_since = now
-        user, since = next(iter(self._shed.items()))
-        room = self._room(self._cost.get(user, self._typical_cost()), 0.8, now)
-        if now - self._calm_since < self.s.calm_s or now - since < self.s.min_shed_s or not room:
-            return None
-        return user
+        if now - self._calm_since < self.s.calm_s:
+            return []
+        most = max(1, math.ceil(self.s.readmit_share * len(self._admitted)))
+        back: list[str] = []
+        extra = 0.0
+        for user, since in self._shed.items():
+            cost = self._cost.get(user, self._typical_cost())
+            if len(back) == most or now - since < self.s.min_shed_s:
+                break
+            if not self._room(extra + cost, 0.8, now):
+                break
+            back.append(user)
+            extra += cost
+        return back

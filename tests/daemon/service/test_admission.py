@@ -85,6 +85,23 @@ def test_the_backlog_left_from_before_a_shedding_does_not_shed_again():
     assert len(adm.shed) == 10
 
 
+def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once():
+    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i}" for i in range(20)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 11.0):  # a burst of lag: half are shed at once
+        steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
+        shed, _ = adm.review(t)
+    assert len(shed) == 10
+    steps(adm, users[:10], 12.0, cpu_ms=1.0, lag_ms=2.0)
+    assert adm.review(12.0) == ([], [])  # calm, but not for calm_s yet
+    steps(adm, users[:10], 13.0, cpu_ms=1.0, lag_ms=2.0)
+    _, back = adm.review(13.0)
+    assert back == ["u10", "u11", "u12"]  # ⌈10 / 4⌉, the first shed first
+
+
 def test_no_user_comes_back_past_the_capacity_the_lag_measured():
     s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     adm = Admission(s)
