@@ -15,8 +15,9 @@ Every review (the daemon's tick):
 - guided users over the CPU budget: the most recently admitted are shed until the rest fit
   in 90 % of it; or the lag's p95 above its threshold (``shed_fraction`` × its budget) for
   ``sustain_s``: a share of them in proportion to the excess, 1 − threshold / p95 (at least
-  one, at most half), so a lag ten times the threshold halves the guided users at once
-  rather than taking ten rounds of a tenth. Then no decision for ``settle_s``;
+  one, at most half; at most a tenth while users join, whose first whole-map steps are a
+  burst), so a lag ten times the threshold halves the guided users at once rather than
+  taking ten rounds of a tenth. Then no decision for ``settle_s``;
 - the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``: the users shed
   longest ago are guided again, as many as fit (up to ``readmit_share`` of the guided) in
   80 % of the CPU budget and in 90 % of the CPU the steps were taking when the lag last
@@ -228,7 +229,11 @@ class Admission:
             return self._admitted[-n:]
         if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
             threshold = self.s.shed_fraction * self.s.lag_budget_ms
-            share = min(self.s.max_shed_share, 1.0 - threshold / self.last_p95_ms)
+            # While users join, their first whole-map steps are part of the lag: a burst, not
+            # the steady load, so a tenth at a time then (those who join later wait anyway).
+            joining = now - self._joined_at <= self.s.window_s
+            most = 0.1 if joining else self.s.max_shed_share
+            share = min(most, 1.0 - threshold / self.last_p95_ms)
             n = min(len(self._admitted) - 1, max(1, math.ceil(share * len(self._admitted))))
             if self.last_cpu_ms > 0 and now - self._joined_at > self.s.window_s:
                 self._capacity = (self.last_cpu_ms, now)

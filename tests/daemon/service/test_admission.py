@@ -61,6 +61,13 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
         steps(far, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = far.review(t)
     assert len(shed) == 10  # twenty times over: half at once, not a tenth per round
+    ramp = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+    for i, u in enumerate(users):
+        ramp.join(u, 9.0 + i * 0.08)  # the last joins at 10.52
+    for t in (10.0, 10.6):
+        steps(ramp, users, t, cpu_ms=0.1, lag_ms=600.0)
+        shed, _ = ramp.review(t)
+    assert len(shed) == 2  # users still joining: their first steps are a burst, a tenth
     alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
     alone.join("only", 0.0)
     steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
