@@ -110,7 +110,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._cut_over_rate = CUT_OVER if cut_over is None else cut_over
         self.focused = (FOCUSED if focused is None else focused) and not dss
         self.cut_over = 1  # in cells, set with the map's size
-        self._loop: resident.ResidentLoop | None = None
+        self._loop: resident.Slot | None = None  # this planner's place in the device's loop
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
         self._fault: BaseException | None = None
@@ -187,8 +187,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._flags = cp.zeros(7 * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
             self._flags[6 * tiles :] = INF
-            # The loop's grid: all of its blocks must be resident at once.
-            self._blocks = int(min(tiles, device.resident_blocks(self._k_loop())))
         else:
             self._allocate_paper(n)
 
