@@ -54,11 +54,15 @@ step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
     --backend cuda --json "$OUT/walk1.json"
 users users_cuda 240 --users "$COUNTS" --backend cuda
 if [ -n "$BASE" ]; then
-    WALKS_FILE="$PWD/$WALKS_FILE" OUT_ABS="$PWD/$OUT" bash -c \
-        'cd "$0" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 240 python3 -m cli.app bench \
-         --grid 400 --unknown 0.4 --walks-file "$WALKS_FILE" --users "$1" --backend cuda \
-         --json "$OUT_ABS/users_base.json" >"$OUT_ABS/users_base.log" 2>&1' "$BASE" "$COUNTS"
+    OUT_ABS="$PWD/$OUT"
+    (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 240 python3 -m cli.app \
+        bench --grid 400 --unknown 0.4 --walks-file "$OLDPWD/$WALKS_FILE" --users "$COUNTS" \
+        --backend cuda --json "$OUT_ABS/users_base.json" >"$OUT_ABS/users_base.log" 2>&1)
     echo "users_base rc=$? " >>"$OUT/steps.txt"
+    (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m cli.app \
+        bench --grid 400 --unknown 0.4 --planner eds --backend cuda \
+        --json "$OUT_ABS/walk1_base.json" >"$OUT_ABS/walk1_base.log" 2>&1)
+    echo "walk1_base rc=$? " >>"$OUT/steps.txt"
     tail -n 3 "$OUT/users_base.log"
 fi
 users users_cpu 120 --users "$COUNTS" --backend cpu
@@ -74,11 +78,12 @@ for name in ("users_base", "users_cuda", "users_cpu", "users_rate"):
     for r in json.loads(f.read_text()) if f.exists() else []:
         print(f"{name:<11}{r['backend']:<8}{r['mode']:<12}{r['users']:>6}{r['steps']:>8}"
               f"{r['median']:>8.3f}{r['p99']:>8.3f}{r['max']:>8.3f}{r['steps_per_s']:>9.0f}"
-              f"{r['device_bytes'] / 1e6:>8.2f}")
-w = out / "walk1.json"
-if w.exists():
-    for r in json.loads(w.read_text()):
-        print(f"walk1 closed loop, 1 user, {r['mode']}: steps {r['steps']} median "
+              f"{r['device_bytes'] / 1e6:>8.2f}"
+              + (f" own p99 {r['own']['p99']:.3f}, kept up: {r['kept_up']}" if "own" in r else ""))
+for name in ("walk1_base", "walk1"):
+    w = out / f"{name}.json"
+    for r in json.loads(w.read_text()) if w.exists() else []:
+        print(f"{name} closed loop, 1 user, {r['mode']}: steps {r['steps']} median "
               f"{r['ms_median']:.3f} p99 {r['ms_p99']:.3f} max {r['ms_max']:.3f}")
 EOF
 echo "steps: $(tr '\n' ' ' <"$OUT/steps.txt")"

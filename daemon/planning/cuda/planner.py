@@ -193,6 +193,9 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     def _set_params_size(self, size: int) -> None:
         """A device buffer for the params words and a delta of up to ``size - PARAMS`` cells."""
         self._drop_loop()
+        # The fill is a kernel: it would wait for the SMs the device's loop holds until the
+        # loop ends idle (200 ms), now that dropping this planner's slot leaves it running.
+        resident.evict()
         self._params = cp.zeros(size, dtype=np.int32)
         self._delta = self._params[abi.PARAMS :]  # the paper's kernels take the delta alone
 
