@@ -48,7 +48,7 @@ users() {  # users NAME SECONDS ARGS...: guidebelt bench --users at 400², 40 %
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"
 } >"$OUT/device.txt"
-step pytest 300 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
+step pytest 420 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
     --timeout 180 --durations=5
 step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
     --backend cuda --json "$OUT/walk1.json"

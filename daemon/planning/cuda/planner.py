@@ -193,9 +193,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     def _set_params_size(self, size: int) -> None:
         """A device buffer for the params words and a delta of up to ``size - PARAMS`` cells."""
         self._drop_loop()
-        # The fill is a kernel: it would wait for the SMs the device's loop holds until the
-        # loop ends idle (200 ms), now that dropping this planner's slot leaves it running.
-        resident.evict()
         self._params = cp.zeros(size, dtype=np.int32)
         self._delta = self._params[abi.PARAMS :]  # the paper's kernels take the delta alone
 
@@ -218,9 +215,15 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._set_params_size(2 * (abi.PARAMS + n))
 
     def _drop_loop(self) -> None:
+        """Give this planner's slot back before its buffers change, and stop the device's
+        loop: what follows allocates, fills (a kernel, which would wait for the SMs the loop
+        holds until it ends idle: the 200 ms steps of the first device run) or frees memory
+        the loop may still hold (page-locked frees synchronise). Rare: a new map or a delta
+        larger than any before."""
         if self._loop is not None:
             self._loop.stop()
             self._loop = None
+        resident.evict()
 
     def _require_plan(self) -> None:
         if self._shape == (0, 0):

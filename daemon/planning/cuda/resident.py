@@ -96,6 +96,7 @@ class ResidentLoop:
         self._ctrl = cp.zeros(abi.IO_PATH, dtype=np.uint32)
         self._table = cp.zeros((SLOTS, abi.SLOT_WORDS), dtype=np.uint64)
         self._keep: dict[int, tuple] = {}
+        self._dead: list[tuple] = []  # given back while the loop ran: freed at its stop
         self._gen = 0
         self.stream = cp.cuda.Stream(non_blocking=True)
         self.launches = 0  # how many times the loop was (re)started (statistics, tests)
@@ -126,8 +127,11 @@ class ResidentLoop:
             # Between calls no block touches a planner's buffers: its call's last barrier came
             # before the done word the host waited for. Only this attachment's: the index may
             # serve another planner by the time a late finalizer runs.
+            # The buffers themselves are let go only once the loop is stopped (``stop``): a
+            # page-locked free synchronises with the device, which a polling loop never
+            # leaves idle while other users step.
             if self._keep.get(index) is keep:
-                del self._keep[index]
+                self._dead.append(self._keep.pop(index))
 
         return Slot(self, index, release)
 
@@ -200,6 +204,7 @@ class ResidentLoop:
         if _ACTIVE is self:
             _ACTIVE = None
         if not self._running:
+            self._dead.clear()
             return
         self._mail[abi.BOX_STOP] = 1
         try:
@@ -207,6 +212,7 @@ class ResidentLoop:
         finally:
             self._mail[abi.BOX_STOP] = 0
             self._running = False
+        self._dead.clear()
 
 
 def shared() -> ResidentLoop:
