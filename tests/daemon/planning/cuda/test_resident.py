@@ -234,6 +234,9 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
     g = dijkstra_field(truth, goal)
     assert np.array_equal(p.costs(), g)
     assert np.array_equal(path, reference_path(g, truth, (0, 0)))
+    # the delta grew the planner's buffers, which stopped the loop once; the rest is served
+    # by the launch that followed
+    launches = p._loop.launches
     for x in others[2000:2005]:
         # entries 1023 and 1024 both name x: blocked, then free (the last wins)
         dup = np.concatenate([np.sort(rng.choice(others[others < x], 1023, replace=False)), [x, x]])
@@ -250,4 +253,4 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
     with pytest.raises(IndexError):
         p.update(np.sort(bad), np.ones(bad.size, dtype=bool))
     assert np.array_equal(p.costs(), before) and np.array_equal(p.blocked(), known)
-    assert p._loop.launches == 1
+    assert p._loop.launches == launches
