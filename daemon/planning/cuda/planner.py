@@ -218,8 +218,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         """Give this planner's slot back before its buffers change, and stop the device's
         loop: what follows allocates, fills (a kernel, which would wait for the SMs the loop
         holds until it ends idle: the 200 ms steps of the first device run) or frees memory
-        the loop may still hold (page-locked frees synchronise). Rare: a new map or a delta
-        larger than any before."""
+        the loop may still hold (page-locked allocations and frees may synchronise with the
+        device). Rare: a new map or a delta larger than any before."""
         if self._loop is not None:
             self._loop.stop()
             self._loop = None

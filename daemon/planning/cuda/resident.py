@@ -128,8 +128,9 @@ class ResidentLoop:
             # before the done word the host waited for. Only this attachment's: the index may
             # serve another planner by the time a late finalizer runs.
             # The buffers themselves are let go only once the loop is stopped (``stop``): a
-            # page-locked free synchronises with the device, which a polling loop never
-            # leaves idle while other users step.
+            # page-locked free may synchronise with the device (the CUDA guide lists
+            # page-locked allocation among the implicit synchronisations), which a polling
+            # loop would hold up until it ends idle.
             if self._keep.get(index) is keep:
                 self._dead.append(self._keep.pop(index))
 
