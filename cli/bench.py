@@ -36,8 +36,25 @@ def bench(
     ] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
     plot: Annotated[Path | None, typer.Option(help="Save a Figure 9-like plot.")] = None,
+    users: Annotated[
+        str | None,
+        typer.Option(help="N users (comma separated: a row each), each its own EDS walk."),
+    ] = None,
+    rate: Annotated[
+        float | None, typer.Option(min=0.1, help="--users: every user steps at HZ (open loop).")
+    ] = None,
+    seconds: Annotated[float, typer.Option(min=0.1, help="--rate: how long.")] = 10.0,
+    walks: Annotated[int, typer.Option(min=1, help="--users: distinct walks recorded.")] = 16,
+    walks_file: Annotated[
+        Path | None, typer.Option(help="--users: recorded walks read from (or written to) here.")
+    ] = None,
 ) -> None:
     """Walk the simulated scenarios with each planner; print Steps, Iter_avg and ms per step."""
+    if users is not None:
+        how = {"seed": seed, "walks": walks, "max_steps": max_steps, "hz": rate,
+               "seconds": seconds, "cache": walks_file}  # fmt: skip
+        bench_users(scenario, grid, unknown, backend, users, how, json_out)
+        return
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -114,6 +131,44 @@ def bench(
         plot.parent.mkdir(parents=True, exist_ok=True)
         plot_steps(result, plot)
         console.print(f"plot written to {plot}")
+
+
+def bench_users(
+    scenario: str,
+    grid: str,
+    unknown: str,
+    backend: str,
+    users: str,
+    how: dict,
+    json_out: Path | None,
+) -> None:
+    """``--users N``: per-user step latency of N users replaying their walks (sim/users.py)."""
+    from rich.console import Console
+
+    from sim.users import run_users
+
+    counts = comma_list(users, int)
+    if not counts or min(counts) < 1:
+        raise typer.BadParameter(f"{users!r}: user counts of 1 or more", param_hint="--users")
+    rows = [
+        run_users(scenario, g, u, backend, n, **how)
+        for g in comma_list(grid, int)
+        for u in comma_list(unknown, float)
+        for n in counts
+    ]
+    console = Console()
+    for r in rows:
+        console.print(
+            f"{r['backend']} {r['scenario']} {r['grid']}² {r['unknown']:.0%} users {r['users']} "
+            f"{r['mode']}: steps {r['steps']}, ms median {r['median']:.3f} p99 {r['p99']:.3f} "
+            f"max {r['max']:.3f}, {r['steps_per_s']:.0f} steps/s, "
+            f"device MB/user {r['device_bytes'] / 1e6:.2f}"
+        )
+    console.print(f"device: {rows[0]['device']}")
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(rows, indent=1) + "\n")
+        console.print(f"rows written to {json_out}")
 
 
 def register(app: typer.Typer) -> None:

@@ -48,6 +48,16 @@ MB_POST = 6
 """Host: the seq of the call posted last; with the delta's length in MB_COUNT, one 8-byte store."""
 MB_COUNT = 7
 
+# The shared loop's box (mapped, 16 bytes, polled in one read): the slot of the call posted
+# last, the stop word, the post's generation and its delta's length (the last two in one
+# 8-byte store).
+BOX_SLOT, BOX_STOP, BOX_POST, BOX_COUNT = range(4)
+
+# A slot of the shared loop's table (uint64 words in device memory): one planner's buffers.
+SLOT_G, SLOT_BLOCKED, SLOT_RAISED, SLOT_PARAMS, SLOT_FLAGS, SLOT_CTRL = range(6)
+SLOT_EXITS, SLOT_SEGS, SLOT_IO, SLOT_MAIL, SLOT_H, SLOT_W, SLOT_CAP, SLOT_LIMIT = range(6, 14)
+SLOT_WORDS = 16
+
 # ctrl words.
 C_BAR = 0
 """Grid barrier arrivals (only ever grows)."""
@@ -87,6 +97,12 @@ C_GO = 56
 """The resident loop's command generation."""
 C_CMD = 57
 """The command of the current generation."""
+C_SLOT = 58
+"""The shared loop's ctrl (``resident.py``): the slot whose call the current generation
+runs (-1: the loop ends)."""
+C_SERVED = 59
+"""The shared loop's ctrl: the post generation the last launch served (the next one starts
+there)."""
 CTRL_READ = 13
 """ctrl words the host reads back as statistics (C_BAR .. C_CHANGED)."""
 PATH_CTRL = 64
@@ -113,7 +129,11 @@ _WORDS = (
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
     "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
-    "C_CMD",
+    "C_CMD", "C_SLOT", "C_SERVED",
+    "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT",
+    "SLOT_G", "SLOT_BLOCKED", "SLOT_RAISED", "SLOT_PARAMS", "SLOT_FLAGS", "SLOT_CTRL",
+    "SLOT_EXITS", "SLOT_SEGS", "SLOT_IO", "SLOT_MAIL", "SLOT_H", "SLOT_W", "SLOT_CAP",
+    "SLOT_LIMIT", "SLOT_WORDS",
     "CTRL_READ", "PATH_CTRL",
     "IO_REJECT", "REJECT_RANGE", "REJECT_ORDER", "IO_DONE", "IO_PATH",
     "PATH_DONE", "PATH_MORE", "PATH_NONE", "PATH_BROKEN",

@@ -10,6 +10,7 @@ io buffer and sets the done word, which the host polls. The host reads the resul
 from __future__ import annotations
 
 import struct
+import weakref
 
 import cupy as cp
 import numpy as np
@@ -53,8 +54,7 @@ class FastCall:
     _segs: cp.ndarray
     _path_cap: int
     _result: tuple[int, ...]
-    _blocks: int
-    _loop: resident.ResidentLoop | None
+    _loop: resident.Slot | None
     sweeps: int
     raised_cells: int
     cut_cells: int
@@ -62,9 +62,6 @@ class FastCall:
     _unsettled: bool
     tiles: int
     exit_tiles: int
-
-    def _k_loop(self) -> cp.RawKernel:
-        return device.kernel("fast", "plan_resident")
 
     def _call_fast(
         self,
@@ -140,20 +137,24 @@ class FastCall:
         self.cut_cells = st[abi.C_CUT]
         return st[abi.C_ROUNDS], self.raised_cells + st[abi.C_CHANGED]
 
-    def _new_loop(self) -> resident.ResidentLoop:
-        """The resident loop over this planner's buffers as they are now."""
+    def _new_loop(self) -> resident.Slot:
+        """This planner's slot in the device's loop, over its buffers as they are now."""
         h, w = self._shape
-        args = (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
-                np.int32(h), np.int32(w), self._exits, self._segs,
-                np.uint64(self._io_host.device_ptr), np.int32(self._path_cap),
-                np.uint64(self._stage.device_ptr), np.uint32(self.cut_over))  # fmt: skip
-        k = self._k_loop()
-        blocks = self._blocks
-
-        def launch(stream: cp.cuda.Stream) -> None:
-            idle_us = np.uint32(resident.IDLE_MS * 1000)
-            k((blocks,), (abi.THREADS,), (*args, idle_us), stream=stream)
-
-        # The loop keeps the mapped buffers' memory too: a Pinned that grows lets go of its own.
-        keep = (args, self._io_host.memory, self._stage.memory)
-        return resident.ResidentLoop(launch, self._stage.array, keep)
+        words = [0] * abi.SLOT_WORDS
+        for at, array in (
+            (abi.SLOT_G, self._g), (abi.SLOT_BLOCKED, self._blocked_d),
+            (abi.SLOT_RAISED, self._raised), (abi.SLOT_PARAMS, self._params),
+            (abi.SLOT_FLAGS, self._flags), (abi.SLOT_CTRL, self._ctrl),
+            (abi.SLOT_EXITS, self._exits), (abi.SLOT_SEGS, self._segs),
+        ):  # fmt: skip
+            words[at] = array.data.ptr
+        words[abi.SLOT_IO], words[abi.SLOT_MAIL] = self._io_host.device_ptr, self._stage.device_ptr
+        words[abi.SLOT_H], words[abi.SLOT_W] = h, w
+        words[abi.SLOT_CAP], words[abi.SLOT_LIMIT] = self._path_cap, self.cut_over
+        # The slot keeps every buffer its words point to (a Pinned that grows lets go of its own
+        # memory), so none is freed or reused while the loop may still read it.
+        keep = (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
+                self._exits, self._segs, self._io_host.memory, self._stage.memory)  # fmt: skip
+        slot = resident.shared().attach(tuple(words), keep)
+        weakref.finalize(self, slot.stop)
+        return slot

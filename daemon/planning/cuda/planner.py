@@ -110,7 +110,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._cut_over_rate = CUT_OVER if cut_over is None else cut_over
         self.focused = (FOCUSED if focused is None else focused) and not dss
         self.cut_over = 1  # in cells, set with the map's size
-        self._loop: resident.ResidentLoop | None = None
+        self._loop: resident.Slot | None = None  # this planner's place in the device's loop
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
         self._fault: BaseException | None = None
@@ -187,8 +187,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._flags = cp.zeros(7 * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
             self._flags[6 * tiles :] = INF
-            # The loop's grid: all of its blocks must be resident at once.
-            self._blocks = int(min(tiles, device.resident_blocks(self._k_loop())))
         else:
             self._allocate_paper(n)
 
@@ -217,9 +215,15 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._set_params_size(2 * (abi.PARAMS + n))
 
     def _drop_loop(self) -> None:
+        """Give this planner's slot back before its buffers change, and stop the device's
+        loop: what follows allocates, fills (a kernel, which would wait for the SMs the loop
+        holds until it ends idle: the 200 ms steps of the first device run) or frees memory
+        the loop may still hold (page-locked allocations and frees may synchronise with the
+        device). Rare: a new map or a delta larger than any before."""
         if self._loop is not None:
             self._loop.stop()
             self._loop = None
+        resident.evict()
 
     def _require_plan(self) -> None:
         if self._shape == (0, 0):

@@ -143,7 +143,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 // words 0 .. IO_DONE - 1 copied at the end, io[IO_DONE] = seq when the call is complete, the
 // path from IO_PATH (count, status, then row and column of each cell).
 
-// The planning call, run by every block once per request of the resident loop (plan_resident,
+// The planning call, run by every block once per request of the resident loop (plan_users,
 // resident.cuh).
 //   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)

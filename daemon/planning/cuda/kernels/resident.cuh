@@ -1,28 +1,29 @@
-// The resident loop (included by fast.cu): one launch serves planning calls until it is told
-// to stop or has been idle for `idle_us`, so a replanning step costs the host a few stores into
-// mapped memory instead of a launch.
+// The resident loop (included by fast.cu): one launch per device serves the planning calls of
+// every fast planner of the process until it is told to stop or has been idle for `idle_us`,
+// so a replanning step costs the host a few stores into mapped memory instead of a launch,
+// and users stepping in turn never stop one loop to launch another (before, each planner had
+// a loop of its own: ~0.2 ms a step and stalls of ~45 ms with two users or more).
 //
-// The host's mailbox `mail` is page-locked host memory mapped into the device: the params
-// words (PARAM_*), MB_STOP, MB_POST and MB_COUNT, then the delta raw
-// (take_delta). The host writes a call's params and delta, then MB_POST = seq and MB_COUNT =
-// the delta's length, last and in one 8-byte store (x86 keeps stores in order). Block 0's
-// thread 0 polls the last four words in one PCIe read, an acquire; on a new seq its block
-// reads the params and the delta, whose length it knows, in one round trip, checks the
-// delta and copies params and encoded delta into device memory, and
-// it publishes the command to the other blocks in ctrl[C_CMD] and ctrl[C_GO], a generation
-// count that only grows, which they poll in L2. Every block reads the params from device
-// memory: 132 blocks reading the same host words queue their PCIe reads one behind another
-// for about 100 µs, one block's reads do not. The checks on the device spare the host's
-// Python a numpy call per check, which costs most right after the host did other work.
+// The planners' buffers are described by a table in device memory (`slots`, SLOT_WORDS uint64
+// words a slot: the pointers and sizes plan_call takes), written by the host
+// when a planner attaches. A planner's mailbox (params and raw delta) and io (results, done
+// word) are its own; what the host posts goes to the loop's box
+// instead: the slot, the stop word, a generation that grows with every post, the delta's
+// length (BOX_*), the last two in one 8-byte store. Block 0's thread 0 polls the box in one
+// PCIe read, takes the slot's descriptor and delta (take_delta) and publishes the slot in
+// ctrl[C_SLOT] with the generation ctrl[C_GO]; every block then reads the descriptor from L2
+// and runs plan_call over that planner's buffers.
+//
+// Barriers: a call's grid barriers count in its planner's own ctrl (the target starts at the
+// planner's ctrl[C_BASE], which its last call's last block left equal to the arrivals), so
+// planners never share a count; the loop's own ctrl counts only the launch's first barrier
+// and carries C_GO, C_SLOT and the generation served (C_SERVED) from launch to launch.
 //
 // The host never needs to know whether a loop is running: a call it posts just as the loop
 // ends idle is left unserved, the host sees the stream idle with its done word unset, and
-// launches again; a new loop serves the mailbox if MB_POST differs from the done word.
+// launches again; a new loop serves the box if its generation differs from C_SERVED.
 #pragma once
 #include "abi.cuh"
-
-#define CMD_RUN 1
-#define CMD_EXIT 2
 
 // Block 0, a posted call's params and delta: the params words go to device memory as they
 // are; the host writes the delta raw (cells as int64 after the params words, then one byte
@@ -74,92 +75,110 @@ __device__ __noinline__ int take_delta(const int* mail, int* params, int n, int 
     return (range ? REJECT_RANGE : 0) | (order ? REJECT_ORDER : 0);
 }
 
-// Block 0: wait for a posted call, the stop word or the idle limit; copy a call's params and
-// delta into device memory; publish the command. A rejected delta ends its call here (the
-// rejection bits, then the done word) and block 0 waits for the next one. *served: the seq
-// of the last call taken (thread 0).
-__device__ __noinline__ int take_command(const int* mail, int* params, unsigned* ctrl, int* io,
-                            int* served, unsigned idle_us, int cells_total) {
-    __shared__ int s_cmd, s_count;
+
+// Block 0: wait for a post, the stop word or the idle limit; the posted slot's descriptor
+// into d (every thread of block 0 reads it), its params and delta into its device params. A
+// rejected delta ends its call here (rejection bits, then the done word = the call's seq).
+// Returns the slot, or -1: the loop ends. *served: the generation taken last (thread 0).
+__device__ __noinline__ int take_call(const int* box, const unsigned long long* slots,
+                                      unsigned* ctrl, unsigned long long* d, int* served,
+                                      unsigned idle_us) {
+    __shared__ int s_slot, s_count;
     while (true) {
         if (threadIdx.x == 0) {
             unsigned long long since = global_ns();
-            int cmd = CMD_EXIT;
+            int slot = -1;
             while (true) {
-                // One PCIe read (seq, stop, post, count), an acquire: the params and delta
-                // read after it are the ones the host wrote before the post.
-                int4 box = load_acquire_sys(mail + MB_BOX);
-                if (box.y) break;
-                if (box.z != *served) {
-                    ctrl[C_STAMP + 8] = (unsigned)global_ns();  // the post seen (phases.py)
-                    *served = box.z;
-                    s_count = box.w;
-                    cmd = CMD_RUN;
+                // One PCIe read, an acquire: the planner's mailbox read after it holds what
+                // the host wrote before the post.
+                int4 b = load_acquire_sys(box);
+                if (b.y) break;
+                if (b.z != *served) {
+                    *served = b.z;
+                    slot = b.x;
+                    s_count = b.w;
                     break;
                 }
                 if (global_ns() - since > 1000ull * idle_us) break;
                 __nanosleep(200);
             }
-            s_cmd = cmd;
+            s_slot = slot;
         }
         __syncthreads();
-        if (s_cmd != CMD_RUN) break;
-        int reject = take_delta(mail, params, s_count, cells_total);
+        const int slot = s_slot;
+        if (slot < 0) break;
+        if (threadIdx.x < SLOT_WORDS) d[threadIdx.x] = __ldcg(slots + SLOT_WORDS * slot + threadIdx.x);
+        __syncthreads();
+        unsigned* planner_ctrl = (unsigned*)d[SLOT_CTRL];
+        if (threadIdx.x == 0) planner_ctrl[C_STAMP + 8] = (unsigned)global_ns();  // phases.py
+        int* params = (int*)d[SLOT_PARAMS];
+        int reject = take_delta((const int*)d[SLOT_MAIL], params, s_count,
+                                (int)(d[SLOT_H] * d[SLOT_W]));
         if (!reject) break;
         if (threadIdx.x == 0) {
+            int* io = (int*)d[SLOT_IO];
             io[IO_REJECT] = reject;
             __threadfence_system();
-            ((volatile int*)io)[IO_DONE] = *served;
+            ((volatile int*)io)[IO_DONE] = ((volatile int*)params)[PARAM_SEQ];
         }
+        __syncthreads();  // d and s_slot are rewritten by the next post
     }
     if (threadIdx.x == 0) {
-        ctrl[C_CMD] = (unsigned)s_cmd;
-        // The command, and the params and delta the block wrote before its last barrier,
-        // before the generation that announces them (one fence: it covers the block's writes).
+        ctrl[C_SLOT] = (unsigned)s_slot;
+        // The slot, and the params and delta the block wrote before its last barrier, before
+        // the generation that announces them.
         __threadfence();
         atomicAdd(ctrl + C_GO, 1u);
     }
-    return s_cmd;
+    return s_slot;
 }
 
-// The other blocks: wait for generation *gen + 1 and return its command.
-__device__ int await_command(unsigned* ctrl, unsigned* gen) {
-    __shared__ int s_cmd;
+// The other blocks: wait for generation *gen + 1 and return its slot (-1: the loop ends).
+__device__ int await_call(unsigned* ctrl, unsigned* gen) {
+    __shared__ int s_slot;
     if (threadIdx.x == 0) {
         while (load_acquire(ctrl + C_GO) == *gen) __nanosleep(100);
         *gen += 1;
-        s_cmd = (int)((volatile unsigned*)ctrl)[C_CMD];
+        s_slot = (int)((volatile unsigned*)ctrl)[C_SLOT];
     }
     __syncthreads();
-    return s_cmd;
+    return s_slot;
 }
 
-// The loop. mail: the host's mailbox (mapped); params: device memory the loop copies each
-// call's params words into; limit: the cells an EDS repair may raise before it gives up for
-// a plan from scratch (fast.cu). ctrl[C_GO] and ctrl[C_BASE] carry over from launch to launch.
+// The loop. slots: the table (device memory); ctrl: the loop's own IO_PATH words (zero at
+// first); box: the host's four words (mapped).
 extern "C" __global__ void __launch_bounds__(THREADS, 1)
-plan_resident(int* g, unsigned char* blocked, unsigned char* raised, int* params,
-              unsigned* flags, unsigned* ctrl, int h, int w, int2* exits, int4* segs, int* io,
-              int cap, const int* mail, unsigned limit, unsigned idle_us) {
-    // Thread 0's state across calls lives in shared memory: registers held across plan_call
-    // would push its own values into spills (ptxas -v).
-    __shared__ unsigned s_bar, s_gen;
+plan_users(const unsigned long long* slots, unsigned* ctrl, const int* box, unsigned idle_us) {
+    __shared__ unsigned s_bar, s_gen, s_call_bar;
     __shared__ int s_served;
+    __shared__ unsigned long long s_d[SLOT_WORDS];
     if (threadIdx.x == 0) {
         s_bar = ((volatile unsigned*)ctrl)[C_BASE];
         s_gen = ((volatile unsigned*)ctrl)[C_GO];
-        // The done word is the seq of the last call served, by this loop or an earlier launch.
-        s_served = __ldcv(io + IO_DONE);
+        s_served = ((volatile int*)ctrl)[C_SERVED];
     }
     // Every block has read C_GO before block 0 can move it.
     grid_barrier(ctrl, &s_bar);
     while (true) {
-        int cmd = blockIdx.x == 0 ? take_command(mail, params, ctrl, io, &s_served, idle_us, h * w)
-                                  : await_command(ctrl, &s_gen);
-        if (cmd != CMD_RUN) break;
-        plan_call(g, blocked, raised, params, params + PARAMS, flags, ctrl, h, w, exits, segs, io,
-                  cap, limit, &s_bar);
+        int slot = blockIdx.x == 0 ? take_call(box, slots, ctrl, s_d, &s_served, idle_us)
+                                   : await_call(ctrl, &s_gen);
+        if (slot < 0) break;
+        if (blockIdx.x != 0 && threadIdx.x < SLOT_WORDS)
+            s_d[threadIdx.x] = __ldcg(slots + SLOT_WORDS * slot + threadIdx.x);
+        __syncthreads();
+        unsigned* pctrl = (unsigned*)s_d[SLOT_CTRL];
+        // plan_call reads the target after its first barrier.
+        if (threadIdx.x == 0) s_call_bar = ((volatile unsigned*)pctrl)[C_BASE];
+        plan_call((int*)s_d[SLOT_G], (unsigned char*)s_d[SLOT_BLOCKED],
+                  (unsigned char*)s_d[SLOT_RAISED], (const int*)s_d[SLOT_PARAMS],
+                  (const int*)s_d[SLOT_PARAMS] + PARAMS, (unsigned*)s_d[SLOT_FLAGS], pctrl,
+                  (int)s_d[SLOT_H], (int)s_d[SLOT_W], (int2*)s_d[SLOT_EXITS],
+                  (int4*)s_d[SLOT_SEGS], (int*)s_d[SLOT_IO], (int)s_d[SLOT_CAP],
+                  (unsigned)s_d[SLOT_LIMIT], &s_call_bar);
+        __syncthreads();  // s_d is rewritten for the next call
     }
-    // Nothing arrives at a barrier after the exit command: every block's target is the same.
-    if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_BASE] = s_bar;
+    if (blockIdx.x == 0 && threadIdx.x == 0) {
+        ctrl[C_BASE] = s_bar;
+        ctrl[C_SERVED] = (unsigned)s_served;
+    }
 }

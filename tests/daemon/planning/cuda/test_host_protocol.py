@@ -24,8 +24,8 @@ from daemon.planning.dijkstra import dijkstra_field, reference_path
 
 
 class DeviceModel:
-    """A call as the device serves it. ``loops``: resident loops started; ``served`` and
-    ``refused``: calls answered with a repair and with rejection bits."""
+    """A call as the device serves it. ``loops``: slots attached (again whenever the buffers
+    move); ``served`` and ``refused``: calls answered with a repair and with rejection bits."""
 
     ROUNDS, RAISED, TILES, SWEEPS, EXITS = 7, 3, 5, 11, 2  # distinct, to check the words read
 
@@ -42,15 +42,17 @@ class DeviceModel:
         model, res = self, self.cuda.resident
 
         class ModelLoop(res.ResidentLoop):
-            def post(self, seq: int, n_delta: int) -> None:
-                super().post(seq, n_delta)  # the real store into the mailbox, then the model
-                model.serve_mailbox(self._mail, seq, n_delta)
+            def post(self, slot: int, n_delta: int) -> None:
+                super().post(slot, n_delta)  # the real stores into the box, then the model
+                assert self._mail[abi.BOX_SLOT] == slot
+                post = self._mail[abi.BOX_POST : abi.BOX_POST + 2].view(np.int64)[0]
+                assert post == (n_delta << 32) | self._gen
+                model.serve_mailbox(model.p._stage.array, n_delta)
 
         self.loops += 1
-        return ModelLoop(lambda stream: None, self.p._stage.array, ())
+        return ModelLoop(lambda *args: None).attach((0,) * abi.SLOT_WORDS, ())
 
-    def serve_mailbox(self, mail: np.ndarray, seq: int, n: int) -> None:
-        assert mail[abi.MB_POST : abi.MB_POST + 2].view(np.int64)[0] == (n << 32) | seq
+    def serve_mailbox(self, mail: np.ndarray, n: int) -> None:
         cells = mail.view(np.int64)[abi.PARAMS // 2 : abi.PARAMS // 2 + n].copy()
         at = 4 * abi.PARAMS + 8 * n
         values = mail.view(np.uint8)[at : at + n] != 0

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Issue 28's check in one device call: many users on one GPU.
+#   1. pytest -m gpu over tests/daemon/planning/cuda: the cuda planner's tests, the shared
+#      loop's (test_users.py: planners stepping interleaved, exact against Dijkstra);
+#   2. guidebelt bench, one user's closed-loop walk (400², 40 %, EDS): the 1-user figure of
+#      BENCHMARKS.md, to see it unchanged;
+#   3. guidebelt bench --users $COUNTS --backend cuda (and cpu): round-robin replay of each
+#      user's own recorded walk, per-user step latency;
+#   4. the same on $BASE (a tree whose daemon/planning/cuda is the one before the shared
+#      loop), when given: the "before" figures, on the same card in the same call;
+#   5. guidebelt bench --users $RATE_USERS --rate 10: open loop, every user at 10 Hz;
+#   6. the short table, last.
+# Usage, from the repository root on the GPU machine: bash scripts/gpu_users_check.sh
+# Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_users). WALKS_FILE: recorded walks
+# (written by the first bench that needs them, read by the rest).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT=${GPU_CHECK_OUT:-out/gpu_users}
+COUNTS=${COUNTS:-1,4,16}
+RATE_USERS=${RATE_USERS:-500,1000}
+RATE_S=${RATE_S:-8}
+BASE=${BASE:-}
+WALKS_FILE=${WALKS_FILE:-$OUT/walks.pkl}
+mkdir -p "$OUT"
+rm -f "$OUT/steps.txt"
+source scripts/device_env.sh
+export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}${CLI_SITE:+:$CLI_SITE}"
+fail=0
+step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAME.log
+    local name=$1 limit=$2
+    shift 2
+    echo "== $name: $*"
+    local t0=$SECONDS
+    timeout "$limit" "$@" >"$OUT/$name.log" 2>&1
+    local rc=$?
+    [ "$rc" -eq 0 ] || fail=1
+    echo "$name rc=$rc $((SECONDS - t0))s" >>"$OUT/steps.txt"
+    tail -n 3 "$OUT/$name.log"
+}
+users() {  # users NAME SECONDS ARGS...: guidebelt bench --users at 400², 40 %
+    local name=$1 limit=$2
+    shift 2
+    step "$name" "$limit" python3 -m cli.app bench --grid 400 --unknown 0.4 \
+        --walks-file "$WALKS_FILE" --json "$OUT/$name.json" "$@"
+}
+{
+    nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
+    date -u +%Y-%m-%dT%H:%MZ
+    git describe --always --dirty 2>/dev/null || echo "commit unknown"
+} >"$OUT/device.txt"
+step pytest 420 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
+    --timeout 180 --durations=5
+step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
+    --backend cuda --json "$OUT/walk1.json"
+users users_cuda 240 --users "$COUNTS" --backend cuda
+if [ -n "$BASE" ]; then
+    OUT_ABS="$PWD/$OUT"
+    (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 240 python3 -m cli.app \
+        bench --grid 400 --unknown 0.4 --walks-file "$OLDPWD/$WALKS_FILE" --users "$COUNTS" \
+        --backend cuda --json "$OUT_ABS/users_base.json" >"$OUT_ABS/users_base.log" 2>&1)
+    echo "users_base rc=$? " >>"$OUT/steps.txt"
+    (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m cli.app \
+        bench --grid 400 --unknown 0.4 --planner eds --backend cuda \
+        --json "$OUT_ABS/walk1_base.json" >"$OUT_ABS/walk1_base.log" 2>&1)
+    echo "walk1_base rc=$? " >>"$OUT/steps.txt"
+    tail -n 3 "$OUT/users_base.log"
+fi
+users users_cpu 120 --users "$COUNTS" --backend cpu
+users users_rate 300 --users "$RATE_USERS" --rate 10 --seconds "$RATE_S" --backend cuda
+python3 - "$OUT" <<'EOF'
+import json, pathlib, sys
+out = pathlib.Path(sys.argv[1])
+print(open(out / "device.txt").read().strip().replace("\n", " | "))
+print(f"{'run':<11}{'backend':<8}{'mode':<12}{'users':>6}{'steps':>8}{'median':>8}{'p99':>8}"
+      f"{'max':>8}{'steps/s':>9}{'MB/user':>8}")
+for name in ("users_base", "users_cuda", "users_cpu", "users_rate"):
+    f = out / f"{name}.json"
+    for r in json.loads(f.read_text()) if f.exists() else []:
+        print(f"{name:<11}{r['backend']:<8}{r['mode']:<12}{r['users']:>6}{r['steps']:>8}"
+              f"{r['median']:>8.3f}{r['p99']:>8.3f}{r['max']:>8.3f}{r['steps_per_s']:>9.0f}"
+              f"{r['device_bytes'] / 1e6:>8.2f}"
+              + (f" own p99 {r['own']['p99']:.3f}, kept up: {r['kept_up']}" if "own" in r else ""))
+for name in ("walk1_base", "walk1"):
+    w = out / f"{name}.json"
+    for r in json.loads(w.read_text()) if w.exists() else []:
+        print(f"{name} closed loop, 1 user, {r['mode']}: steps {r['steps']} median "
+              f"{r['ms_median']:.3f} p99 {r['ms_p99']:.3f} max {r['ms_max']:.3f}")
+EOF
+echo "steps: $(tr '\n' ' ' <"$OUT/steps.txt")"
+exit "$fail"

@@ -1,0 +1,249 @@
+"""Many users on one planner backend (issue 28): ``guidebelt bench --users N``.
+
+Each user walks its own seeded scenario once with the daemon's navigator on the CPU, and the
+planner calls that walk made (``plan``, then ``update_and_path`` with each step's delta and
+the user's cell; ``update`` and ``path`` where the walk made them) are recorded. The bench
+then gives every user a planner of the backend under test and replays the users' calls:
+
+- ``round-robin``: user 0's step, user 1's, ..., as the daemon's sessions take turns; a
+  step's latency is its own call's wall clock.
+- ``rate`` (``--rate HZ``): every user steps at HZ, the users' phases spread evenly over a
+  period; one host thread serves the steps in the order they fall due, so a step's latency is
+  from when it fell due to when its call returned: the wait behind other users' steps
+  included. Users whose walk is done start it again (their planner plans from scratch).
+
+Every replayed path must equal the recorded one, which the CPU planner read from its exact
+field (its contract, tested against the reference Dijkstra): a mismatch ends the bench with
+an error. With more users than ``walks`` recorded, user ``i`` replays walk ``i % walks``
+with a planner of its own.
+"""
+
+from __future__ import annotations
+
+import heapq
+import pickle
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .courtyard import Scenario
+from .walk import paper_settings, walk
+
+
+@dataclass
+class Recording:
+    """One walk's planner calls: (``plan``, blocked, goal), (``step``, cells, values, cell,
+    path), (``update``, cells, values) or (``path``, cell, path)."""
+
+    ops: list[tuple] = field(default_factory=list)
+
+    @property
+    def steps(self) -> int:
+        return sum(op[0] == "step" for op in self.ops)
+
+
+class _Recorder:
+    """The navigator's planner, every call recorded (copies: the navigator reuses arrays)."""
+
+    def __init__(self, planner: Any, rec: Recording) -> None:
+        self._p, self._rec = planner, rec
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._p, name)
+
+    def plan(self, blocked: np.ndarray, goal: tuple[int, int]) -> Any:
+        self._rec.ops.append(("plan", np.array(blocked, copy=True), tuple(goal)))
+        return self._p.plan(blocked, goal)
+
+    def update(self, cells: np.ndarray, values: np.ndarray) -> Any:
+        self._rec.ops.append(("update", np.array(cells), np.array(values)))
+        return self._p.update(cells, values)
+
+    def update_and_path(self, cells: np.ndarray, values: np.ndarray, start: Any) -> Any:
+        stats, path = self._p.update_and_path(cells, values, start)
+        cell = (int(start[0]), int(start[1]))
+        self._rec.ops.append(("step", np.array(cells), np.array(values), cell, path.copy()))
+        return stats, path
+
+    def path(self, start: Any) -> np.ndarray:
+        path = self._p.path(start)
+        self._rec.ops.append(("path", (int(start[0]), int(start[1])), path.copy()))
+        return path
+
+
+_RECORDED: dict[tuple, Recording] = {}
+
+
+def record(scenario: Scenario, max_steps: int | None = None) -> Recording:
+    """The planner calls of one EDS walk of ``scenario`` on the CPU (kept for the process:
+    rows for several user counts replay the same walks)."""
+    from daemon.navigation import Navigator
+
+    key = (scenario.name, scenario.shape, scenario.unknown, scenario.seed, max_steps)
+    if key in _RECORDED:
+        return _RECORDED[key]
+
+    rec = Recording()
+    nav = Navigator("rec", paper_settings(scenario, "eds", "cpu", "fast"))
+    nav.route.planner = _Recorder(nav.route.planner, rec)
+    walk(scenario, backend="cpu", mode="eds", max_steps=max_steps, navigator=nav)
+    _RECORDED[key] = rec
+    return rec
+
+
+class Replay:
+    """One user: a planner and the recording it replays, op by op."""
+
+    def __init__(self, planner: Any, rec: Recording, user: int) -> None:
+        self.p, self.rec, self.user = planner, rec, user
+        self.at = 0
+        self.laps = 0
+
+    def until_step(self) -> tuple | None:
+        """Run the ops before the next step (untimed); the step, or None at the walk's end."""
+        while self.at < len(self.rec.ops):
+            op = self.rec.ops[self.at]
+            self.at += 1
+            if op[0] == "step":
+                return op
+            if op[0] == "plan":
+                self.p.plan(op[1], op[2])
+            elif op[0] == "update":
+                self.p.update(op[1], op[2])
+            else:
+                self._check(self.p.path(op[1]), op[2])
+        return None
+
+    def step(self, op: tuple) -> float:
+        """The step's call; its wall clock in ms."""
+        t0 = time.perf_counter()
+        _, path = self.p.update_and_path(op[1], op[2], op[3])
+        ms = (time.perf_counter() - t0) * 1e3
+        self._check(path, op[4])
+        return ms
+
+    def _check(self, path: np.ndarray, want: np.ndarray) -> None:
+        if not np.array_equal(path, want):
+            raise AssertionError(f"user {self.user}: a replayed path differs from the CPU's")
+
+
+def spread(ms: np.ndarray) -> dict[str, float]:
+    if ms.size == 0:
+        return {"median": float("nan"), "p99": float("nan"), "max": float("nan")}
+    return {
+        "median": float(np.median(ms)),
+        "p99": float(np.percentile(ms, 99)),
+        "max": float(ms.max()),
+    }
+
+
+def round_robin(users: list[Replay]) -> dict[str, Any]:
+    """Every user's walk once, one step each in turn."""
+    ms: list[float] = []
+    live = list(users)
+    t0 = time.perf_counter()
+    while live:
+        for u in list(live):
+            op = u.until_step()
+            if op is None:
+                live.remove(u)
+                continue
+            ms.append(u.step(op))
+    total = time.perf_counter() - t0
+    arr = np.asarray(ms)
+    return {"steps": int(arr.size), "total_s": total, "steps_per_s": arr.size / total,
+            **spread(arr)}  # fmt: skip
+
+
+def at_rate(users: list[Replay], hz: float, seconds: float) -> dict[str, Any]:
+    """Every user steps at ``hz`` for ``seconds``; latency from due to done."""
+    n = len(users)
+    period = 1.0 / hz
+    # (due, user): the users' phases spread over a period; a heap, since a scan of 1,000
+    # users per step would cost the host ~50 µs of the ~100 µs a step may take at 10 kHz.
+    # Due times are multiplied out, not summed: a sum drifts and lets a step more in.
+    queue = [(k * period / n, k, 0) for k in range(n)]
+    ops = [u.until_step() for u in users]
+    late: list[float] = []
+    own: list[float] = []
+    t0 = time.perf_counter()
+    while queue[0][0] < seconds:
+        due, k, j = queue[0]
+        while time.perf_counter() - t0 < due:
+            pass  # wait for the step to fall due: a sleep's timer slack is ~50 µs
+        u, op = users[k], ops[k]
+        if op is None:  # the walk is done: again from its plan
+            u.at, u.laps = 0, u.laps + 1
+            op = u.until_step()
+            assert op is not None
+        own.append(u.step(op))
+        late.append((time.perf_counter() - t0 - due) * 1e3)
+        ops[k] = u.until_step()
+        heapq.heapreplace(queue, (k * period / n + (j + 1) * period, k, j + 1))
+    total = time.perf_counter() - t0
+    lat = np.asarray(late)
+    return {"hz": hz, "seconds": total, "steps": int(lat.size), "steps_per_s": lat.size / total,
+            "kept_up": bool(lat.size and lat.size >= 0.95 * n * hz * seconds),
+            **spread(lat), "own": spread(np.asarray(own))}  # fmt: skip
+
+
+def memory_per_user(planner: Any) -> dict[str, int]:
+    """Bytes a user's planner holds: device memory, and page-locked host memory (cuda)."""
+    out = {"device_bytes": int(getattr(planner, "device_bytes", lambda: 0)())}
+    pinned = [getattr(planner, n, None) for n in ("_io_host", "_stage")]
+    out["pinned_bytes"] = int(sum(p.array.nbytes for p in pinned if p is not None))
+    return out
+
+
+def run_users(
+    scenario_name: str,
+    grid: int,
+    unknown: float,
+    backend: str,
+    users: int,
+    *,
+    seed: int = 0,
+    walks: int = 16,
+    max_steps: int | None = None,
+    hz: float | None = None,
+    seconds: float = 10.0,
+    cache: Path | None = None,
+) -> dict[str, Any]:
+    """Record ``min(users, walks)`` walks (seeds ``seed``, ``seed + 1``, ...), give each of
+    ``users`` users a planner of ``backend`` and replay them round-robin, or at ``hz`` each
+    for ``seconds`` when given. Returns the row for the JSON."""
+    from daemon.planning.registry import make_planner
+
+    from .benchmark import device_name
+    from .scenarios import make_scenario
+
+    if cache is not None and cache.exists():
+        _RECORDED.update(pickle.loads(cache.read_bytes()))
+    recs = [
+        record(make_scenario(scenario_name, grid, unknown, seed + k), max_steps)
+        for k in range(min(users, walks))
+    ]
+    if cache is not None:
+        cache.write_bytes(pickle.dumps(_RECORDED))
+    t0 = time.perf_counter()
+    replays = [Replay(make_planner("eds", backend), recs[i % len(recs)], i) for i in range(users)]
+    firsts = [u.until_step() for u in replays]  # every user's first plan, untimed
+    setup_s = time.perf_counter() - t0
+    for u, op in zip(replays, firsts, strict=True):
+        u.at -= 1 if op is not None else 0  # the step itself is replayed by the run
+    row: dict[str, Any] = {
+        "scenario": scenario_name, "grid": grid, "unknown": unknown, "backend": backend,
+        "device": device_name(backend), "users": users, "walks": len(recs),
+        "walk_steps": [r.steps for r in recs], "setup_s": setup_s,
+        **memory_per_user(replays[0].p),
+    }  # fmt: skip
+    if hz is None:
+        row["mode"] = "round-robin"
+        row.update(round_robin(replays))
+    else:
+        row["mode"] = "rate"
+        row.update(at_rate(replays, hz, seconds))
+    return row
