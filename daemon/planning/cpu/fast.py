@@ -45,6 +45,7 @@ from ..grid import (
 from ..interface import UpdateStats
 from . import dial as k
 from . import repair as r
+from . import repair_queue as q
 
 CUT_OVER = 0.25
 """A step's repair may expand this share of the map's cells; past it, a plan from scratch (an
@@ -83,7 +84,6 @@ class FastCpuPlanner(FieldPlanner):
             self._heap = np.zeros(capacity, dtype=np.int64)
             self._heap_size = np.zeros(1, dtype=np.int64)
             self._tie = np.zeros(capacity, dtype=np.int64)
-            self._tie_size = np.zeros(1, dtype=np.int64)
             self._nb = np.stack(
                 [self._off_of(width), NEIGHBOUR_COST, NEIGHBOUR_DR, NEIGHBOUR_DC], axis=1
             ).astype(np.int64)
@@ -153,13 +153,13 @@ class FastCpuPlanner(FieldPlanner):
         self._require_plan()
         cells, values = self._apply(cells, blocked)
         h, w = self._shape
-        status, touched = r.apply_changes(
+        status, touched = q.apply_changes(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
             self._focus, w, h * w, cells, values, self._heap, self._heap_size,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[touched])} is outside the {h}x{w} map")
-        if status in (r.GOAL_BLOCKED, k.OVERFLOW):
+        if status in (q.GOAL_BLOCKED, k.OVERFLOW):
             return self._overflowed(t0) if status == k.OVERFLOW else self._dss(t0)
         return UpdateStats(0, int(touched), (time.perf_counter() - t0) * 1e3)
 
@@ -188,7 +188,7 @@ class FastCpuPlanner(FieldPlanner):
         pops, touched = r.settle(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
             self._focus, bound, self._budget if target >= 0 else self._g.size,
-            self._heap, self._heap_size, self._pool, self._tie, self._tie_size,
+            self._heap, self._heap_size, self._pool, self._tie,
         )  # fmt: skip
         if pops == r.CUT_OVER:
             return self._dss(t0)
@@ -226,7 +226,7 @@ class FastCpuPlanner(FieldPlanner):
 
     def pending(self) -> int:
         """Cells still waiting for the repair (0 for DSS, and after ``settle``)."""
-        return 0 if self.dss else r.live_entries(self._qkey)
+        return 0 if self.dss else q.live_entries(self._qkey)
 
     def _recompute(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         t0 = time.perf_counter()
@@ -255,7 +255,7 @@ class FastCpuPlanner(FieldPlanner):
         status, pops, touched, path = r.step(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._off, self._cost,
             self._padded(self._goal), self._focus, w, h * w, cells, values, self._budget,
-            self._heap, self._heap_size, self._pool, self._tie, self._tie_size,
+            self._heap, self._heap_size, self._pool, self._tie,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[pops])} is outside the {h}x{w} map")
