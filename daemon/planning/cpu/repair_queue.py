@@ -82,33 +82,6 @@ def live_entries(qkey: np.ndarray) -> int:
 
 
 @njit(cache=True, nogil=True)
-def _lookahead(blk, g, nb, v):
-    """rhs(v) from its free neighbours (not for the goal, whose rhs is 0)."""
-    best = INF
-    for k in range(8):
-        n = v + nb[k, 0]
-        if not blk[n]:
-            d = g[n] + nb[k, 1]
-            if d < best:
-                best = d
-    return best
-
-
-@njit(cache=True, nogil=True)
-def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
-    """Queue v in the heap under its key if it is inconsistent; forget it if not."""
-    if g[v] == rhs[v]:
-        qkey[v] = -1
-        return
-    r = v // focus[3]
-    dr, dc = abs(r - focus[1]), abs(v - r * focus[3] - focus[2])
-    key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + focus[4]
-    if qkey[v] != key:
-        qkey[v] = key
-        heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
-
-
-@njit(cache=True, nogil=True)
 def _to_padded(flat, w):
     return (flat // w + 1) * (w + 2) + flat % w + 1
 
@@ -118,6 +91,8 @@ def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values,
     """Set ``blk[cells] = values`` (unpadded flat indices) and queue what became inconsistent:
     a newly blocked cell drops to INF at once (no neighbour reads a blocked cell) and its
     neighbours that looked through it look again; a freed cell looks at its neighbours.
+    The looks are written out in one loop, not called: numba reference-counts the arrays
+    of every call, which cost more than the looks themselves.
 
     Returns (0, cells whose rhs was rewritten); (-1, i) when ``cells[i]`` lies outside the map
     (nothing changed); ``GOAL_BLOCKED`` or ``OVERFLOW`` (the map is updated, the field is not:
@@ -133,31 +108,44 @@ def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values,
         blk[_to_padded(cells[i], w)] = values[i]
     if blk[goal]:
         return GOAL_BLOCKED, 0
-    touched = 0
-    for i in range(cells.size):  # newly blocked
+    look = np.empty(8 * cells.size, np.int64)  # cells whose rhs is to be read again
+    looks = 0
+    for i in range(cells.size):
         v = _to_padded(cells[i], w)
-        if not blk[v] or was[i]:
-            continue
-        gold = g[v]
-        g[v] = rhs[v] = INF
-        qkey[v] = -1
-        if gold >= INF:
-            continue
-        if not heap_room(heap, hs, qkey, ROOM):
-            return OVERFLOW, 0
+        if blk[v] and not was[i]:  # newly blocked
+            gold = g[v]
+            g[v] = rhs[v] = INF
+            qkey[v] = -1
+            if gold >= INF:
+                continue
+            for k in range(8):
+                n = v + nb[k, 0]
+                if not blk[n] and n != goal and rhs[n] == gold + nb[k, 1]:
+                    look[looks] = n
+                    looks += 1
+    for i in range(cells.size):
+        v = _to_padded(cells[i], w)
+        if not blk[v] and was[i]:  # newly freed (g is INF: no neighbour looked through it)
+            look[looks] = v
+            looks += 1
+    width, sr, sc, km = focus[3], focus[1], focus[2], focus[4]
+    for i in range(looks):
+        v = look[i]
+        best = 0 if v == goal else INF
         for k in range(8):
             n = v + nb[k, 0]
-            if not blk[n] and n != goal and rhs[n] == gold + nb[k, 1]:
-                rhs[n] = _lookahead(blk, g, nb, n)
-                touched += 1
-                _queue_in_heap(g, rhs, qkey, focus, n, heap, hs)
-    for i in range(cells.size):  # newly freed
-        v = _to_padded(cells[i], w)
-        if blk[v] or not was[i]:
+            if not blk[n] and g[n] + nb[k, 1] < best:
+                best = g[n] + nb[k, 1]
+        rhs[v] = best
+        if g[v] == rhs[v]:
+            qkey[v] = -1
             continue
-        rhs[v] = 0 if v == goal else _lookahead(blk, g, nb, v)
-        touched += 1
-        if not heap_room(heap, hs, qkey, 1):
-            return OVERFLOW, 0
-        _queue_in_heap(g, rhs, qkey, focus, v, heap, hs)
-    return 0, touched
+        r = v // width
+        dr, dc = abs(r - sr), abs(v - r * width - sc)
+        key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+        if qkey[v] != key:
+            if hs[0] + 1 > heap.size and not heap_room(heap, hs, qkey, 1):
+                return OVERFLOW, 0
+            qkey[v] = key
+            heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+    return 0, looks
