@@ -155,11 +155,12 @@ class FastCpuPlanner(FieldPlanner):
         h, w = self._shape
         status, touched = q.apply_changes(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
-            self._focus, w, h * w, cells, values, self._heap, self._heap_size,
+            self._focus, w, h * w, cells, values, self._heap, self._heap_size, self._pool,
+            self._budget,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[touched])} is outside the {h}x{w} map")
-        if status in (q.GOAL_BLOCKED, k.OVERFLOW):
+        if status in (q.GOAL_BLOCKED, q.CUT_OVER, k.OVERFLOW):
             return self._overflowed(t0) if status == k.OVERFLOW else self._dss(t0)
         return UpdateStats(0, int(touched), (time.perf_counter() - t0) * 1e3)
 
@@ -190,7 +191,7 @@ class FastCpuPlanner(FieldPlanner):
             self._focus, bound, self._budget if target >= 0 else self._g.size,
             self._heap, self._heap_size, self._pool, self._tie,
         )  # fmt: skip
-        if pops == r.CUT_OVER:
+        if pops == q.CUT_OVER:
             return self._dss(t0)
         if pops == k.OVERFLOW:
             return self._overflowed(t0)

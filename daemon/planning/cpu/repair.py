@@ -44,13 +44,20 @@ from numba import njit
 
 from ..grid import DIAGONAL, STRAIGHT
 from .dial import INF, OVERFLOW, path_of
-from .repair_queue import CELL, OCTILE, ROOM, SHIFT, apply_changes, heap_push, heap_room
+from .repair_queue import (
+    CELL,
+    CUT_OVER,
+    OCTILE,
+    ROOM,
+    SHIFT,
+    apply_changes,
+    heap_push,
+    heap_room,
+)
 
 NBR = 2 * DIAGONAL + 1
 """Buckets of one repair: a neighbour's key lies within twice the largest edge cost above the
 key being expanded (one edge, and the heuristic's change along it)."""
-CUT_OVER = -3
-"""Returned by ``settle`` past its budget of expansions: a plan from scratch is cheaper."""
 BROKEN = -5
 """Returned by ``step`` when the path did not descend g to the goal (never, if g is sound)."""
 
@@ -268,7 +275,7 @@ def step(blk, g, rhs, qkey, nb, off, cost, goal, focus, w, n_cells, cells, value
     off), or the status of ``apply_changes`` (its index in the second place for -1) or of
     ``settle``, or ``BROKEN``, with no path."""
     status, touched = apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells,
-                                    values, heap, hs)  # fmt: skip
+                                    values, heap, hs, pool, budget)  # fmt: skip
     none = np.empty((0, 2), dtype=np.int32)
     if status != 0:
         return status, touched, 0, none
