@@ -2,15 +2,17 @@
 
 A cuda step is a round trip — the host posts the change into the resident loop's mailbox,
 the device's blocks pick it up, settle, extract the path and write it back, the host sees
-the done word — of about 0.07 ms at its median on an H100 or H200 host whatever the grid
-(``BENCHMARKS.md``). On a small grid the whole CPU repair of a step costs less than that
-(``cpu/repair.py``: a walking step's change, repair and path in one compiled call), and its
-rare large repairs stay below the GPU's DSS. So EDS of the cuda backend plans a map of at
-most ``SMALL_CELLS`` cells with ``FastCpuPlanner`` and a larger one with ``CudaPlanner``; the
-choice is made at each ``plan`` (a new map), never in the middle of a walk. Both compute the
-same exact field and read the same path, tie for tie, so the rule changes what a step costs,
-never where the user is led. DSS is not switched: it is the full plan on the device that
-EDS is measured against.
+the done word — of 0.06–0.08 ms at its median on an H200 host at 100² and 200², whatever the
+change. The CPU repair (``cpu/repair.py``: a walking step's change, repair and path in one
+compiled call) does the whole step in 0.03–0.05 ms there and its worst ones in 0.07–0.20, and
+the GPU's DSS, against which EDS is measured, stays on the device. Measured on the H200 host
+(2026-11-26): at 100² and 200² the CPU's EDS walks in 0.27–0.49 of the device DSS's time,
+where the device's EDS took 0.58–0.79; at 400² the device's worst step (0.20–0.26 ms) beats
+the CPU's (0.31–0.48), so the limit is 200² (``SMALL_CELLS``). The cuda backend's EDS plans a
+map of at most ``SMALL_CELLS`` cells with ``FastCpuPlanner`` and a larger one with
+``CudaPlanner``; the choice is made at each ``plan`` (a new map), never in the middle of a
+walk. Both compute the same exact field and read the same path, tie for tie, so the rule
+changes what a step costs, never where the user is led. Only EDS (``fast``) is switched.
 
 ``name`` is the planner that serves the current map (``eds-cpu-fast`` on a small one), so a
 bench row or a log line says which one ran. ``parts`` lists both, for the warm-up: the kernels
@@ -31,8 +33,7 @@ if TYPE_CHECKING:
     from .planner import CudaPlanner
 
 SMALL_CELLS = 200 * 200
-"""Grids of at most this many cells are planned on the CPU (measured: see ``BENCHMARKS.md``,
-the worst replanning step on the GPU, 100² to 400²)."""
+"""Grids of at most this many cells are planned on the CPU (the module's measurements)."""
 
 
 class SmallGridsOnCpu(GlobalPlanner):
