@@ -64,6 +64,10 @@ def _field_planner(dss: bool) -> PlannerFactory:
             from .cpu.fast import FastCpuPlanner
 
             return FastCpuPlanner(dss)
+        if not dss and variant == "fast":  # EDS on a small grid: the host's repair is quicker
+            from .cuda.small_grids import SmallGridsOnCpu
+
+            return SmallGridsOnCpu(variant)
         from .cuda.planner import CudaPlanner
 
         return CudaPlanner(variant, dss=dss)

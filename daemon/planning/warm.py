@@ -27,7 +27,13 @@ RADIUS = 2
 
 def exercise(planner: GlobalPlanner, steps: int = 40, seed: int = 0) -> None:
     """Plan, then ``steps`` seeded occupancy changes, each followed by a replanning step and a
-    path read from elsewhere, then the escape and a full settle."""
+    path read from elsewhere, then the escape and a full settle. A planner made of ``parts``
+    (one serves small maps, another large ones) has each part exercised."""
+    parts = getattr(planner, "parts", None)
+    if parts is not None:
+        for part in parts():
+            exercise(part, steps, seed)
+        return
     rng = np.random.default_rng(seed)
     occupancy = np.full((SIDE, SIDE), FREE, dtype=np.uint8)
     occupancy[SIDE // 2, 6 : SIDE - 6] = OCCUPIED  # a wall with gaps at both ends: paths bend

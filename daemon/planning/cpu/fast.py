@@ -45,6 +45,7 @@ from ..grid import (
 from ..interface import UpdateStats
 from . import dial as k
 from . import repair as r
+from . import repair_queue as q
 
 CUT_OVER = 0.25
 """A step's repair may expand this share of the map's cells; past it, a plan from scratch (an
@@ -64,6 +65,7 @@ class FastCpuPlanner(FieldPlanner):
         self._cut_over = cut_over
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
+        self._aimed = self._km = 0  # the focus's cell and km, as Python ints
         self._no_work = UpdateStats(0, 0, 0.0)
 
     # -- state ------------------------------------------------------------------------------
@@ -83,7 +85,6 @@ class FastCpuPlanner(FieldPlanner):
             self._heap = np.zeros(capacity, dtype=np.int64)
             self._heap_size = np.zeros(1, dtype=np.int64)
             self._tie = np.zeros(capacity, dtype=np.int64)
-            self._tie_size = np.zeros(1, dtype=np.int64)
             self._nb = np.stack(
                 [self._off_of(width), NEIGHBOUR_COST, NEIGHBOUR_DR, NEIGHBOUR_DC], axis=1
             ).astype(np.int64)
@@ -133,6 +134,7 @@ class FastCpuPlanner(FieldPlanner):
             goal = self._padded(self._goal)
             width = self._shape[1] + 2
             self._focus[:] = (goal, goal // width, goal % width, width, 0)
+            self._aimed, self._km = goal, 0
         return UpdateStats(int(pops), int(touched), (time.perf_counter() - t0) * 1e3)
 
     def _overflowed(self, t0: float) -> UpdateStats:
@@ -144,7 +146,9 @@ class FastCpuPlanner(FieldPlanner):
 
     def _apply(self, cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cells = np.asarray(cells, dtype=np.int64).ravel()
-        values = np.broadcast_to(np.asarray(blocked, dtype=bool).ravel(), cells.shape)
+        values = np.asarray(blocked, dtype=bool).ravel()
+        if values.size != cells.size:  # one value for every cell (np.broadcast_to: ~5 µs)
+            values = np.broadcast_to(values, cells.shape)
         return cells, values.astype(np.uint8)
 
     def _repair(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
@@ -153,26 +157,30 @@ class FastCpuPlanner(FieldPlanner):
         self._require_plan()
         cells, values = self._apply(cells, blocked)
         h, w = self._shape
-        status, touched = r.apply_changes(
+        status, touched = q.apply_changes(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
-            self._focus, w, h * w, cells, values, self._heap, self._heap_size,
+            self._focus, w, h * w, cells, values, self._heap, self._heap_size, self._pool,
+            self._budget,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[touched])} is outside the {h}x{w} map")
-        if status in (r.GOAL_BLOCKED, k.OVERFLOW):
+        if status in (q.GOAL_BLOCKED, q.CUT_OVER, k.OVERFLOW):
             return self._overflowed(t0) if status == k.OVERFLOW else self._dss(t0)
         return UpdateStats(0, int(touched), (time.perf_counter() - t0) * 1e3)
 
     def _aim(self, target: int) -> None:
         """Focus the repair on padded cell ``target``: keys queued for the previous focus stay
-        lower bounds once km grows by the heuristic's distance between the two (D* Lite)."""
-        focus = self._focus
-        if target == focus[0]:
+        lower bounds once km grows by the heuristic's distance between the two (D* Lite).
+        Python ints mirror the focus: numpy scalars made this a tenth of a walking step."""
+        if target == self._aimed:
             return
-        width = int(focus[3])
-        dr, dc = abs(target // width - int(focus[1])), abs(target % width - int(focus[2]))
-        focus[4] += STRAIGHT * max(dr, dc) + (DIAGONAL - STRAIGHT) * min(dr, dc)
-        focus[:3] = (target, target // width, target % width)
+        width = self._shape[1] + 2
+        r, c = divmod(target, width)
+        dr, dc = abs(r - self._aimed // width), abs(c - self._aimed % width)
+        self._km += STRAIGHT * max(dr, dc) + (DIAGONAL - STRAIGHT) * min(dr, dc)
+        self._aimed = target
+        focus = self._focus
+        focus[0], focus[1], focus[2], focus[4] = target, r, c, self._km
 
     def _settle(self, target: int, bound: int = -1) -> UpdateStats:
         """Repair until g is exact along every shortest path from padded cell ``target`` (or,
@@ -188,9 +196,9 @@ class FastCpuPlanner(FieldPlanner):
         pops, touched = r.settle(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._padded(self._goal),
             self._focus, bound, self._budget if target >= 0 else self._g.size,
-            self._heap, self._heap_size, self._pool, self._tie, self._tie_size,
+            self._heap, self._heap_size, self._pool, self._tie,
         )  # fmt: skip
-        if pops == r.CUT_OVER:
+        if pops == q.CUT_OVER:
             return self._dss(t0)
         if pops == k.OVERFLOW:
             return self._overflowed(t0)
@@ -226,7 +234,7 @@ class FastCpuPlanner(FieldPlanner):
 
     def pending(self) -> int:
         """Cells still waiting for the repair (0 for DSS, and after ``settle``)."""
-        return 0 if self.dss else r.live_entries(self._qkey)
+        return 0 if self.dss else q.live_entries(self._qkey)
 
     def _recompute(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         t0 = time.perf_counter()
@@ -255,7 +263,7 @@ class FastCpuPlanner(FieldPlanner):
         status, pops, touched, path = r.step(
             self._blk, self._g, self._rhs, self._qkey, self._nb, self._off, self._cost,
             self._padded(self._goal), self._focus, w, h * w, cells, values, self._budget,
-            self._heap, self._heap_size, self._pool, self._tie, self._tie_size,
+            self._heap, self._heap_size, self._pool, self._tie,
         )  # fmt: skip
         if status == -1:
             raise IndexError(f"cell index {int(cells[pops])} is outside the {h}x{w} map")

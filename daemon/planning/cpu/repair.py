@@ -25,15 +25,16 @@ until a query reaches it; ``settle`` with ``bounded`` False empties the queue.
 
 The queue. A neighbour's key lies within two edge costs above the key being expanded, so the
 wave of one call runs in 29 circular buckets (Dial's queue, ``dial.py``: O(1) a push). Other
-keys (a raised cell's new look-ahead, the changed cells, what a call leaves) wait in a binary
-heap of ``key << 32 | cell`` that persists between calls. An entry is live only while
-``qkey[cell]`` still holds its key: a cell re-keyed is pushed again and its old entry skipped.
-A full heap is compacted (stale entries dropped); when the live entries still do not fit, or a
-call's expansions pass its budget, a call returns ``OVERFLOW`` or ``CUT_OVER`` and the caller
-computes the field from scratch, which is always a correct answer.
+keys (a raised cell's new look-ahead past the buckets, the changed cells, what a call leaves)
+wait in a binary
+heap of ``key << 32 | cell`` that persists between calls (``repair_queue.py``). An entry is
+live only while ``qkey[cell]`` still holds its key: a cell re-keyed is pushed again and its old
+entry skipped. A full heap is compacted (stale entries dropped); when the live entries still do
+not fit, or a call's expansions pass its budget, a call returns ``OVERFLOW`` or ``CUT_OVER`` and
+the caller computes the field from scratch, which is always a correct answer.
 
-The hot loop of ``settle`` is written out in one function: a numba helper taking the arrays
-costs their reference counting on every call, which measured twice the whole repair.
+The hot loop of ``settle`` is written out in one function, heaps included: a numba helper
+taking arrays costs their reference counting (two atomic operations an array) on every call.
 """
 
 from __future__ import annotations
@@ -43,186 +44,41 @@ from numba import njit
 
 from ..grid import DIAGONAL, STRAIGHT
 from .dial import INF, OVERFLOW, path_of
+from .repair_queue import (
+    CELL,
+    CUT_OVER,
+    OCTILE,
+    ROOM,
+    SHIFT,
+    apply_changes,
+    heap_push,
+    heap_room,
+)
 
-SHIFT = 32
-CELL = (1 << SHIFT) - 1
 NBR = 2 * DIAGONAL + 1
 """Buckets of one repair: a neighbour's key lies within twice the largest edge cost above the
 key being expanded (one edge, and the heuristic's change along it)."""
-ROOM = 9
-"""Queue entries one expansion may add: its eight neighbours and the cell itself."""
-CUT_OVER = -3
-"""Returned by ``settle`` past its budget of expansions: a plan from scratch is cheaper."""
-GOAL_BLOCKED = -4
-"""Returned by ``apply_changes`` when the goal became blocked: every cost is INF; recompute."""
 BROKEN = -5
 """Returned by ``step`` when the path did not descend g to the goal (never, if g is sound)."""
-OCTILE = DIAGONAL - STRAIGHT
-
-
-# -- the heap ------------------------------------------------------------------------------
-
-
-@njit(cache=True, nogil=True)
-def _sift_down(heap, size, i, entry):
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and heap[c + 1] < heap[c]:
-            c += 1
-        if heap[c] >= entry:
-            break
-        heap[i] = heap[c]
-        i = c
-    heap[i] = entry
-
-
-@njit(cache=True, nogil=True)
-def _heap_push(heap, hs, entry):
-    i = hs[0]
-    hs[0] = i + 1
-    while i > 0:
-        parent = (i - 1) >> 1
-        if heap[parent] <= entry:
-            break
-        heap[i] = heap[parent]
-        i = parent
-    heap[i] = entry
-
-
-@njit(cache=True, nogil=True)
-def _heap_pop(heap, hs):
-    top = heap[0]
-    size = hs[0] - 1
-    hs[0] = size
-    if size > 0:
-        _sift_down(heap, size, 0, heap[size])
-    return top
-
-
-@njit(cache=True, nogil=True)
-def _heap_room(heap, hs, qkey, need):
-    """True when ``need`` more entries fit, after dropping the stale ones if they do not. False
-    also when the live entries fill more than three quarters of the heap: compacting again
-    and again would cost more than a larger heap."""
-    if hs[0] + need <= heap.size:
-        return True
-    live = 0
-    for i in range(hs[0]):
-        e = heap[i]
-        if qkey[e & CELL] == e >> SHIFT:
-            heap[live] = e
-            live += 1
-    hs[0] = live
-    for i in range(live // 2 - 1, -1, -1):
-        _sift_down(heap, live, i, heap[i])
-    return live + need <= heap.size - heap.size // 4
-
-
-def live_entries(qkey: np.ndarray) -> int:
-    """How many cells wait in the queue (inconsistent cells not yet repaired)."""
-    return int(np.count_nonzero(qkey >= 0))
-
-
-# -- outside the hot loop ------------------------------------------------------------------
-
-
-@njit(cache=True, nogil=True)
-def _lookahead(blk, g, nb, v):
-    """rhs(v) from its free neighbours (not for the goal, whose rhs is 0)."""
-    best = INF
-    for k in range(8):
-        n = v + nb[k, 0]
-        if not blk[n]:
-            d = g[n] + nb[k, 1]
-            if d < best:
-                best = d
-    return best
-
-
-@njit(cache=True, nogil=True)
-def _queue_in_heap(g, rhs, qkey, focus, v, heap, hs):
-    """Queue v in the heap under its key if it is inconsistent; forget it if not."""
-    if g[v] == rhs[v]:
-        qkey[v] = -1
-        return
-    r = v // focus[3]
-    dr, dc = abs(r - focus[1]), abs(v - r * focus[3] - focus[2])
-    key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + focus[4]
-    if qkey[v] != key:
-        qkey[v] = key
-        _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
-
-
-@njit(cache=True, nogil=True)
-def _to_padded(flat, w):
-    return (flat // w + 1) * (w + 2) + flat % w + 1
-
-
-@njit(cache=True, nogil=True)
-def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values, heap, hs):
-    """Set ``blk[cells] = values`` (unpadded flat indices) and queue what became inconsistent:
-    a newly blocked cell drops to INF at once (no neighbour reads a blocked cell) and its
-    neighbours that looked through it look again; a freed cell looks at its neighbours.
-
-    Returns (0, cells whose rhs was rewritten); (-1, i) when ``cells[i]`` lies outside the map
-    (nothing changed); ``GOAL_BLOCKED`` or ``OVERFLOW`` (the map is updated, the field is not:
-    the caller recomputes it).
-    """
-    for i in range(cells.size):
-        if cells[i] < 0 or cells[i] >= n_cells:
-            return -1, i
-    was = np.empty(cells.size, np.uint8)
-    for i in range(cells.size):
-        was[i] = blk[_to_padded(cells[i], w)]
-    for i in range(cells.size):
-        blk[_to_padded(cells[i], w)] = values[i]
-    if blk[goal]:
-        return GOAL_BLOCKED, 0
-    touched = 0
-    for i in range(cells.size):  # newly blocked
-        v = _to_padded(cells[i], w)
-        if not blk[v] or was[i]:
-            continue
-        gold = g[v]
-        g[v] = rhs[v] = INF
-        qkey[v] = -1
-        if gold >= INF:
-            continue
-        if not _heap_room(heap, hs, qkey, ROOM):
-            return OVERFLOW, 0
-        for k in range(8):
-            n = v + nb[k, 0]
-            if not blk[n] and n != goal and rhs[n] == gold + nb[k, 1]:
-                rhs[n] = _lookahead(blk, g, nb, n)
-                touched += 1
-                _queue_in_heap(g, rhs, qkey, focus, n, heap, hs)
-    for i in range(cells.size):  # newly freed
-        v = _to_padded(cells[i], w)
-        if blk[v] or not was[i]:
-            continue
-        rhs[v] = 0 if v == goal else _lookahead(blk, g, nb, v)
-        touched += 1
-        if not _heap_room(heap, hs, qkey, 1):
-            return OVERFLOW, 0
-        _queue_in_heap(g, rhs, qkey, focus, v, heap, hs)
-    return 0, touched
 
 
 # -- the repair ----------------------------------------------------------------------------
 
 
 @njit(cache=True, nogil=True)
-def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, tie, ts):
+def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, tie):
     """Repair in key order until the smallest key exceeds ``bound``: -1 means the user's own
     key, ``g(start) + km`` (``h(start, start)`` is 0), as it stands; ``INF`` means until
     nothing is inconsistent.
     ``nb[k]`` is neighbour k's (padded offset, edge cost, row step, column step); ``focus`` is
     (start, its row, its column, padded width, km); ``pool`` holds the buckets' entries;
-    ``tie`` (size in ``ts``) orders the cells of one key by ``min(g, rhs)``, as LPA*'s second
-    key does: a cell that gives another its look-ahead is expanded first, so that no cell is
-    lowered on a value about to be raised.
+    ``tie`` orders the cells of one key by ``min(g, rhs)``, as LPA*'s second key does: a cell
+    that gives another its look-ahead is expanded first, so that no cell is lowered on a value
+    about to be raised.
+
+    The heaps' pushes and pops are written out here rather than called: numba counts the
+    references of every array a call passes (two atomic operations each), which cost a
+    third of the worst steps' time.
 
     Returns (expansions, rhs rewrites); (CUT_OVER, 0) past ``budget`` expansions (the field is
     half repaired: the caller computes it from scratch), or (OVERFLOW, 0).
@@ -232,7 +88,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
     free = -1  # entries given back, linked through pool[e, 1]
     used = 0  # entries ever taken
     pending = 0  # bucket entries, live or stale
-    ts[0] = 0
+    tn = 0  # entries in the tie heap
     pops = touched = 0
     level = 0
     while True:
@@ -242,9 +98,25 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
             level = heap[0] >> SHIFT
         if level > (g[start] + km if bound < 0 else bound):
             break
-        # This level's cells, from the heap and from its bucket, into the tie queue.
+        b = level % NBR
+        # This level's cells from the heap into its bucket.
         while hs[0] > 0 and heap[0] >> SHIFT <= level:
-            e = _heap_pop(heap, hs)
+            e = heap[0]
+            size = hs[0] - 1
+            hs[0] = size
+            if size > 0:  # sift the last entry down from the root
+                last, i = heap[size], 0
+                while True:
+                    c = 2 * i + 1
+                    if c >= size:
+                        break
+                    if c + 1 < size and heap[c + 1] < heap[c]:
+                        c += 1
+                    if heap[c] >= last:
+                        break
+                    heap[i] = heap[c]
+                    i = c
+                heap[i] = last
             v = e & CELL
             if qkey[v] != e >> SHIFT:
                 continue  # stale
@@ -253,35 +125,67 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
             key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
             if key > level:  # keyed before the user moved: a lower bound; queue it truly
                 qkey[v] = key
-                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+                heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
                 continue
-            if ts[0] + 1 > tie.size:
+            if pending + 1 > pool.shape[0]:
                 return OVERFLOW, 0
-            _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
-        b = level % NBR
-        e = head[b]
-        while e >= 0:
-            v = pool[e, 0]
-            nxt = pool[e, 1]
-            pool[e, 1] = free
-            free = e
-            pending -= 1
-            if qkey[v] == level:
-                if ts[0] + 1 > tie.size:
-                    return OVERFLOW, 0
-                _heap_push(tie, ts, (np.int64(min(g[v], rhs[v])) << SHIFT) | v)
-            e = nxt
-        head[b] = -1
-        while ts[0] > 0:
-            v = _heap_pop(tie, ts) & CELL
+            if free >= 0:
+                e = free
+                free = pool[e, 1]
+            else:
+                e = used
+                used += 1
+            pool[e, 0] = v
+            pool[e, 1] = head[b]
+            head[b] = e
+            pending += 1
+        while True:
+            # The bucket's cells (and those this level's expansions added) into the tie heap.
+            e = head[b]
+            head[b] = -1
+            while e >= 0:
+                v = pool[e, 0]
+                nxt = pool[e, 1]
+                pool[e, 1] = free
+                free = e
+                pending -= 1
+                if qkey[v] == level:
+                    if tn + 1 > tie.size:
+                        return OVERFLOW, 0
+                    x = (np.int64(min(g[v], rhs[v])) << SHIFT) | v
+                    i = tn
+                    tn += 1
+                    while i > 0:
+                        p = (i - 1) >> 1
+                        if tie[p] <= x:
+                            break
+                        tie[i] = tie[p]
+                        i = p
+                    tie[i] = x
+                e = nxt
+            if tn == 0:
+                break
+            v = tie[0] & CELL
+            tn -= 1
+            if tn > 0:
+                last, i = tie[tn], 0
+                while True:
+                    c = 2 * i + 1
+                    if c >= tn:
+                        break
+                    if c + 1 < tn and tie[c + 1] < tie[c]:
+                        c += 1
+                    if tie[c] >= last:
+                        break
+                    tie[i] = tie[c]
+                    i = c
+                tie[i] = last
             if qkey[v] != level:
                 continue  # stale
             if pops >= budget:
                 return CUT_OVER, 0
-            if (
-                pending + ROOM > pool.shape[0]
-                or ts[0] + ROOM > tie.size
-                or not _heap_room(heap, hs, qkey, ROOM)
+            if pending + ROOM > pool.shape[0] or (
+                hs[0] + ROOM > heap.size and not heap_room(heap, hs, qkey, ROOM)
             ):
                 return OVERFLOW, 0
             qkey[v] = -1
@@ -293,37 +197,40 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
             lowering = g[v] > rhs[v]
             gold = g[v]
             g[v] = rhs[v] if lowering else INF
-            for k in range(8):
-                n = v + nb[k, 0]
-                if blk[n] or n == goal:
-                    continue
-                if lowering:
-                    d = g[v] + nb[k, 1]
-                    if d >= rhs[n]:
+            for k in range(9):
+                if k < 8:
+                    n = v + nb[k, 0]
+                    if blk[n] or n == goal:
                         continue
-                    rhs[n] = d
-                else:
-                    if rhs[n] != gold + nb[k, 1]:
+                    if lowering:
+                        d = g[v] + nb[k, 1]
+                        if d >= rhs[n]:
+                            continue
+                        rhs[n] = d
+                    else:
+                        if rhs[n] != gold + nb[k, 1]:
+                            continue
+                        best = INF
+                        for j in range(8):
+                            m = n + nb[j, 0]
+                            if not blk[m] and g[m] + nb[j, 1] < best:
+                                best = g[m] + nb[j, 1]
+                        rhs[n] = best
+                    touched += 1
+                    if g[n] == rhs[n]:
+                        qkey[n] = -1
                         continue
-                    best = INF
-                    for j in range(8):
-                        m = n + nb[j, 0]
-                        if not blk[m] and g[m] + nb[j, 1] < best:
-                            best = g[m] + nb[j, 1]
-                    rhs[n] = best
-                touched += 1
-                low = min(g[n], rhs[n])
-                if g[n] == rhs[n]:
-                    qkey[n] = -1
-                    continue
-                dr, dc = abs(r + nb[k, 2] - sr), abs(c + nb[k, 3] - sc)
-                key = low + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                    dr, dc = abs(r + nb[k, 2] - sr), abs(c + nb[k, 3] - sc)
+                else:  # v itself, raised: it waits for its new look-ahead
+                    n = v
+                    if lowering or rhs[v] >= INF:
+                        break
+                    dr, dc = abs(r - sr), abs(c - sc)
+                key = min(g[n], rhs[n]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
                 if qkey[n] == key:
                     continue
                 qkey[n] = key
-                if key == level:
-                    _heap_push(tie, ts, (np.int64(low) << SHIFT) | n)
-                elif level < key < level + NBR:  # a bucket
+                if level <= key < level + NBR:  # a bucket (this level's: its tie heap next)
                     if free >= 0:
                         e = free
                         free = pool[e, 1]
@@ -335,12 +242,16 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                     head[key % NBR] = e
                     pending += 1
                 else:
-                    _heap_push(heap, hs, (np.int64(key) << SHIFT) | n)
-            if not lowering and rhs[v] < INF:  # raised: it waits for its new look-ahead
-                dr, dc = abs(r - sr), abs(c - sc)
-                key = rhs[v] + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
-                qkey[v] = key
-                _heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
+                    x = (np.int64(key) << SHIFT) | n
+                    i = hs[0]
+                    hs[0] = i + 1
+                    while i > 0:
+                        p = (i - 1) >> 1
+                        if heap[p] <= x:
+                            break
+                        heap[i] = heap[p]
+                        i = p
+                    heap[i] = x
         level += 1
     # What the buckets still hold waits in the heap for the next call.
     for b in range(NBR):
@@ -348,30 +259,30 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
         while e >= 0:
             v = pool[e, 0]
             if qkey[v] >= 0 and qkey[v] % NBR == b:
-                if not _heap_room(heap, hs, qkey, 1):
+                if not heap_room(heap, hs, qkey, 1):
                     return OVERFLOW, 0
-                _heap_push(heap, hs, (np.int64(qkey[v]) << SHIFT) | v)
+                heap_push(heap, hs, (np.int64(qkey[v]) << SHIFT) | v)
             e = pool[e, 1]
     return pops, touched
 
 
 @njit(cache=True, nogil=True)
 def step(blk, g, rhs, qkey, nb, off, cost, goal, focus, w, n_cells, cells, values, budget, heap,
-         hs, pool, tie, ts):  # fmt: skip
+         hs, pool, tie):  # fmt: skip
     """One replanning step in one call: ``apply_changes``, ``settle`` up to the user's key
     (``focus`` aimed at the user), the path from the user. Returns (status, expansions, rhs
     rewrites, path): status 0 with the path (empty when the user's cell is blocked or cut
     off), or the status of ``apply_changes`` (its index in the second place for -1) or of
     ``settle``, or ``BROKEN``, with no path."""
     status, touched = apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells,
-                                    values, heap, hs)  # fmt: skip
+                                    values, heap, hs, pool, budget)  # fmt: skip
     none = np.empty((0, 2), dtype=np.int32)
     if status != 0:
         return status, touched, 0, none
     start = focus[0]
     if blk[start]:
         return 0, 0, touched, none
-    pops, t = settle(blk, g, rhs, qkey, nb, goal, focus, -1, budget, heap, hs, pool, tie, ts)
+    pops, t = settle(blk, g, rhs, qkey, nb, goal, focus, -1, budget, heap, hs, pool, tie)
     if pops < 0:
         return pops, 0, 0, none
     if g[start] >= INF:

@@ -35,6 +35,10 @@ def make(request) -> Callable[..., FieldPlanner]:
     def factory(name: str = "eds") -> FieldPlanner:
         if variant == "fast-repair":  # small test maps would mostly cut over to a full plan
             return FastCpuPlanner(dss=name == "dss", cut_over=1e6)
+        if backend == "cuda":  # the kernels themselves, whatever the grid (no small-grid rule)
+            from daemon.planning.cuda.planner import CudaPlanner
+
+            return CudaPlanner(variant, dss=name == "dss")
         planner = make_planner(name, backend, variant)
         assert isinstance(planner, FieldPlanner)
         return planner

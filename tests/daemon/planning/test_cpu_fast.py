@@ -75,7 +75,9 @@ def test_a_repair_past_its_budget_computes_the_field_from_scratch():
     box = (rows * n + cols).ravel()
     truth.reshape(-1)[box] = True
     small, path = eds.update_and_path(box, np.ones(box.size, bool), user)
-    assert 0 < small.iterations < full.iterations // 10
+    # The cells behind the box drop when it comes in (counted as touched); the user's way
+    # around it costs the same, so lowering them again waits.
+    assert small.cells_touched > 0 and small.iterations < full.iterations // 10
     np.testing.assert_array_equal(path, reference_path(dijkstra_field(truth, goal), truth, user))
 
 

@@ -122,7 +122,9 @@ def test_stats_are_sane(make):
     box = (rr * n + cc).ravel()
     behind = (n - 1, 61)  # the repair reaches the user's cell below the box
     st, _ = p.update_and_path(box, np.ones(box.size, bool), behind)
-    assert st.iterations > 0 and st.ms >= 0
+    # The cpu repair drops the cells behind the box as the change comes in (touched, not
+    # expanded) and needs no expansion where the user's way around costs the same.
+    assert (st.iterations > 0 or (p.backend, p.variant) == ("cpu", "fast")) and st.ms >= 0
     assert 0 < st.cells_touched < n * n // 10
     blocked.reshape(-1)[box] = True
     np.testing.assert_array_equal(p.costs(), dijkstra_field(blocked, (0, n // 2)))

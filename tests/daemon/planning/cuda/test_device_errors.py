@@ -30,7 +30,9 @@ def test_a_cupy_error_is_a_device_error_and_the_cpu_takes_over_from_the_map(name
     blocked = rng.random((30, 40)) < 0.25
     goal, start = (2, 3), (27, 35)
     blocked[goal] = blocked[start] = False
-    planner = make_planner(name, "cuda", variant)
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    planner = CudaPlanner(variant, dss=name == "dss")  # the device planner, on any grid
     planner.plan(blocked, goal)
     for step in range(4):
         cells = rng.choice(30 * 40, size=25, replace=False)
@@ -62,7 +64,9 @@ def test_a_cupy_error_is_a_device_error_and_the_cpu_takes_over_from_the_map(name
 
 
 def test_other_errors_are_not_device_errors_and_the_planner_goes_on():
-    planner = make_planner("eds", "cuda")
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    planner = CudaPlanner("fast")
     blocked = np.zeros((8, 8), bool)
     planner.plan(blocked, (0, 0))
     with pytest.raises(IndexError) as caught:
