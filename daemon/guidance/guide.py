@@ -12,6 +12,7 @@ calls, so call it for every new pose or path, in time order.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -24,7 +25,7 @@ from .cues import SAFETY_KINDS, CueLimiter, CueMaker, Units, Wording, clock_hour
 from .hold import HoldPolicy
 from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
 from .route_watch import RouteWatch
-from .smoothing import rubber_band
+from .smoothing import planner_band, rubber_band
 from .sole_voice import SoleVoice, SoleVoiceSettings, sole_limiter
 from .turning_points import (
     bearing,
@@ -86,6 +87,9 @@ class Guidance:
         self.max_leg_cells = max_leg_m / cell_m
         self.turn_around = math.radians(turn_around_deg)
         self.smooth = smooth
+        self.planner: Callable[[], object] | None = None
+        """The planner whose path is guided (the navigator's route sets it): smoothing uses
+        that planner's own model where it has one (``smoothing.planner_band``)."""
         self.hold = hold if hold is not None else HoldPolicy()
         self.patterns = PatternMaker()
         self.reassure_s = float(reassure_s)
@@ -252,7 +256,8 @@ class Guidance:
         # at most max_leg long, so the path beyond a few legs' worth of cells is not looked at.
         path = path[: int(2.5 * self.max_leg_cells) + 2]
         if self.smooth and blocked is not None and len(path) > 2:
-            smoothed = rubber_band(path, blocked, cell_m=self.cell_m)
+            own = planner_band(self.planner()) if self.planner is not None else None
+            smoothed = own(path, blocked) if own else rubber_band(path, blocked, cell_m=self.cell_m)
             return turning_points_from_polyline(smoothed, blocked, self.max_leg_cells)
         return turning_points(path, blocked, max_leg_cells=self.max_leg_cells)
 

@@ -49,3 +49,27 @@ def test_one_smoothing_model_per_planner():
     planner.plan(blocked, (5, 3))
     out = smooth_path("harmonic", path, blocked, 0.1, field=planner.field())
     assert out.shape == (5, 2)
+
+
+def test_guidance_smooths_with_the_planners_own_band(maps):
+    from daemon.guidance.guide import Guidance, turning_points_from_polyline
+    from daemon.guidance.smoothing import planner_band
+    from daemon.navigation.navigator import Navigator, NavigatorSettings
+
+    rng = np.random.default_rng(3)
+    blocked = maps.random_map(rng, 40, 40, 0.05)
+    goal, start = (2, 2), (37, 36)
+    blocked[goal] = blocked[start] = False
+    planner = make_planner("harmonic", "cpu")
+    planner.plan(blocked, goal)
+    path = planner.path(start)
+    assert len(path) > 2
+    guidance = Guidance(smooth=True)
+    guidance.planner = lambda: planner
+    expected = turning_points_from_polyline(planner.band(path, blocked), blocked,
+                                            guidance.max_leg_cells)  # fmt: skip
+    assert np.allclose(guidance._points(path, blocked), expected)
+    assert planner_band(make_planner("eds", "cpu")) is None  # the repulsion band's planners
+    # The navigator hands guidance the planner its route holds (a CPU fallback included).
+    nav = Navigator("u", NavigatorSettings(planner="harmonic", backend="cpu"))
+    assert nav.guidance.planner is not None and nav.guidance.planner() is nav.route.planner
