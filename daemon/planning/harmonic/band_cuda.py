@@ -38,11 +38,13 @@ def rubber_band_cuda(
     delta: float = 0.25,
     iterations: int = 200,
     tol: float = 1e-3,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """The band of ``path`` (``(k, 2)`` cells) in the field ``w`` (``(h + 2 pad, width + 2
     pad)``, float32 or float64, on the device or the host) over ``blocked`` (``(h, width)``);
-    ``(k, 2) float64`` in continuous cell units and the iterations run. Ends stay fixed."""
-    pts = np.asarray(path, dtype=np.float64) + 0.5
+    ``(k, 2) float64`` in continuous cell units and the iterations run. Ends stay fixed.
+    ``start``: the first points (``rubber_band.warm_points``; default the cell centres)."""
+    pts = np.asarray(path, dtype=np.float64) + 0.5 if start is None else start.copy()
     k = len(pts)
     if k <= 2:
         return pts, 0

@@ -53,6 +53,8 @@ INIT_SLOPE = 0.05
 COLD_SWEEPS = 400_000
 WARM_SWEEPS = 20_000
 RETRY_SWEEPS = 2_000
+BAND_ITERATIONS = 30
+"""Rubber-band iterations a ``band`` call runs (it goes on from the last call's band)."""
 STEP_SWEEPS = 20
 """Sweeps a replanning step does before a field without a pit may end it."""
 _EMPTY = np.empty((0, 2), dtype=np.int32)
@@ -85,6 +87,7 @@ class HarmonicPlanner(GlobalPlanner):
         self._cache: tuple[tuple[Cell, int], np.ndarray] | None = None
         self._version = 0
         self._retried = -1
+        self._band: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def goal(self) -> Cell:
@@ -103,6 +106,7 @@ class HarmonicPlanner(GlobalPlanner):
         t0 = time.perf_counter()
         blocked, shape, goal = checked_plan_input(blocked, goal)
         self._shape, self._goal = shape, goal
+        self._band = None
         h, w = shape
         padded = np.ones((h + 2, w + 2), dtype=np.bool_)
         padded[1:-1, 1:-1] = blocked
@@ -204,14 +208,22 @@ class HarmonicPlanner(GlobalPlanner):
     def band(self, path: np.ndarray, blocked: np.ndarray) -> np.ndarray:
         """The paper's rubber band of ``path`` in this field (the harmonic planner's smoothing
         model, ``daemon.guidance.smoothing``), ``(k, 2) float64`` in continuous cell units:
-        on the GPU, one thread per point (Figure 4), where the field lies on the device."""
+        on the GPU, one thread per point (Figure 4), where the field lies on the device.
+        ``BAND_ITERATIONS`` a call, from where the last call's band left each path cell."""
+        from .rubber_band import band_memory, rubber_band, warm_points
+
+        path = np.asarray(path)
+        start = warm_points(path, blocked, self._band)
         if self.backend == "cuda":
             from .band_cuda import rubber_band_cuda
 
-            return rubber_band_cuda(path, self.engine.w, blocked, pad=1)[0]
-        from .rubber_band import rubber_band
-
-        return rubber_band(path, self.field(), blocked)
+            out = rubber_band_cuda(path, self.engine.w, blocked, pad=1,
+                                   iterations=BAND_ITERATIONS, start=start)[0]  # fmt: skip
+        else:
+            out = rubber_band(path, self.field(), blocked, iterations=BAND_ITERATIONS,
+                              start=start)  # fmt: skip
+        self._band = band_memory(path, out, blocked.shape[1]) if len(path) > 2 else None
+        return out
 
     def field(self) -> np.ndarray:
         """``w`` of every cell, ``(h, w) float64`` (``rx.BLOCKED_W`` on obstacles and cells the

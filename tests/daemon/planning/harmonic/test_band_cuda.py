@@ -10,6 +10,7 @@ import pytest
 
 from daemon.guidance.smoothing import path_length, turning_angles
 from daemon.planning import cuda_available, make_planner
+from daemon.planning.harmonic.planner import BAND_ITERATIONS
 from daemon.planning.harmonic.rubber_band import rubber_band
 
 pytestmark = [
@@ -67,7 +68,7 @@ def test_cuda_planner_bands_from_its_device_field(maps):
     path = gpu.path(start)
     band = gpu.band(path, blocked)
     # The same band as from the host copy of the field, in float64.
-    host = rubber_band(path, gpu.field(), blocked)
+    host = rubber_band(path, gpu.field(), blocked, iterations=BAND_ITERATIONS)
     assert free_along(blocked, band)
     assert abs(path_length(band) - path_length(host)) <= LENGTH_TOL * path_length(host)
     assert path_length(band) < path_length(path + 0.5)
