@@ -122,11 +122,9 @@ class Reach:
     def _full(self) -> None:
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
         self.reach[:] = self._steps >= 0
+        self.count = int(self.reach.sum())
+        """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
         self.full_searches += 1
-
-    @property
-    def count(self) -> int:
-        return int(self.reach.sum())
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
@@ -143,7 +141,8 @@ class Reach:
             return cells, cells
         now_blocked = cells[values]
         freed = cells[~values]
-        before = self.reach.copy() if now_blocked.size else None
+        # Only the newly blocked cells' old reach is needed (a whole copy costs ~1 ms at 2000²).
+        was = self.reach[now_blocked]
         self.blocked[cells] = values
         if not self.blocked[self.goal] and not self.reach[self.goal]:
             before = self.reach.copy()  # the goal itself freed: everything is found afresh
@@ -156,11 +155,13 @@ class Reach:
                 self.blocked, self.reach, now_blocked, self.width, self.height, MARGIN,
                 self._mark, self._queue,
             ):  # fmt: skip
+                before = self.reach.copy()
+                before[now_blocked] = was
                 self._full()
-                assert before is not None
                 changed = np.flatnonzero(before != self.reach)
                 return changed[~self.reach[changed]], changed[self.reach[changed]]
         gained = self._out[: _grow(self.blocked, self.reach, freed, self.width, self._queue,
                                    self._out)]  # fmt: skip
-        lost = now_blocked[before[now_blocked]] if before is not None else now_blocked
+        lost = now_blocked[was]
+        self.count += gained.size - lost.size
         return lost, gained.copy()

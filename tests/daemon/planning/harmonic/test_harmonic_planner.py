@@ -55,6 +55,7 @@ def test_descent_reaches_the_goal_from_every_reachable_cell(maps, seed, h, w, de
         values[cells == goal[0] * w + goal[1]] = False
         planner.update(cells, values)
         blocked.reshape(-1)[cells] = values
+        assert planner.reach.count == planner.reach.reach.sum()  # kept up, not summed
         # A step may stop before the tolerance, never on a field with a pit.
         assert planner.settled
         assert planner.residual < TOL or not rx.has_pit(
