@@ -153,3 +153,19 @@ def test_the_papers_row_wise_form_and_jacobi_reach_the_same_field(maps):
     reach = maps.reachable(blocked, (0, 0)) & ~blocked
     assert np.abs(fast.field()[reach] - paper.field()[reach]).max() < FIELD_TOL
     assert fast.name == "harmonic-cpu" and paper.name == "harmonic-cpu-paper"
+
+
+def test_two_far_apart_changes_that_only_together_cut_a_room_off():
+    # A wall with two doors 50 cells apart (beyond each change's window): closing both in
+    # one update cuts the top off, which neither cluster's own window can show as joined.
+    blocked = np.zeros((6, 60), dtype=bool)
+    blocked[2, :] = True
+    blocked[2, 3] = blocked[2, 55] = False
+    planner = make_planner("harmonic", "cpu")
+    planner.plan(blocked, (5, 30))
+    assert tuple(planner.path((0, 30))[-1]) == (5, 30)
+    planner.update(np.array([2 * 60 + 3, 2 * 60 + 55]), np.array([True, True]))
+    assert len(planner.path((0, 30))) == 0 and planner.cost_at((0, 30)) == INF
+    assert planner.reach.count == planner.reach.reach.sum()
+    planner.update(np.array([2 * 60 + 55]), np.array([False]))  # one door opens again
+    assert tuple(planner.path((0, 30))[-1]) == (5, 30)
