@@ -83,8 +83,9 @@ class CudaField:
         self.w = cp.asarray(w0.astype(self.dtype))
         self.fixed = cp.asarray(fixed.astype(np.uint8))
         self.prev = cp.empty_like(self.w) if self.jacobi else cp.empty(1, dtype=self.dtype)
-        self.worst = cp.zeros(2, dtype=cp.uint32)
-        self.pits = cp.zeros(3, dtype=cp.uint32)
+        # The residual's two slots and the pit check's three, cleared by one launch a relax.
+        self.flags = cp.zeros(5, dtype=cp.uint32)
+        self.worst, self.pits = self.flags[:2], self.flags[2:]
         self.result = cp.zeros(3, dtype=cp.int32)
         self.idx = cp.full(w0.size, 4, dtype=cp.int8)
         self.idx_host = cp.cuda.alloc_pinned_memory(w0.size)
@@ -104,8 +105,7 @@ class CudaField:
 
     def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
         """As ``CpuField.relax``: sweeps, residual, and whether the field ends without a pit."""
-        self.worst.fill(0)
-        self.pits.fill(0)
+        self.flags.fill(0)
         self.kernel(
             (self.blocks,), (THREADS,),
             (self.w, self.fixed, self.prev, np.int32(self.height), np.int32(self.width),

@@ -138,7 +138,7 @@ class HarmonicPlanner(GlobalPlanner):
         self.engine.set(lost, rx.BLOCKED_W, True)
         self.engine.set(gained, rx.BLOCKED_W, False)
         g = self.reach.goal
-        if self.reach.reach[g]:  # the goal freed again holds u = 0, as in plan
+        if self.reach.reach[g] and (gained == g).any():  # the goal freed again: u = 0
             self.engine.set(np.array([g], dtype=np.int64), 0.0, True)
         return self._relax(t0, WARM_SWEEPS, self.step_sweeps)
 
