@@ -169,3 +169,15 @@ def test_two_far_apart_changes_that_only_together_cut_a_room_off():
     assert planner.reach.count == planner.reach.reach.sum()
     planner.update(np.array([2 * 60 + 55]), np.array([False]))  # one door opens again
     assert tuple(planner.path((0, 30))[-1]) == (5, 30)
+
+
+def test_a_goal_blocked_then_freed_again_is_the_goal_again():
+    # A person stands on the goal, then leaves: the goal must hold u = 0 (w = 0) again.
+    blocked = np.zeros((10, 10), dtype=bool)
+    planner = make_planner("harmonic", "cpu")
+    planner.plan(blocked, (2, 2))
+    planner.update(np.array([22]), np.array([True]))
+    assert len(planner.path((8, 8))) == 0
+    planner.update(np.array([22]), np.array([False]))
+    assert planner.field()[2, 2] == 0.0
+    assert tuple(planner.path((8, 8))[-1]) == (2, 2)
