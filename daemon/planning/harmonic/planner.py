@@ -53,7 +53,7 @@ INIT_SLOPE = 0.05
 COLD_SWEEPS = 400_000
 WARM_SWEEPS = 20_000
 RETRY_SWEEPS = 2_000
-BAND_ITERATIONS = 30
+BAND_ITERATIONS = 15
 """Rubber-band iterations a ``band`` call runs (it goes on from the last call's band)."""
 STEP_SWEEPS = 20
 """Sweeps a replanning step does before a field without a pit may end it."""
