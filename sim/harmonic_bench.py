@@ -30,7 +30,7 @@ from daemon.planning.harmonic import relax as rx
 
 from .courtyard import dilate
 from .scenarios import make_scenario
-from .walk import walk
+from .walk import paper_settings, walk
 
 
 def _pcts(values: np.ndarray) -> dict:
@@ -41,24 +41,105 @@ def _pcts(values: np.ndarray) -> dict:
             "max": round(float(values.max()), 4)}  # fmt: skip
 
 
+def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool = False):
+    """The walk's navigator; ``step`` sets the harmonic planner's replanning stop: ``full``
+    relaxes every step to the tolerance, a number N stops after N sweeps on a field without
+    a pit ("": the planner's default); ``smooth`` asks guidance for the planner's smoothing
+    model."""
+    from daemon.guidance.guide import Guidance
+    from daemon.navigation import Navigator
+
+    settings = paper_settings(scenario, name, backend, "fast")
+    factory = None
+    if name == "harmonic" and step:
+        from daemon.planning.harmonic import make_harmonic
+
+        def factory(b: str):
+            planner = make_harmonic(b)
+            planner.step_sweeps = None if step == "full" else int(step)
+            return planner
+
+    guidance = Guidance(cell_m=settings.cell_m, radius_m=settings.user_radius_m,
+                        arrive_m=settings.arrive_m, smooth=smooth)  # fmt: skip
+    return Navigator("walk", settings, guidance=guidance, planner_factory=factory)
+
+
 def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: float = 0.4,
-                planners: tuple[str, ...] = ("harmonic", "eds")) -> list[dict]:  # fmt: skip
+                planners: tuple[str, ...] = ("harmonic", "eds"),
+                steps: tuple[str, ...] = ("",)) -> list[dict]:  # fmt: skip
+    """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
+    Each row's ``residual`` is the field's after each step (what an early stop left)."""
     rows = []
     for grid in grids:
         scenario = make_scenario("courtyard", grid, unknown, 0)
-        for name in planners:
-            walk(scenario, backend=backend, mode=name, max_steps=3)  # compile and warm
+        runs = [(n, k) for n in planners for k in (steps if n == "harmonic" else ("",))]
+        for name, step in runs:
+            nav = _navigator(scenario, name, backend, step)
+            walk(scenario, backend=backend, mode=name, max_steps=3, navigator=nav)  # warm
             t0 = time.perf_counter()
-            r = walk(scenario, backend=backend, mode=name, max_steps=max_steps)
+            nav = _navigator(scenario, name, backend, step)
+            residuals: list[float] = []
+
+            def note(*_, nav=nav, residuals=residuals) -> None:
+                residuals.append(float(getattr(nav.route.planner, "residual", 0.0)))
+
+            r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
+                     on_step=note)  # fmt: skip
             changed = r.changed > 0
             rows.append({
-                "planner": name, "backend": backend, "grid": grid, "unknown": unknown,
+                "planner": name, "step": step or "default", "backend": backend,
+                "grid": grid, "unknown": unknown,
                 "arrived": r.arrived, "reason": r.reason, "steps": int(r.steps),
                 "walked_m": round(r.walked_m, 2), "init_ms": round(float(r.init_ms), 2),
                 "step_ms": _pcts(r.step_ms), "step_ms_changed": _pcts(r.step_ms[changed]),
                 "sweeps": _pcts(r.iterations.astype(float)),
+                "residual": _pcts(np.array(residuals)),
                 "wall_s": round(time.perf_counter() - t0, 1),
+                # Each step's flipped cells, sweeps and ms: which changes cost the tail.
+                "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
+                          in zip(r.changed, r.iterations, r.step_ms, strict=True)],
             })  # fmt: skip
+    return rows
+
+
+def _timed(fn, n: int = 30) -> dict:
+    fn()  # compile and warm
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - t0) * 1e3)
+    return _pcts(np.array(times))
+
+
+def band_rows(grids: list[int], backend: str, max_steps: int | None,
+              unknown: float = 0.4) -> list[dict]:  # fmt: skip
+    """The smoothing model's cost per guidance call: the harmonic walk with guidance smoothing
+    by the planner's band (``guide_ms``, wall clock) and without, then the band alone on the
+    known map's whole path from the start, on ``backend`` and in numba, 30 times each."""
+    from daemon.planning.harmonic.rubber_band import rubber_band
+
+    rows = []
+    for grid in grids:
+        scenario = make_scenario("courtyard", grid, unknown, 0)
+        row: dict = {"grid": grid, "backend": backend, "unknown": unknown}
+        for smooth in (True, False):
+            walk(scenario, backend=backend, mode="harmonic", max_steps=3,
+                 navigator=_navigator(scenario, "harmonic", backend, "", smooth))  # fmt: skip
+            nav = _navigator(scenario, "harmonic", backend, "", smooth)
+            r = walk(scenario, backend=backend, mode="harmonic", max_steps=max_steps, navigator=nav)
+            key = "smooth" if smooth else "plain"
+            row[f"guide_ms_{key}"] = _pcts(r.guide_ms)
+            row[f"arrived_{key}"], row[f"steps_{key}"] = r.arrived, int(r.steps)
+        blocked = dilate(scenario.true == 1, scenario.radius_cells)
+        planner = make_planner("harmonic", backend)
+        planner.plan(blocked, scenario.goal)
+        path = planner.path(scenario.start)
+        field = planner.field()
+        row["band_ms"] = _timed(lambda: planner.band(path, blocked))  # noqa: B023
+        row["band_numba_ms"] = _timed(lambda: rubber_band(path, field, blocked))  # noqa: B023
+        row["path_cells"] = len(path)
+        rows.append(row)
     return rows
 
 
@@ -105,15 +186,18 @@ def plateau_rows(grids: list[int], backend: str) -> list[dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("what", choices=("replan", "plateau"))
+    parser.add_argument("what", choices=("replan", "plateau", "band"))
     parser.add_argument("--backend", default="cpu")
     parser.add_argument("--grid", default="100,400")
     parser.add_argument("--max-steps", type=int, default=None)
     parser.add_argument("--json", default=None)
+    parser.add_argument("--steps", default="", help="replan: harmonic step stops, e.g. full,20")
     a = parser.parse_args()
     grids = [int(x) for x in a.grid.split(",")]
     if a.what == "replan":
-        rows = replan_rows(grids, a.backend, a.max_steps)
+        rows = replan_rows(grids, a.backend, a.max_steps, steps=tuple(a.steps.split(",")))
+    elif a.what == "band":
+        rows = band_rows(grids, a.backend, a.max_steps)
     else:
         rows = plateau_rows(grids, a.backend)
     text = json.dumps(rows, indent=1)

@@ -12,6 +12,7 @@ calls, so call it for every new pose or path, in time order.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -24,7 +25,7 @@ from .cues import SAFETY_KINDS, CueLimiter, CueMaker, Units, Wording, clock_hour
 from .hold import HoldPolicy
 from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
 from .route_watch import RouteWatch
-from .smoothing import rubber_band
+from .smoothing import planner_band, rubber_band
 from .sole_voice import SoleVoice, SoleVoiceSettings, sole_limiter
 from .turning_points import (
     bearing,
@@ -86,6 +87,9 @@ class Guidance:
         self.max_leg_cells = max_leg_m / cell_m
         self.turn_around = math.radians(turn_around_deg)
         self.smooth = smooth
+        self.planner: Callable[[], object] | None = None
+        """The planner whose path is guided (the navigator's route sets it): smoothing uses
+        that planner's own model where it has one (``smoothing.planner_band``)."""
         self.hold = hold if hold is not None else HoldPolicy()
         self.patterns = PatternMaker()
         self.reassure_s = float(reassure_s)
@@ -252,7 +256,8 @@ class Guidance:
         # at most max_leg long, so the path beyond a few legs' worth of cells is not looked at.
         path = path[: int(2.5 * self.max_leg_cells) + 2]
         if self.smooth and blocked is not None and len(path) > 2:
-            smoothed = rubber_band(path, blocked, cell_m=self.cell_m)
+            own = planner_band(self.planner()) if self.planner is not None else None
+            smoothed = own(path, blocked) if own else rubber_band(path, blocked, cell_m=self.cell_m)
             return turning_points_from_polyline(smoothed, blocked, self.max_leg_cells)
         return turning_points(path, blocked, max_leg_cells=self.max_leg_cells)
 
@@ -325,24 +330,34 @@ def _free_after(
     return bool(segment_clear(blocked, a[0], a[1], b[0], b[1], depth))
 
 
-def turning_points_from_polyline(
-    poly: np.ndarray, blocked: np.ndarray, max_leg_cells: float
-) -> np.ndarray:
-    """Turning points of an already smooth polyline (continuous cell units): greedy shortcuts."""
-    out = [poly[0]]
-    i = 0
-    while i < len(poly) - 1:
+@numba.njit(cache=True, nogil=True)
+def _shortcuts(poly: np.ndarray, blocked: np.ndarray, max_leg_cells: float) -> np.ndarray:
+    n = poly.shape[0]
+    out = np.empty((n, 2), dtype=np.float64)
+    out[0] = poly[0]
+    m, i = 1, 0
+    while i < n - 1:
         j = i + 1
-        while j + 1 < len(poly):
-            a, b = poly[i], poly[j + 1]
-            if float(np.hypot(*(b - a))) > max_leg_cells or not segment_free(
-                blocked, a[0], a[1], b[0], b[1]
+        while j + 1 < n:
+            r0, c0, r1, c1 = poly[i, 0], poly[i, 1], poly[j + 1, 0], poly[j + 1, 1]
+            if math.hypot(r1 - r0, c1 - c0) > max_leg_cells or not segment_free(
+                blocked, r0, c0, r1, c1
             ):
                 break
             j += 1
-        out.append(poly[j])
+        out[m] = poly[j]
+        m += 1
         i = j
-    return np.array(out, dtype=np.float64)
+    return out[:m].copy()
+
+
+def turning_points_from_polyline(
+    poly: np.ndarray, blocked: np.ndarray, max_leg_cells: float
+) -> np.ndarray:
+    """Turning points of an already smooth polyline (continuous cell units): greedy shortcuts
+    (compiled: a band of one point per cell took ~1 ms a guidance call in Python)."""
+    poly = np.ascontiguousarray(poly, dtype=np.float64)
+    return _shortcuts(poly, np.ascontiguousarray(blocked, dtype=np.bool_), float(max_leg_cells))
 
 
 def forward_clearance_m(

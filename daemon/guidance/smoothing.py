@@ -16,14 +16,16 @@ One smoothing model per planner (``SMOOTHING``, ``smooth_path``): the ``harmonic
 path is smoothed by the paper's own band (``daemon.planning.harmonic.rubber_band``: tension
 plus the harmonic force ``F = 1/(1 − u(x̂)) − 1/(1 − u(x_i))``, read from that planner's
 field); every other planner's by the band above (tension plus the push of nearby obstacles),
-which needs no field. Cost per call (``docs/notes/harmonic-fields.md``): the harmonic band
-1–3 ms on a 10 m path at 100² and 400²; the band above 14–45 ms there on this 2-core machine.
-Guidance smooths only when asked (``Guidance(smooth=True)``), with the band above.
+which needs no field. Guidance smooths only when asked (``Guidance(smooth=True)``), with the
+model of the planner the navigator's route holds (``planner_band``): the harmonic planner's
+``band`` (on the GPU where its field is, one thread per point as the paper's Figure 4), any
+other planner's the band above.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -177,6 +179,13 @@ DEFAULT_SMOOTHING = "repulsion band (tension + obstacle push)"
 
 def smoothing_model(planner: str) -> str:
     return SMOOTHING.get(planner, DEFAULT_SMOOTHING)
+
+
+def planner_band(planner: object) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """The planner's own smoothing model, ``band(path, blocked)``, where it has one (the
+    harmonic planner's, read from its field); None: the repulsion band."""
+    band = getattr(planner, "band", None)
+    return band if callable(band) else None
 
 
 def smooth_path(

@@ -25,14 +25,7 @@ from daemon.guidance.guide import Guidance
 from daemon.planning.grid import Cell, cell_to_xy, in_bounds, xy_to_cell
 from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
-from protocol.messages import (
-    Goal,
-    NavState,
-    NavStatus,
-    PatternKind,
-    Pose,
-    StatusCode,
-)
+from protocol.messages import Goal, NavState, NavStatus, PatternKind, Pose, StatusCode
 
 from .controls import BatteryPolicy, UserControls, Whereabouts
 from .goals import goal_cell
@@ -121,6 +114,8 @@ class Navigator:
             arrive_m=settings.arrive_m, voice=settings.voice, wording=settings.wording,
             units=settings.units, reassure_s=settings.reassure_s,
         )  # fmt: skip
+        # Smoothing (when guidance is asked for it) takes the model of the planner in use.
+        self.guidance.planner = lambda: self.route.planner
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None
         self.pose: Pose | None = None

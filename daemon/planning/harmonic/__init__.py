@@ -4,9 +4,10 @@ and the paper's rubber band (``rubber_band.py``).
 
 ``make_harmonic(backend, variant)`` is the one place an engine is chosen: ``cuda`` builds the
 CuPy engine (imported only then), ``cpu`` and ``reference`` the numba one. Variant ``fast``:
-four-colour SOR from the distance-like first guess (``kernels/harmonic.cu``; its 32 x 32
-shared-memory tile form is ``CudaField(order="tiles")``); ``paper``: the paper's forms — row-wise
-Gauss–Seidel on the CPU, eq. (1)'s Jacobi sweeps on the GPU — from the median-range guess.
+four-colour SOR from the distance-like first guess (``kernels/harmonic.cu``); ``paper``: the
+paper's forms — row-wise Gauss–Seidel on the CPU, eq. (1)'s Jacobi sweeps on the GPU — from
+the median-range guess. Both stop a replanning step early on a field without a pit
+(``planner.py``). The rubber band: ``rubber_band.py`` (numba), ``band_cuda.py`` (the GPU's).
 """
 
 from __future__ import annotations
@@ -23,8 +24,6 @@ def make_harmonic(backend: str, variant: str = "fast") -> HarmonicPlanner:
     if backend == "cuda":
         from .cuda import CudaField
 
-        # The global four-colour kernel is the one measured on the device; the tile kernel
-        # (order="tiles") is built and compiles, but has not run on a device yet.
         engine = CudaField(order="rb" if variant == "fast" else "jacobi")
     else:
         from .cpu import CpuField

@@ -3,7 +3,8 @@
 The engine interface (the CUDA engine, ``cuda.py``, has the same): ``load`` the fixed cells
 (obstacles, cells the goal cannot reach, the goal) and a first field; ``set`` some cells'
 value and fixedness (the map's changes, as ``planner.py`` works them out); ``relax`` to the
-tolerance; ``descend`` from a cell; ``field``, a host copy of ``w``.
+tolerance, or past a budget of sweeps to a field without a pit; ``descend`` from a cell;
+``field``, a host copy of ``w``.
 """
 
 from __future__ import annotations
@@ -35,9 +36,12 @@ class CpuField:
         self.w[cells] = w
         self.fixed[cells] = fixed
 
-    def relax(self, sweeps: int, tol: float) -> tuple[int, float]:
+    def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
+        """Sweeps, residual, and whether the field ends without a pit (converged, or past
+        ``budget`` sweeps with no free cell lacking a lower neighbour; ``relax.has_pit``)."""
         return rx.relax_log(self.w, self.fixed, self.width, self.order, self.omega, sweeps,
-                            self.check_every, tol, self.scratch)  # fmt: skip
+                            self.check_every, tol, self.scratch,
+                            sweeps if budget is None else budget)  # fmt: skip
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

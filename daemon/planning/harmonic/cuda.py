@@ -3,11 +3,11 @@
 
 The kernel source is compiled once per process and float type (``functools.cache``; cupy
 also keeps the binary in its on-disk cache), as the cuda planner's ``device.module`` does.
-A relaxation is one cooperative launch — every sweep, the residual checks and the paper's
-Idx — then one copy of Idx (one byte a cell) into page-locked host memory and one of the
-sweep count and residual: the host walks the descent itself. ``float32`` by default: ``w``
-grows about linearly with distance, so single precision holds it at any grid size
-(``docs/notes/harmonic-fields.md`` has the measurement); ``float64`` on request.
+A relaxation is one cooperative launch — every sweep, the residual and pit checks, and the
+paper's Idx — then one copy of Idx (one byte a cell) into page-locked host memory and one of
+the sweep count, residual and pit verdict: the host walks the descent itself. ``float32`` by
+default: ``w`` grows about linearly with distance, so single precision holds it at any grid
+size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on request.
 """
 
 from __future__ import annotations
@@ -65,17 +65,14 @@ def _walk(idx: np.ndarray, width: int, start: int, goal: int, out: np.ndarray) -
 class CudaField:
     backend = "cuda"
 
-    def __init__(self, order: str = "tiles", omega: float = 1.3, check_every: int = 5,
-                 dtype: type = np.float32, local: int = 8) -> None:  # fmt: skip
-        if order not in ("tiles", "rb", "jacobi"):
-            raise ValueError(f"the GPU sweeps tiles, rb or jacobi, not {order!r}")
+    def __init__(self, order: str = "rb", omega: float = 1.3, check_every: int = 5,
+                 dtype: type = np.float32) -> None:  # fmt: skip
+        if order not in ("rb", "jacobi"):
+            raise ValueError(f"the GPU sweeps rb or jacobi, not {order!r}")
         self.jacobi = order == "jacobi"
-        self.tiles = order == "tiles"
-        self.local = int(local)
-        """Sweeps of a tile in shared memory per round (``tiles``)."""
         self.dtype = np.dtype(dtype)
         self.real = "double" if self.dtype == np.float64 else "float"
-        self.omega = self.dtype.type(omega if order in ("rb", "tiles") else 1.0)
+        self.omega = self.dtype.type(omega if order == "rb" else 1.0)
         self.check_every = int(check_every)
         self.width = self.height = self.goal = 0
         self.launches = 0
@@ -86,15 +83,16 @@ class CudaField:
         self.w = cp.asarray(w0.astype(self.dtype))
         self.fixed = cp.asarray(fixed.astype(np.uint8))
         self.prev = cp.empty_like(self.w) if self.jacobi else cp.empty(1, dtype=self.dtype)
-        self.worst = cp.zeros(2, dtype=cp.uint32)
-        self.result = cp.zeros(2, dtype=cp.int32)
+        # The residual's two slots and the pit check's three, cleared by one launch a relax.
+        self.flags = cp.zeros(5, dtype=cp.uint32)
+        self.worst, self.pits = self.flags[:2], self.flags[2:]
+        self.result = cp.zeros(3, dtype=cp.int32)
         self.idx = cp.full(w0.size, 4, dtype=cp.int8)
         self.idx_host = cp.cuda.alloc_pinned_memory(w0.size)
         self.idx_view = np.frombuffer(self.idx_host, dtype=np.int8, count=w0.size)
         self.buf = np.empty(w0.size, dtype=np.int64)
-        function = "harmonic_tiles" if self.tiles else "harmonic_relax"
-        self.kernel = _module(self.real).get_function(function)
-        self.blocks = _blocks(self.real, function)
+        self.kernel = _module(self.real).get_function("harmonic_relax")
+        self.blocks = _blocks(self.real, "harmonic_relax")
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         if cells.size == 0:
@@ -105,30 +103,23 @@ class CudaField:
         self.w[dev] = self.dtype.type(min(w, rx.BLOCKED_W))
         self.fixed[dev] = np.uint8(fixed)
 
-    def relax(self, sweeps: int, tol: float) -> tuple[int, float]:
-        self.worst.fill(0)
-        if self.tiles:
-            rounds = max(1, sweeps // self.local)
-            self.kernel(
-                (self.blocks,), (THREADS,),
-                (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.omega,
-                 np.int32(self.local), np.int32(rounds), np.float32(tol), self.worst,
-                 self.result, self.idx),
-            )  # fmt: skip
-            return self._read()
+    def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
+        """As ``CpuField.relax``: sweeps, residual, and whether the field ends without a pit."""
+        self.flags.fill(0)
         self.kernel(
             (self.blocks,), (THREADS,),
             (self.w, self.fixed, self.prev, np.int32(self.height), np.int32(self.width),
              np.int32(self.jacobi), self.omega, np.int32(sweeps), np.int32(self.check_every),
-             np.float32(tol), self.worst, self.result, self.idx),
+             np.float32(tol), self.worst, self.result, self.idx,
+             np.int32(sweeps if budget is None else budget), self.pits),
         )  # fmt: skip
         return self._read()
 
     def _read(self) -> tuple[int, float]:
         self.launches += 1
         self.idx.get(out=self.idx_view)
-        done, bits = (int(v) for v in self.result.get())
-        return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0])
+        done, bits, settled = (int(v) for v in self.result.get())
+        return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
     def descend(self, start: int) -> np.ndarray | None:
         k = _walk(self.idx_view, self.width, start, self.goal, self.buf)

@@ -10,12 +10,19 @@ Contract (not a cost-to-go: the field is not a distance, and its paths are not s
   ``relax.py``) ends at the goal, and never enters a blocked cell;
 - a cell the goal does not reach gets no path (empty), never a wrong one: the descent only
   ever steps to a strictly lower free cell, so it cannot climb into an obstacle or loop;
-- convergence: the field is relaxed until the residual, the largest change a sweep would
-  make to any reachable cell's ``w`` (log units, i.e. the relative change of ``1 − u``), is
-  below ``tol`` (1e-4), checked every 5 sweeps. If a descent still stops short from a
-  reachable cell, the planner relaxes with a 10 times tighter tolerance (at most 2000
-  sweeps, once per field) and tries once more, and counts it in ``retries``. A relaxation
-  that has not converged after a quarter of its budget goes on at omega 1 (Gauss–Seidel).
+- convergence: ``plan`` (and ``converge``) relax until the residual, the largest change a
+  sweep would make to any reachable cell's ``w`` (log units, i.e. the relative change of
+  ``1 − u``), is below ``tol`` (1e-4), checked every 5 sweeps. A replanning step (``update``)
+  stops there too, or earlier: once ``step_sweeps`` (20) are done, at the first check that
+  finds no pit — no reachable cell without a strictly lower neighbour (``relax.has_pit``),
+  so the descent from every reachable cell reaches the goal. What a step leaves of the
+  residual the next steps go on relaxing from (the paper's loop relaxes without end, §II-B);
+  ``converge`` finishes it, and a warm field converged so equals a cold plan within the
+  tolerance's bound (the tests'). If a descent still stops short from a reachable cell, the
+  planner relaxes with a 10 times tighter tolerance (at most 2000 sweeps, once per field)
+  and tries once more, and counts it in ``retries``. A relaxation that has neither
+  converged nor lost its pits after a quarter of its budget goes on at omega 1
+  (Gauss–Seidel).
 - ``cost_at(cell)`` is the 10/14 cost of ``path(cell)`` (INF if none), as for ``visgraph``;
   ``costs_within`` the same over a window (the escape from the margin reads it).
 
@@ -46,6 +53,10 @@ INIT_SLOPE = 0.05
 COLD_SWEEPS = 400_000
 WARM_SWEEPS = 20_000
 RETRY_SWEEPS = 2_000
+BAND_ITERATIONS = 15
+"""Rubber-band iterations a ``band`` call runs (it goes on from the last call's band)."""
+STEP_SWEEPS = 20
+"""Sweeps a replanning step does before a field without a pit may end it."""
 _EMPTY = np.empty((0, 2), dtype=np.int32)
 
 
@@ -54,13 +65,18 @@ class HarmonicPlanner(GlobalPlanner):
     """The field is not a cost-to-go: compare and the property tests judge it by its own
     contract (descent reaches the goal), not by the reference Dijkstra's costs."""
 
-    def __init__(self, engine, *, init: str = "distance", tol: float = TOL, name: str = "") -> None:
+    def __init__(self, engine, *, init: str = "distance", tol: float = TOL, name: str = "",
+                 step_sweeps: int | None = STEP_SWEEPS) -> None:  # fmt: skip
+        """``step_sweeps`` None: every replanning step relaxes to ``tol``."""
         if init not in ("distance", "paper"):
             raise ValueError(f"unknown init {init!r}; choose distance or paper")
         self.engine = engine
         self.backend = engine.backend
         self.init = init
         self.tol = float(tol)
+        self.step_sweeps = step_sweeps
+        self.settled = True
+        """The last relaxation ended without a pit (converged, or a step's early stop)."""
         self.name = name or f"harmonic-{engine.backend}"
         self._shape: tuple[int, int] = (0, 0)
         self._goal: Cell = (0, 0)
@@ -71,6 +87,7 @@ class HarmonicPlanner(GlobalPlanner):
         self._cache: tuple[tuple[Cell, int], np.ndarray] | None = None
         self._version = 0
         self._retried = -1
+        self._band: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def goal(self) -> Cell:
@@ -89,6 +106,7 @@ class HarmonicPlanner(GlobalPlanner):
         t0 = time.perf_counter()
         blocked, shape, goal = checked_plan_input(blocked, goal)
         self._shape, self._goal = shape, goal
+        self._band = None
         h, w = shape
         padded = np.ones((h + 2, w + 2), dtype=np.bool_)
         padded[1:-1, 1:-1] = blocked
@@ -120,19 +138,23 @@ class HarmonicPlanner(GlobalPlanner):
         self.engine.set(lost, rx.BLOCKED_W, True)
         self.engine.set(gained, rx.BLOCKED_W, False)
         g = self.reach.goal
-        if self.reach.reach[g]:  # the goal freed again holds u = 0, as in plan
+        if self.reach.reach[g] and (gained == g).any():  # the goal freed again: u = 0
             self.engine.set(np.array([g], dtype=np.int64), 0.0, True)
-        return self._relax(t0, WARM_SWEEPS)
+        return self._relax(t0, WARM_SWEEPS, self.step_sweeps)
 
-    def _relax(self, t0: float, cap: int) -> UpdateStats:
-        sweeps, self.residual = self.engine.relax(cap // 4, self.tol)
-        if self.residual >= self.tol:
+    def converge(self) -> UpdateStats:
+        """Relax the field to the tolerance (what the replanning steps' early stops left)."""
+        return self._relax(time.perf_counter(), WARM_SWEEPS)
+
+    def _relax(self, t0: float, cap: int, budget: int | None = None) -> UpdateStats:
+        sweeps, self.residual, self.settled = self.engine.relax(cap // 4, self.tol, budget)
+        if not self.settled:
             # Over-relaxing a log-sum-exp can cycle instead of settling (measured: omega 1.5
             # never converged on the 100² courtyard, 1.3 now and then on a walk's change);
             # Gauss–Seidel (omega 1) always settles, slower: the rest of the budget is its.
             omega = self.engine.omega
             self.engine.omega = type(omega)(1.0)
-            more, self.residual = self.engine.relax(cap - cap // 4, self.tol)
+            more, self.residual, self.settled = self.engine.relax(cap - cap // 4, self.tol, budget)
             self.engine.omega = omega
             sweeps += more
         self._version += 1
@@ -181,6 +203,26 @@ class HarmonicPlanner(GlobalPlanner):
         for r in range(r0, r1):
             for c in range(c0, c1):
                 out[r - r0, c - c0] = self.cost_at((r, c))
+        return out
+
+    def band(self, path: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+        """The paper's rubber band of ``path`` in this field (the harmonic planner's smoothing
+        model, ``daemon.guidance.smoothing``), ``(k, 2) float64`` in continuous cell units:
+        on the GPU, one thread per point (Figure 4), where the field lies on the device.
+        ``BAND_ITERATIONS`` a call, from where the last call's band left each path cell."""
+        from .rubber_band import band_memory, rubber_band, warm_points
+
+        path = np.asarray(path)
+        start = warm_points(path, blocked, self._band)
+        if self.backend == "cuda":
+            from .band_cuda import rubber_band_cuda
+
+            out = rubber_band_cuda(path, self.engine.w, blocked, pad=1,
+                                   iterations=BAND_ITERATIONS, start=start)[0]  # fmt: skip
+        else:
+            out = rubber_band(path, self.field(), blocked, iterations=BAND_ITERATIONS,
+                              start=start)  # fmt: skip
+        self._band = band_memory(path, out, blocked.shape[1]) if len(path) > 2 else None
         return out
 
     def field(self) -> np.ndarray:

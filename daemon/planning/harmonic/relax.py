@@ -68,6 +68,25 @@ def _target(w: np.ndarray, i: int, width: int) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
+def has_pit(w: np.ndarray, fixed: np.ndarray, width: int) -> bool:
+    """Whether some free (not fixed) cell has no strictly lower neighbour: a cell where the
+    descent would stop short. Without one, every descent from a free cell strictly falls
+    until a fixed cell below ``BLOCKED_W``, and the goal is the only such cell."""
+    for i in range(width, w.size - width):
+        if fixed[i]:
+            continue
+        wi = w[i]
+        lower = False
+        for d in range(9):
+            if w[i + (d // 3 - 1) * width + d % 3 - 1] < wi:
+                lower = True
+                break
+        if not lower:
+            return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
 def relax_log(
     w: np.ndarray,
     fixed: np.ndarray,
@@ -78,11 +97,13 @@ def relax_log(
     check_every: int,
     tol: float,
     scratch: np.ndarray,
-) -> tuple[int, float]:
+    budget: int,
+) -> tuple[int, float, bool]:
     """Sweep the padded flat field ``w`` until the residual — the largest ``|target − w|``
     over free cells, in log units, i.e. the relative residual of ``1 − u`` — is below ``tol``
-    (checked every ``check_every`` sweeps) or ``sweeps`` are done. Returns (sweeps, residual).
-    ``scratch``: a buffer like ``w`` (Jacobi's previous sweep)."""
+    (checked every ``check_every`` sweeps) or ``sweeps`` are done; or, once ``budget`` sweeps
+    are done, at the first check that finds no pit (``has_pit``). Returns (sweeps, residual,
+    whether it ended without a pit). ``scratch``: a buffer like ``w`` (Jacobi's last sweep)."""
     n = w.size
     height = n // width
     residual = math.inf
@@ -128,7 +149,9 @@ def relax_log(
             residual = worst
             if residual < tol:
                 break
-    return done, residual
+            if done >= budget and not has_pit(w, fixed, width):
+                return done, residual, True
+    return done, residual, residual < tol
 
 
 @numba.njit(cache=True, nogil=True)

@@ -20,7 +20,12 @@ paper's, and it balances the tension in cell units everywhere (``docs/notes``). 
 new point is in a blocked cell, or whose segments to its neighbours cross one, is refused
 (the point stays); so the band never cuts an obstacle, at any iteration.
 
-Stops when no point moved (more than ``tol`` cells), or after ``iterations``.
+Stops when no point moved (more than ``tol`` cells), or after ``iterations``. Moves are
+whole steps of δ, so a band whose points trade places between two moves never stops early:
+measured on the courtyard's paths, it ran all 200 iterations every time, shortening by ~1 %
+after the first 20. A caller that bands every step (guidance) therefore runs a few
+iterations per call from where its last band left each path cell (``warm_points``), as the
+paper's band is a process that goes on while the path is followed.
 """
 
 from __future__ import annotations
@@ -118,6 +123,52 @@ def band_iterations(
     return done
 
 
+@numba.njit(cache=True, nogil=True)
+def _unbend(pts: np.ndarray, centres: np.ndarray, blocked: np.ndarray) -> int:
+    """Put back on its cell centre each point of a segment that crosses a blocked cell, until
+    none does (a band warm-started from two earlier bands can join up across an obstacle).
+    Centre to centre of neighbouring path cells is the grid path itself. Returns resets."""
+    resets = 0
+    changed = True
+    while changed:
+        changed = False
+        for i in range(pts.shape[0] - 1):
+            a_moved = pts[i, 0] != centres[i, 0] or pts[i, 1] != centres[i, 1]
+            b_moved = pts[i + 1, 0] != centres[i + 1, 0] or pts[i + 1, 1] != centres[i + 1, 1]
+            if not (a_moved or b_moved):
+                continue
+            if not _free_line(blocked, pts[i, 0], pts[i, 1], pts[i + 1, 0], pts[i + 1, 1]):
+                pts[i, :] = centres[i, :]
+                pts[i + 1, :] = centres[i + 1, :]
+                resets += 1
+                changed = True
+    return resets
+
+
+def warm_points(path: np.ndarray, blocked: np.ndarray, last: tuple | None) -> np.ndarray:
+    """The band's first points: each path cell's centre, or where the ``last`` band (``(flat
+    cells sorted, their points)``) had left that cell's point; the ends on their centres."""
+    centres = np.asarray(path, dtype=np.float64) + 0.5
+    pts = centres.copy()
+    if last is not None and len(path) > 2:
+        cells, points = last
+        flat = path[:, 0].astype(np.int64) * blocked.shape[1] + path[:, 1]
+        k = np.searchsorted(cells, flat).clip(0, len(cells) - 1)
+        hit = cells[k] == flat
+        hit[0] = hit[-1] = False
+        pts[hit] = points[k[hit]]
+        _unbend(pts, centres, np.ascontiguousarray(blocked, dtype=np.bool_))
+    return pts
+
+
+def band_memory(path: np.ndarray, band: np.ndarray, width: int) -> tuple:
+    """What ``warm_points`` starts the next band from: the path's flat cells, sorted, and
+    their band points."""
+    flat = path[:, 0].astype(np.int64) * width + path[:, 1]
+    order = np.argsort(flat)
+    return flat[order], band[order]
+
+
 def rubber_band(
     path: np.ndarray,
     w: np.ndarray,
@@ -126,11 +177,12 @@ def rubber_band(
     delta: float = 0.25,
     iterations: int = 200,
     tol: float = 1e-3,
+    start: np.ndarray | None = None,
 ) -> np.ndarray:
     """The band of ``path`` (``(k, 2)`` cells) in the field ``w`` (the planner's ``field()``),
     ``(k, 2) float64`` in continuous cell units; the ends stay fixed. ``delta``: the paper's
-    step (0 < δ < 1)."""
-    pts = np.asarray(path, dtype=np.float64) + 0.5
+    step (0 < δ < 1). ``start``: the first points (``warm_points``; default the centres)."""
+    pts = np.asarray(path, dtype=np.float64) + 0.5 if start is None else start.copy()
     if len(pts) > 2:
         band_iterations(pts, np.ascontiguousarray(w, dtype=np.float64),
                         np.ascontiguousarray(blocked, dtype=np.bool_), float(delta),

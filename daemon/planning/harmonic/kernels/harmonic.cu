@@ -4,7 +4,8 @@
 // of the four-colour (row parity x column parity) ordering of the nine-point stencil, the
 // grid synchronises between colours, and every `check_every` sweeps the largest change of
 // the sweep (the residual, in log units) is reduced into a global word; all threads read it
-// after a grid sync and leave together once it is below `tol`. `jacobi` instead sweeps eq. (1)
+// after a grid sync and leave together once it is below `tol` — or, past `budget` sweeps,
+// once no free cell is a pit (a replanning step's stop: every descent reaches the goal). `jacobi` instead sweeps eq. (1)
 // as written, from a copy of the last sweep. At the end each cell gets the paper's Idx: the
 // neighbour (0..8, row-major in the 3 x 3 block) of lowest w when strictly below its own, 4
 // (itself) when none is; the host walks it. REAL is float or double (-DREAL=...).
@@ -68,15 +69,32 @@ __device__ void reduce_max(float v, unsigned* slot) {
     if (threadIdx.x == 0 && s_max > 0.0f) atomicMax(slot, __float_as_uint(s_max));
 }
 
+// Whether this thread's cells include a free one with no strictly lower neighbour (a pit:
+// the descent would stop there); relax.py's has_pit over the thread's share.
+__device__ bool has_pit(const REAL* w, const unsigned char* fixed, int height, int width,
+                        long long first, long long stride) {
+    const int ih = height - 2, iw = width - 2;
+    for (long long k = first; k < (long long)ih * iw; k += stride) {
+        int i = (int)((k / iw + 1) * width + k % iw + 1);
+        if (fixed[i]) continue;
+        REAL wi = w[i];
+        bool lower = false;
+        for (int d = 0; d < 9 && !lower; ++d) lower = w[i + (d / 3 - 1) * width + d % 3 - 1] < wi;
+        if (!lower) return true;
+    }
+    return false;
+}
+
 extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, REAL* prev,
                                           int height, int width, int jacobi, REAL omega,
                                           int max_sweeps, int check_every, float tol,
-                                          unsigned* worst, int* result, signed char* idx) {
+                                          unsigned* worst, int* result, signed char* idx,
+                                          int budget, unsigned* pits) {
     cg::grid_group grid = cg::this_grid();
     const long long stride = (long long)gridDim.x * blockDim.x;
     const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
     const int ih = height - 2, iw = width - 2;  // the padded ring never moves
-    int done = 0, checks = 0;
+    int done = 0, checks = 0, settled = 0;
     float residual = __int_as_float(0x7f800000);  // +inf (NVRTC has no math.h)
     while (done < max_sweeps) {
         const bool check = (done + 1) % check_every == 0 || done + 1 == max_sweeps;
@@ -106,91 +124,34 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
         if (check) {
             unsigned* slot = worst + (checks & 1);
             reduce_max(mine, slot);
+            // Past the step's budget, a field without a pit is good enough to stop on.
+            const bool look = done >= budget;  // the same in every thread
+            unsigned* pit = pits + checks % 3;
+            if (look) {
+                // The slot after this one was read two checks ago (grid syncs since); it is
+                // written next check, after this check's sync.
+                if (first == 0) pits[(checks + 1) % 3] = 0u;
+                if (__syncthreads_or(has_pit(w, fixed, height, width, first, stride)) &&
+                    threadIdx.x == 0)
+                    atomicOr(pit, 1u);
+            }
             grid.sync();
             residual = __uint_as_float(*(volatile unsigned*)slot);
+            const bool pitted = look && *(volatile unsigned*)pit != 0u;
             // The other slot is the next check's; nobody reads it until after two syncs.
             if (first == 0) worst[(checks & 1) ^ 1] = 0u;
             ++checks;
             if (residual < tol) break;
+            if (look && !pitted) {
+                settled = 1;
+                break;
+            }
         }
     }
     write_idx(w, idx, height, width, first, stride);
     if (first == 0) {
         result[0] = done;
         result[1] = (int)__float_as_uint(residual);
-    }
-}
-
-// Tiles: each block takes 32 x 32 tiles in turn, copies one (and its ring of neighbours)
-// into shared memory, sweeps it `local` times there (four colours, block barriers only),
-// and writes it back; one grid sync per round. Neighbouring tiles read each other's border
-// as it stands (old or new: either is an iterate of the same relaxation, which converges to
-// the same field, as block-asynchronous relaxation does). A round moves information up to
-// `local` cells for one grid barrier, where a global four-colour sweep pays four barriers
-// for one or two. The residual is the largest change of a round's first local sweep, taken
-// from the state as the round found it.
-#define TILE 32
-#define SIDE (TILE + 2)
-extern "C" __global__ void harmonic_tiles(REAL* w, const unsigned char* fixed, int height,
-                                          int width, REAL omega, int local, int max_rounds,
-                                          float tol, unsigned* worst, int* result,
-                                          signed char* idx) {
-    cg::grid_group grid = cg::this_grid();
-    __shared__ REAL s_w[SIDE * SIDE];
-    __shared__ unsigned char s_fixed[SIDE * SIDE];
-    const int ty_n = (height - 2 + TILE - 1) / TILE, tx_n = (width - 2 + TILE - 1) / TILE;
-    const int tiles = ty_n * tx_n;
-    int rounds = 0;
-    float residual = __int_as_float(0x7f800000);
-    while (rounds < max_rounds) {
-        float mine = 0.0f;
-        for (int t = blockIdx.x; t < tiles; t += gridDim.x) {
-            const int r0 = 1 + (t / tx_n) * TILE, c0 = 1 + (t % tx_n) * TILE;
-            for (int k = threadIdx.x; k < SIDE * SIDE; k += blockDim.x) {
-                int r = r0 - 1 + k / SIDE, c = c0 - 1 + k % SIDE;
-                bool inside = r < height && c < width;
-                s_w[k] = inside ? w[(long long)r * width + c] : BLOCKED_W;
-                // Only the tile's own cells move; its ring is read, never written.
-                bool ring = k / SIDE == 0 || k / SIDE == SIDE - 1 || k % SIDE == 0 ||
-                            k % SIDE == SIDE - 1;
-                s_fixed[k] = (!inside || ring || r >= height - 1 || c >= width - 1)
-                                 ? 1 : fixed[(long long)r * width + c];
-            }
-            __syncthreads();
-            for (int sweep = 0; sweep < local; ++sweep) {
-                float* track = sweep == 0 ? &mine : nullptr;
-                for (int colour = 0; colour < 4; ++colour) {
-                    for (int q = threadIdx.x; q < TILE * TILE / 4; q += blockDim.x) {
-                        int lr = 1 + 2 * (q / (TILE / 2)) + (colour >> 1);
-                        int lc = 1 + 2 * (q % (TILE / 2)) + (colour & 1);
-                        int k = lr * SIDE + lc;
-                        if (s_fixed[k]) continue;
-                        float scratch = 0.0f;
-                        s_w[k] = moved(s_w[k], target(s_w, k, SIDE), omega,
-                                       track ? track : &scratch);
-                    }
-                    __syncthreads();
-                }
-            }
-            for (int k = threadIdx.x; k < TILE * TILE; k += blockDim.x) {
-                int lr = 1 + k / TILE, lc = 1 + k % TILE;
-                if (!s_fixed[lr * SIDE + lc])
-                    w[(long long)(r0 - 1 + lr) * width + c0 - 1 + lc] = s_w[lr * SIDE + lc];
-            }
-            __syncthreads();
-        }
-        unsigned* slot = worst + (rounds & 1);
-        reduce_max(mine, slot);
-        grid.sync();
-        residual = __uint_as_float(*(volatile unsigned*)slot);
-        if (blockIdx.x == 0 && threadIdx.x == 0) worst[(rounds & 1) ^ 1] = 0u;
-        ++rounds;
-        if (residual < tol) break;
-    }
-    const long long stride = (long long)gridDim.x * blockDim.x;
-    write_idx(w, idx, height, width, (long long)blockIdx.x * blockDim.x + threadIdx.x, stride);
-    if (blockIdx.x == 0 && threadIdx.x == 0) {
-        result[0] = rounds * local;
-        result[1] = (int)__float_as_uint(residual);
+        result[2] = settled || residual < tol;
     }
 }
