@@ -39,6 +39,7 @@ import numpy as np
 
 from protocol.pose_quality import quality_from_sigma
 
+from .map_match import Likelihood, grid_measurement
 from .protocol import Read
 from .rssi import A_DB, N_PATH, NEAR_FIELD_M
 from .tags import TagMap
@@ -226,6 +227,22 @@ class PoseFilter:
         if self.ready:
             self.P[0, 0] += self.p.bump_sigma_m**2
             self.P[1, 1] += self.p.bump_sigma_m**2
+
+    def constrain(self, t: float, like: Likelihood) -> bool:
+        """A measurement of the position against the map (``map_match``: a bump, the
+        camera's nearest obstacle), made linear over the ±3σ ellipse. True if it counted."""
+        self.t = max(self.t, t)
+        if not self.ready:
+            return False
+        here = self.s[:2] + self._stride(t)
+        got = grid_measurement(here, self.P[:2, :2], like)
+        if got is None:
+            return False
+        rows, z, r = got
+        h = np.zeros((rows.shape[0], N_STATE))
+        h[:, :2] = rows
+        self._update(z - rows @ here, h, r)
+        return True
 
     def uhf(self, t: float, tag_id: str, rssi_dbm: float) -> None:
         """A UHF read; it is used at the next ``pose`` (all reads of a tag since, by median)."""
