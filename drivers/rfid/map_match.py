@@ -35,6 +35,10 @@ MIN_SIGMA_M = HIT_SIGMA_M
 """The most a map match may say along any direction (1 σ)."""
 Z_RAND = 0.1
 """The map may be wrong or out of date (a person, a blob not yet mapped): never zero."""
+Z_CONTACT = 0.01
+"""A bump is sure to have happened; only the map may lack what was hit (the camera looks
+where the user steps, so rarely). With the camera's floor a bump left a two-humped
+posterior whose spread grew, and the moment-matched measurement said nothing."""
 CONTACT_RAYS_RAD = (-0.5, -0.25, 0.0, 0.25, 0.5)
 """A step goes up to ±40° off the body's heading (the walker turns in place beyond)."""
 
@@ -63,7 +67,7 @@ def contact_likelihood(
         xy = pts[:, None, None, :] + ray[None]
         rows, cols, inside = _cells(occupancy, cell_m, xy)
         hit = (occupancy[rows, cols] == OCCUPIED) | ~inside
-        return np.where(hit.any(axis=(1, 2)), 1.0, Z_RAND)
+        return np.where(hit.any(axis=(1, 2)), 1.0, Z_CONTACT)
 
     return like
 
@@ -92,12 +96,20 @@ def obstacle_likelihood(
     return like
 
 
+def _moments(pts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    w = w / w.sum()
+    m = w @ pts
+    diff = pts - m
+    return m, (diff * w[:, None]).T @ diff
+
+
 def grid_measurement(
     mean: np.ndarray, cov: np.ndarray, like: Likelihood
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The linear measurement of the position equivalent to ``like``: (H rows over x, y;
     z; R), so that a Kalman update with it gives the grid posterior's mean and covariance.
-    None when the likelihood says nothing (flat over the ellipse) or nothing fits.
+    None when the likelihood says little (under 5 % of the prior's information along every
+    direction: flat over the ellipse, or a match the map cannot explain).
 
     Posterior information = prior's + the measurement's, so the measurement's information
     is inv(C_post) − inv(P), kept along the directions where it is positive; z follows
@@ -108,18 +120,17 @@ def grid_measurement(
     u = np.linspace(-3.0, 3.0, GRID)
     uu = np.stack(np.meshgrid(u, u), axis=-1).reshape(-1, 2)
     pts = mean + uu @ scale.T
-    w = np.exp(-0.5 * (uu**2).sum(axis=1)) * like(pts)
-    total = float(w.sum())
-    if total <= 0.0:
+    prior = np.exp(-0.5 * (uu**2).sum(axis=1))
+    m0, c0 = _moments(pts, prior)
+    w = prior * like(pts)
+    if float(w.sum()) <= 0.0:
         return None
-    w /= total
-    m = w @ pts
-    diff = pts - m
-    cell_var = (6.0 / (GRID - 1)) ** 2 / 12.0  # the grid's own spacing, as a uniform spread
-    c = (diff * w[:, None]).T @ diff + scale @ scale.T * cell_var
-    p_inv, c_inv = np.linalg.inv(cov), np.linalg.inv(c)
+    m, c = _moments(pts, w)
+    # Against the grid's own prior, not P: the ±3σ cut and the spacing bias both alike.
+    p_inv, c_inv = np.linalg.inv(c0), np.linalg.inv(c)
+    mean = m0
     l_vals, l_vecs = np.linalg.eigh(c_inv - p_inv)
-    keep = l_vals > 1e-3 * float(np.linalg.eigvalsh(p_inv)[-1])
+    keep = l_vals > 0.05 * float(np.linalg.eigvalsh(p_inv)[-1])
     if not keep.any():
         return None
     v, lam = l_vecs[:, keep], l_vals[keep]

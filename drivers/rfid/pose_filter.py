@@ -261,15 +261,17 @@ class PoseFilter:
             self.source = "lf"
             return
         # Where the user stands within a tag's 10 cm is the same in every round of a user
-        # standing there: the rounds of one signpost within tag_memory_s count once, as a
-        # UHF tag's do (at 50 rounds a second, standing still drove σ to 6 mm, and the
-        # stride scale and compass bias went wrong on it: a 0.46 m error at σ 0.09 m).
+        # standing there: the m-th round of one signpost within tag_memory_s gets the
+        # variance m(m − 1) σ², so that all of them together count at most twice
+        # (Σ 1/(m(m − 1)) < 1). At 50 rounds a second, standing still drove σ to 6 mm,
+        # and the stride scale and compass bias went wrong on it (0.46 m off at σ 0.09 m).
         key = (round(float(z[0]), 2), round(float(z[1]), 2))
         seen = self._lf_updates.setdefault(key, deque())
         while seen and seen[0] < t - self.p.tag_memory_s:
             seen.popleft()
         seen.append(t)
-        r = len(seen) * (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
+        m = len(seen)
+        r = max(1, m * (m - 1)) * (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
         h = np.zeros((2, N_STATE))
         h[0, 0] = h[1, 1] = 1.0
         self._update(z - self.s[:2] - self._stride(t), h, r)
