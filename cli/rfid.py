@@ -172,12 +172,24 @@ def rfid(
             mock_reader.stop()
 
 
+def _one_of_matches(value: str) -> str:
+    from sim.rfid_belt_walk import MATCHES
+
+    if value not in MATCHES:
+        raise typer.BadParameter(f"{value!r}: choose one of {', '.join(MATCHES)}")
+    return value
+
+
 def rfid_walks(
     runs: Annotated[int, typer.Option(min=1, help="Walks per clutter level (seeds 0..n-1).")] = 50,
     unknown: Annotated[list[float] | None, typer.Option(help="Clutter levels.")] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
     match: Annotated[
-        str, typer.Option(help="Map matching besides the tags: camera, contact or none.")
+        str,
+        typer.Option(
+            help="Map matching besides the tags: camera, contact or none.",
+            callback=_one_of_matches,
+        ),
     ] = "camera",
     proximity: Annotated[bool, typer.Option(help="The camera's STOP before contact.")] = False,
 ) -> None:
