@@ -172,12 +172,30 @@ def rfid(
             mock_reader.stop()
 
 
+def _one_of_matches(value: str) -> str:
+    from sim.rfid_belt_walk import MATCHES
+
+    if value not in MATCHES:
+        raise typer.BadParameter(f"{value!r}: choose one of {', '.join(MATCHES)}")
+    return value
+
+
 def rfid_walks(
     runs: Annotated[int, typer.Option(min=1, help="Walks per clutter level (seeds 0..n-1).")] = 50,
     unknown: Annotated[list[float] | None, typer.Option(help="Clutter levels.")] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the rows here.")] = None,
+    match: Annotated[
+        str,
+        typer.Option(
+            help="Map matching besides the tags: camera, contact or none.",
+            callback=_one_of_matches,
+        ),
+    ] = "camera",
+    proximity: Annotated[bool, typer.Option(help="The camera's STOP before contact.")] = False,
 ) -> None:
-    """Closed-loop belt walks of the 100² courtyard guided by the RFID pose filter alone."""
+    """Closed-loop belt walks of the 100² courtyard guided by the RFID pose filter (tags,
+    steps and compass, and with ``--match`` the bumps and the camera's nearest obstacle
+    matched against the map)."""
     import numpy as np
 
     from sim.courtyard import make_courtyard
@@ -185,12 +203,17 @@ def rfid_walks(
 
     rows = []
     for level in unknown or [0.2, 0.4, 0.6]:
-        res = [rfid_belt_walk(make_courtyard(100, level, s), seed=s) for s in range(runs)]
+        res = [
+            rfid_belt_walk(make_courtyard(100, level, s), seed=s, match=match, proximity=proximity)
+            for s in range(runs)
+        ]
         errors = np.concatenate([r.pose_errors for r in res])
         heading = np.degrees(np.concatenate([r.heading_errors for r in res]))
         row = {
             "unknown": level,
             "runs": runs,
+            "match": match,
+            "proximity": proximity,
             "success": round(sum(r.arrived for r in res) / runs, 4),
             "collisions": int(sum(r.collisions for r in res)),
             "walks_with_collision": int(sum(r.collisions > 0 for r in res)),

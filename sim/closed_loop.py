@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from daemon.navigation import Inbox, Navigator, StepReport
-from protocol.messages import BeltPattern, Goal, GoalCell, NavState, PatternKind, Pose
+from protocol.messages import BeltPattern, Goal, GoalCell, NavState, PatternKind, Pose, Proximity
 
 from .world import World
 
@@ -97,6 +97,7 @@ def run_walk(
     stop_on_no_path: bool = True,
     map_first: bool = False,
     on_step: Callable[[Walk], None] | None = None,
+    proximity_source: Callable[[World, float], Proximity | None] | None = None,
 ) -> Walk:
     """Walk ``world.scenario`` from its start to its goal with ``navigator`` guiding.
 
@@ -104,6 +105,8 @@ def run_walk(
     world nothing will change that); a walker in a changing world may wait instead.
     ``map_first``: give each action's map delta a step of its own before the pose's, as the
     zenoh sim node does (it waits for the daemon's answer to a delta before the next pose).
+    ``proximity_source``: the camera's nearest obstacles with each pose (the STOP before
+    contact); None: the walk has no such input.
     """
     now = 0.0
     goal = Goal(target=GoalCell(row=world.scenario.goal[0], col=world.scenario.goal[1]), stamp=now)
@@ -121,6 +124,8 @@ def run_walk(
             navigator.step(inbox, now)
             inbox = Inbox()
         inbox.pose = pose_source(world, now)
+        if proximity_source is not None:
+            inbox.proximity = proximity_source(world, now)
         out = navigator.step(inbox, now)
         walk.reports.append(navigator.last)
         walk.cues += len(out.voice)
@@ -131,7 +136,12 @@ def run_walk(
         if owed:
             walk.reroutes_announced += said
             owed = False
-        if belt is not None and belt.kind not in UNGUIDED and len(out.path_cells):
+        if (
+            belt is not None
+            and belt.kind not in UNGUIDED
+            and out.path_cells is not None
+            and len(out.path_cells)
+        ):
             if route_departs(guided, out.path_cells, world.scenario.cell_m):
                 walk.route_changes += 1
                 if said:

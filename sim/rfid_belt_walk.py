@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
+from drivers.rfid.map_match import contact_likelihood, obstacle_likelihood
 from drivers.rfid.pose_filter import PoseFilter
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import TagMap
-from protocol.messages import Pose
+from protocol.messages import Pose, Proximity
 
 from .belt_walker import BeltWalker, WalkerParams
 from .closed_loop import STEP_S, run_walk
@@ -34,6 +35,13 @@ from .world import World
 
 WARM_UP_S = 1.0
 """The user stands at the start this long while the first reads come in."""
+MATCHES = ("camera", "contact", "none")
+"""What the filter matches against the daemon's map besides the tags: the camera's nearest
+obstacle and any bump, a bump only, or nothing (``drivers.rfid.map_match``)."""
+MATCH_EVERY_S = 1.0
+"""The camera's nearest obstacle is matched against the map at most this often: the same
+blob seen again a moment later is not a new, independent measurement."""
+MATCH_WITHIN_M = 1.5
 SUCCESS_M = 0.5
 """Truly this close to the goal when the navigator says ARRIVED: the user is there."""
 
@@ -99,6 +107,7 @@ class FilteredRfidPoses:
         round_hz: float = 50.0,
         uhf_every: int = 5,
         pose_every: int = 5,
+        match: str = "camera",
     ) -> None:
         self.model = ReadModel.for_tags(tag_map, seed=seed, uhf_range_m=uhf_range_m)
         self.imu = Imu(seed=seed + 7919)
@@ -113,6 +122,8 @@ class FilteredRfidPoses:
         self.errors: list[float] = []
         self.heading_errors: list[float] = []
         self.sigmas: list[float] = []
+        self.match = match
+        self._matched_t = -math.inf
 
     def __call__(self, world: World, now: float) -> Pose | None:
         w = world.walker
@@ -120,6 +131,10 @@ class FilteredRfidPoses:
         if getattr(w, "collisions", 0) > self.bumps:  # felt through the IMU as a jolt
             self.bumps = w.collisions
             self.filter.bump(self.t)
+            if self.match != "none":  # and it says where: an obstacle within a step ahead
+                heading = self.filter.heading
+                like = contact_likelihood(world.known, world.cell_m, heading, w.params.step_m)
+                self.filter.constrain(self.t, like)
         if self.at is None:
             self._listen(here, here, WARM_UP_S, stepped=False)
         else:
@@ -128,6 +143,15 @@ class FilteredRfidPoses:
         pose = self.filter.pose(self.t)
         if pose is None:
             return None
+        if self.match == "camera" and self.t - self._matched_t >= MATCH_EVERY_S:
+            seen = camera_proximity(world, now)
+            if seen.nearest_m is not None and seen.nearest_m <= MATCH_WITHIN_M:
+                like = obstacle_likelihood(world.known, world.cell_m, pose.heading,
+                                           seen.nearest_m, seen.bearing or 0.0)  # fmt: skip
+                if self.filter.constrain(self.t, like):
+                    self._matched_t = self.t
+                    pose = self.filter.pose(self.t)
+                    assert pose is not None
         self.errors.append(math.hypot(pose.x - w.x, pose.y - w.y))
         self.heading_errors.append(abs(_wrap(pose.heading - w.heading)))
         self.sigmas.append(pose.sigma_m)
@@ -163,6 +187,33 @@ class FilteredRfidPoses:
             self.filter.compass(self.t, self.imu.compass(b[2]))
 
 
+CORRIDOR_M = 0.2
+"""The camera's walking corridor either side of the heading (the mapper's ``corridor_m``)."""
+
+
+def camera_proximity(world: World, now: float) -> Proximity:
+    """The depth camera's nearest obstacles, as the mapper reports them, from where the walker
+    truly is (what the camera sees does not depend on the RFID pose): the daemon's STOP
+    before contact. Distances to the cells' nearest edges, as ``mapper.proximity``."""
+    w = world.walker
+    seen = world.sensor.visible(world.shape, world.cell(), w.heading)
+    occupied = seen[world.true.reshape(-1)[seen] == OCCUPIED]
+    if occupied.size == 0:
+        return Proximity(frame_stamp=now, stamp=now)
+    h, width = world.shape
+    cell = world.cell_m
+    dx = (occupied % width + 0.5) * cell - w.x
+    dy = (h - occupied // width - 0.5) * cell - w.y
+    dist = np.maximum(np.hypot(dx, dy) - cell / 2, 0.0)
+    fwd = dx * math.cos(w.heading) + dy * math.sin(w.heading)
+    side = -dx * math.sin(w.heading) + dy * math.cos(w.heading)
+    i = int(np.argmin(dist))
+    lane = (fwd > -cell / 2) & (np.abs(side) <= CORRIDOR_M + cell / 2)
+    ahead = float(np.maximum(fwd[lane] - cell / 2, 0.0).min()) if lane.any() else None
+    return Proximity(ahead_m=ahead, nearest_m=float(dist[i]),
+                     bearing=math.atan2(side[i], fwd[i]), frame_stamp=now, stamp=now)  # fmt: skip
+
+
 def rfid_belt_walk(
     scenario: Scenario,
     *,
@@ -172,6 +223,8 @@ def rfid_belt_walk(
     uhf_range_m: float = PAPER.uhf_range_m,
     max_actions: int | None = None,
     register: str = "true",
+    proximity: bool = False,
+    match: str = "camera",
 ) -> RfidBeltWalk:
     """One belt walk of ``scenario`` guided by the RFID pose filter, noise seeded by ``seed``.
 
@@ -181,6 +234,8 @@ def rfid_belt_walk(
     """
     if register not in ("true", "estimate"):
         raise ValueError(f"register {register!r}: choose true or estimate")
+    if match not in MATCHES:
+        raise ValueError(f"match {match!r}: choose one of {MATCHES}")
     from daemon.navigation import Navigator
 
     from .walks import belt_settings, optimal_m
@@ -193,11 +248,12 @@ def rfid_belt_walk(
     params = WalkerParams()
     walker = BeltWalker(x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m, params=params,
                         rng=np.random.default_rng(seed))  # fmt: skip
-    poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m)
+    poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m, match=match)
     limit = max_actions or int(8 * optimal_m(scenario) / params.step_m) + 150
     world = (EstimatedFrameWorld if register == "estimate" else World)(scenario, walker)
-    done = run_walk(world, navigator, max_actions=limit, step_s=STEP_S,
-                    pose_source=poses, stop_on_no_path=False)  # fmt: skip
+    done = run_walk(world, navigator, max_actions=limit, step_s=STEP_S, pose_source=poses,
+                    stop_on_no_path=False,
+                    proximity_source=camera_proximity if proximity else None)  # fmt: skip
     gx, gy = cell_to_xy(scenario.shape, scenario.goal, scenario.cell_m)
     final = math.hypot(walker.x - gx, walker.y - gy)
     ok = done.arrived and final <= SUCCESS_M

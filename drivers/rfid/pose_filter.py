@@ -39,6 +39,8 @@ import numpy as np
 
 from protocol.pose_quality import quality_from_sigma
 
+from .filter_params import FilterParams
+from .map_match import Likelihood, grid_measurement
 from .protocol import Read
 from .rssi import A_DB, N_PATH, NEAR_FIELD_M
 from .tags import TagMap
@@ -51,48 +53,6 @@ STRIDE_TURN_RAD = math.radians(60.0)
 (walking round a corner turns the compass less within one stride)."""
 LF_ROUND_S = 5e-3
 """Reads of one LF round share its time within this (rounds are 20 ms apart)."""
-
-
-@dataclass(frozen=True)
-class FilterParams:
-    """Noise figures: the reader's (the RSSI model's) and a belt IMU's pedometer and compass."""
-
-    sigma_read_db: float = 3.0
-    """Fast shadowing of one UHF read."""
-    sigma_tag_db: float = 1.5
-    """What the median cannot remove: a tag's fixed offset (mounting) and model error."""
-    tag_memory_s: float = 5.0
-    """A tag's fixed offset is the same in every read: the m updates one tag gave in this
-    long share its variance (σ_tag² m each), so together they never count for more than one
-    — else a user standing by one tag would grow sure of a biased position."""
-    gate_sigma: float = 3.5
-    """UHF reads whose innovation exceeds this many σ are taken as multipath and dropped."""
-    lf_sigma_m: float = 0.05
-    """A read LF tag is within its 10 cm read range: about 5 cm per axis."""
-    step_sigma_frac: float = 0.06
-    """Pedometer step-length error, a fraction of the step."""
-    step_sigma_m: float = 0.02
-    heading_sigma_rad: float = math.radians(6.0)
-    """Compass noise plus the step's veer from the body's heading (gait)."""
-    bias_walk_rad: float = math.radians(0.3)
-    """How far the compass bias may drift per step (walking past steel)."""
-    init_sigma_m: float = 1.0
-    """Start with no prior: the first tag read puts the user within the UHF field of it."""
-    init_scale_sd: float = 0.05
-    """Prior on the pedometer's stride-model error: fitted to the user within a few %."""
-    init_bias_sigma_rad: float = math.radians(8.0)
-    """Prior on the compass bias: indoor offsets of a few degrees, rarely past 15°."""
-    eq3_min_m: float = 0.6
-    """Eq. 3 needs this much straight travel before it says anything about the heading."""
-    eq3_window_s: float = 1.5
-    eq3_max_turn_rad: float = math.radians(12.0)
-    """The compass must have stayed within this during the window: walking straight."""
-    eq3_gain_sigma_rad: float = math.radians(8.0)
-    bump_sigma_m: float = 0.15
-    """Spread added when the user bumps into an obstacle (``bump``)."""
-    drift_mps: float = 0.7
-    """Without a pedometer the user may be anywhere a walk takes them: the position's spread
-    grows by this much per √s between corrections (a brisk walk's worth)."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +102,7 @@ class PoseFilter:
         self.t = 0.0
         self._uhf: dict[int, list[float]] = {}
         self._tag_updates: dict[int, deque[float]] = {}
+        self._lf_updates: dict[tuple[float, float], deque[float]] = {}
         self._track: deque[tuple[float, float, float, float]] = deque()
         """(t, x, y, compass) after each step, for eq. 3."""
         self.heading_eq3: float | None = None
@@ -227,6 +188,22 @@ class PoseFilter:
             self.P[0, 0] += self.p.bump_sigma_m**2
             self.P[1, 1] += self.p.bump_sigma_m**2
 
+    def constrain(self, t: float, like: Likelihood) -> bool:
+        """A measurement of the position against the map (``map_match``: a bump, the
+        camera's nearest obstacle), made linear over the ±3σ ellipse. True if it counted."""
+        self.t = max(self.t, t)
+        if not self.ready:
+            return False
+        here = self.s[:2] + self._stride(t)
+        got = grid_measurement(here, self.P[:2, :2], like)
+        if got is None:
+            return False
+        rows, z, r = got
+        h = np.zeros((rows.shape[0], N_STATE))
+        h[:, :2] = rows
+        self._update(z - rows @ here, h, r)
+        return True
+
     def uhf(self, t: float, tag_id: str, rssi_dbm: float) -> None:
         """A UHF read; it is used at the next ``pose`` (all reads of a tag since, by median)."""
         i = self.tags.uhf_index.get(tag_id)
@@ -242,7 +219,18 @@ class PoseFilter:
             self._init_at(z, self.p.lf_sigma_m)
             self.source = "lf"
             return
-        r = (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
+        # Where the user stands within a tag's 10 cm is the same in every round of a user
+        # standing there: the m-th round of one signpost within tag_memory_s gets the
+        # variance m(m − 1) σ², so that all of them together count at most twice
+        # (Σ 1/(m(m − 1)) < 1). At 50 rounds a second, standing still drove σ to 6 mm,
+        # and the stride scale and compass bias went wrong on it (0.46 m off at σ 0.09 m).
+        key = (round(float(z[0]), 2), round(float(z[1]), 2))
+        seen = self._lf_updates.setdefault(key, deque())
+        while seen and seen[0] < t - self.p.tag_memory_s:
+            seen.popleft()
+        seen.append(t)
+        m = len(seen)
+        r = max(1, m * (m - 1)) * (self.p.lf_sigma_m / math.sqrt(n_tags)) ** 2 * np.eye(2)
         h = np.zeros((2, N_STATE))
         h[0, 0] = h[1, 1] = 1.0
         self._update(z - self.s[:2] - self._stride(t), h, r)

@@ -14,7 +14,9 @@ again." and no goal.
 
 Audio comes as 16-bit mono WAV at any rate (``read_wav``: the standard ``wave`` module and
 a numpy windowed-sinc resampler to the model's 16 kHz) — from a file now, a microphone
-later (``GoalDialog.hear`` takes the samples either way).
+later (``GoalDialog.hear`` takes the samples either way). Noisy input goes through a Wiener
+filter first (``denoise.front_end``): at 10 dB SNR (white noise) it took the eight test
+names heard right from 69 % to 94 %; "exit" is the one it still loses.
 """
 
 from __future__ import annotations
@@ -26,11 +28,18 @@ from pathlib import Path
 
 import numpy as np
 
+from .denoise import front_end
+
 RATE_HZ = 16_000
 """The en-us acoustic model's sample rate."""
 LEAD_S = 0.5
 """Silence put around an utterance: the decoder's noise and cepstral-mean estimates need it."""
 YES, NO = "yes", "no"
+NOT_AN_ANSWER = ("maybe", "yesterday", "yet", "guess", "less", "says", "yell", "chess",
+                 "what", "wait", "hello", "okay", "know", "now", "go", "nor", "note",
+                 "stop", "again", "sorry")  # fmt: skip
+"""Words the read-back's answer may be, or sound like, that are not "yes" or "no": each
+is a place for the yes/no search to land other than "yes" (a miss there only asks again)."""
 
 
 class VoiceGoalError(ValueError):
@@ -99,14 +108,19 @@ class GoalRecogniser:
                 raise VoiceGoalError(f"landmark {name!r}: {missing} not in the dictionary")
             self.by_phrase[phrase] = name
         self.decoder.add_jsgf_string("goal", grammar(sorted(self.by_phrase)))
-        yes_no = f"#JSGF V1.0;\ngrammar yn;\npublic <yn> = {YES} | {NO};\n"
+        # Not yes or no alone: a closed grammar always ends on one of its words, and with
+        # two it heard "fountain", "maybe" and "yesterday" as "yes" — a wrong goal sent.
+        # Anything else the user may say has a word to land on, and only "yes" sends.
+        others = sorted(set(self.by_phrase) | set(NOT_AN_ANSWER))
+        alternatives = " | ".join(f"( {p} )" for p in [YES, NO, *others])
+        yes_no = f"#JSGF V1.0;\ngrammar yn;\npublic <yn> = {alternatives};\n"
         self.decoder.add_jsgf_string("yesno", yes_no)
 
     def _decode(self, search: str, samples: np.ndarray) -> str:
         d = self.decoder
         d.activate_search(search)
         d.start_utt()
-        d.process_raw(pcm16(samples), full_utt=True)
+        d.process_raw(pcm16(front_end(samples)), full_utt=True)
         d.end_utt()
         hyp = d.hyp()
         return hyp.hypstr.strip() if hyp is not None else ""

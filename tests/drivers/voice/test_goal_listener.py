@@ -69,6 +69,20 @@ def test_the_names_are_heard_clean_at_two_speeds(recogniser) -> None:
 
 
 @pytest.mark.timeout(60)
+def test_the_names_are_heard_in_noise_at_10_db(recogniser) -> None:
+    """White noise 10 dB below the active speech level; the Wiener front end is what hears
+    them (without it 69 % of the eight-name set). Measured here: 16 of 16."""
+    heard = 0
+    for name in LANDMARKS:
+        for wpm in (130, 175):
+            speech = synthesise(name, wpm)
+            for seed in range(2):
+                noisy = with_noise(speech, 10.0, np.random.default_rng(100 + seed))
+                heard += recogniser.landmark(noisy) == name
+    assert heard >= 15
+
+
+@pytest.mark.timeout(60)
 def test_read_back_then_only_yes_sends_the_goal(recogniser) -> None:
     rng = np.random.default_rng(1)
     dialog = GoalDialog(recogniser)
@@ -91,6 +105,17 @@ def test_an_unlisted_phrase_never_becomes_a_goal(recogniser) -> None:
         dialog = GoalDialog(recogniser)
         replies = [dialog.hear(with_noise(synthesise(phrase, 150), None, rng)), dialog.hear(no)]
         assert all(r.goal is None for r in replies)
+    # In noise too, and when the answer to the read-back is noise, another name or a word
+    # that is neither yes nor no (none of these is in NOT_AN_ANSWER): with yes and no
+    # alone the search heard "fountain" as "yes" and sent it.
+    room = rng.normal(0, 300, RATE_HZ)
+    answers = [no, room] + [synthesise(w, 150) for w in ("fountain", "yellow", "thank you")]
+    for phrase in ("open the window", "good morning"):
+        for answer in answers:
+            dialog = GoalDialog(recogniser)
+            heard = dialog.hear(with_noise(synthesise(phrase, 130), 10.0, rng))
+            assert heard.goal is None
+            assert dialog.hear(with_noise(answer, 10.0, rng)).goal is None
 
 
 @pytest.mark.timeout(60)
