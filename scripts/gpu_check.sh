@@ -15,7 +15,9 @@
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed;
 # the last line names each step's exit status (124: it ran past its limit). PARTS (default
 # "tests bench dss"; also "scenarios": every scenario at 400 and 1000, and "harmonic": issue 21's
-# scripts/harmonic_check.sh into $OUT/harmonic) picks steps.
+# scripts/harmonic_check.sh into $OUT/harmonic; "users": issue 28's scripts/gpu_users_check.sh
+# without its tests, which "tests" runs, into $OUT/users; "mapper": scripts/gpu_mapper_check.sh's
+# tests and bench into $OUT/mapper) picks steps.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${GPU_CHECK_OUT:-out/gpu_check}
@@ -58,6 +60,10 @@ has scenarios && step bench_scen_cuda 240 python3 -m cli.app bench --grid 400,10
     --unknown 0.4 --scenario courtyard,explore,building,streets --backend cuda \
     --json "$OUT/bench_scen_cuda.json"
 has harmonic && step harmonic 420 env GPU_CHECK_OUT="$OUT/harmonic" bash scripts/harmonic_check.sh
+has users && step users 420 env GPU_CHECK_OUT="$OUT/users" PARTS="${USERS_PARTS:-walk cuda rate}" \
+    bash scripts/gpu_users_check.sh
+has mapper && step mapper 300 env OUT_DIR="$OUT/mapper" PARTS="tests bench" \
+    bash scripts/gpu_mapper_check.sh
 has dss && step dss 70 python3 scripts/time_dss.py --variants fast,paper \
     --sizes 400,2000,4000 --paper-max 400 --json "$OUT/dss.json"
 has tests && sed -n '/slowest/,$p' "$OUT/pytest.log" | tail -n 14

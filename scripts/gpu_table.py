@@ -108,6 +108,23 @@ def main() -> None:
             print(f"{r['planner']:9} {r['grid']:5} {r['steps']:6} {s['median']:8.3f} "
                   f"{s['p99']:8.3f} {s['max']:8.3f} {r['sweeps']['median']:10} "
                   f"{(f'{target:g} ' + mark) if target else '':>8}")  # fmt: skip
+    users = load(out / "users" / "users_cuda.json") + load(out / "users" / "users_rate.json")
+    if users:
+        print("\nissue 28, users on one device (400², 40 %): per-user step ms (rate: from due)")
+        print(f"{'backend':7} {'mode':11} {'users':>5} {'median':>7} {'p99':>7} {'max':>7} "
+              f"{'steps/s':>8} {'MB/user':>7} kept up")  # fmt: skip
+        for r in users:
+            print(f"{r['backend']:7} {r['mode']:11} {r['users']:5} {r['median']:7.3f} "
+                  f"{r['p99']:7.3f} {r['max']:7.3f} {r['steps_per_s']:8.0f} "
+                  f"{r['device_bytes'] / 1e6:7.2f} {r.get('kept_up', '')}")  # fmt: skip
+    mapper = load(out / "mapper" / "bench.json")
+    if mapper:
+        print("\nissue 23, the mapper: a 640 x 480 depth frame to a published delta, ms")
+        print(f"{'backend':7} {'floor refit':>11} {'frames':>6} {'median':>7} {'p99':>7} "
+              f"{'max':>7}")  # fmt: skip
+        for r in mapper:
+            print(f"{r['backend']:7} {'every ' + str(r['floor_every']):>11} {r['frames']:6} "
+                  f"{r['median_ms']:7.3f} {r['p99_ms']:7.3f} {r['max_ms']:7.3f}")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@
 #   5. guidebelt bench --users $RATE_USERS --rate 10: open loop, every user at 10 Hz;
 #   6. the short table, last.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_users_check.sh
+# (PARTS, default "tests walk cuda cpu rate", picks steps 1, 2, 3, the cpu half of 3, and 5)
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_users). WALKS_FILE: recorded walks
 # (written by the first bench that needs them, read by the rest).
 set -uo pipefail
@@ -20,6 +21,8 @@ COUNTS=${COUNTS:-1,4,16}
 RATE_USERS=${RATE_USERS:-500,1000}
 RATE_S=${RATE_S:-8}
 BASE=${BASE:-}
+PARTS=${PARTS:-tests walk cuda cpu rate}
+has() { [[ " $PARTS " == *" $1 "* ]]; }
 WALKS_FILE=${WALKS_FILE:-$OUT/walks.pkl}
 mkdir -p "$OUT"
 rm -f "$OUT/steps.txt"
@@ -48,11 +51,11 @@ users() {  # users NAME SECONDS ARGS...: guidebelt bench --users at 400², 40 %
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"
 } >"$OUT/device.txt"
-step pytest 420 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
+has tests && step pytest 420 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
     --timeout 180 --durations=5
-step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
+has walk && step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
     --backend cuda --json "$OUT/walk1.json"
-users users_cuda 240 --users "$COUNTS" --backend cuda
+has cuda && users users_cuda 240 --users "$COUNTS" --backend cuda
 if [ -n "$BASE" ]; then
     OUT_ABS="$PWD/$OUT"
     (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 240 python3 -m cli.app \
@@ -65,8 +68,8 @@ if [ -n "$BASE" ]; then
     echo "walk1_base rc=$? " >>"$OUT/steps.txt"
     tail -n 3 "$OUT/users_base.log"
 fi
-users users_cpu 120 --users "$COUNTS" --backend cpu
-users users_rate 300 --users "$RATE_USERS" --rate 10 --seconds "$RATE_S" --backend cuda
+has cpu && users users_cpu 120 --users "$COUNTS" --backend cpu
+has rate && users users_rate 300 --users "$RATE_USERS" --rate 10 --seconds "$RATE_S" --backend cuda
 python3 - "$OUT" <<'EOF'
 import json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
