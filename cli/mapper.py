@@ -16,6 +16,9 @@ def mapper(
     size: Annotated[str, typer.Option(help="Map height,width in cells.")] = "100,100",
     cell_m: Annotated[float, typer.Option(help="Cell side, metres.")] = 0.10,
     backend: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
+    floor_every: Annotated[
+        int, typer.Option(min=1, help="Refit the floor every N frames (4 keeps cuda under 1 ms).")
+    ] = 1,
     rate: Annotated[
         float, typer.Option(help="Frames per second to replay at (0: as fast as mapped).")
     ] = 0.0,
@@ -42,7 +45,7 @@ def mapper(
     except ValueError as exc:
         raise typer.BadParameter(f"--size must be HEIGHT,WIDTH, not {size!r}") from exc
     console = Console()
-    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend)
+    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend, floor_every=floor_every)
     session = open_peer(connect, scout, zenoh_config)
     node = MapperNode(session, user, OccupancyMapper(settings))
     try:
