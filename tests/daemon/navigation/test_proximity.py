@@ -112,3 +112,38 @@ def test_no_look_when_the_target_is_seen_a_camera_does_not_look_or_guidance_is_o
     out = s.step(Inbox(pose=pose(25, 15, now + 0.1), proximity=looking(False, now + 0.1)),
                  now + 0.1)  # fmt: skip
     assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+
+
+def walled_in(now: float) -> Navigator:
+    """A wall across the whole map between the user and the goal: no path."""
+    s = Navigator("u", NavigatorSettings(backend="cpu"))
+    cells = np.array([10 * SHAPE[1] + c for c in range(SHAPE[1])])
+    first = MapDelta.from_arrays(0, SHAPE, cells, np.ones(len(cells), np.uint8), now)
+    out = s.step(Inbox(deltas=[first], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
+                       pose=pose(26, 15, now)), now)  # fmt: skip
+    assert [b.kind for b in out.belt] == [PatternKind.NO_PATH]
+    return s
+
+
+def test_no_path_on_a_camera_s_map_says_turn_and_look_around():
+    now = time.time()
+    s = walled_in(now)
+    t = now + 0.2
+    out = s.step(Inbox(pose=pose(26, 15, t), proximity=near(None, t)), t)
+    assert [b.kind for b in out.belt] == [PatternKind.LOOK]
+    assert out.voice == []  # "no path to the goal" was just said: no talking over it
+    t = now + 4.5
+    out = s.step(Inbox(pose=pose(26, 15, t), proximity=near(None, t)), t)
+    assert [b.kind for b in out.belt] == [PatternKind.LOOK]
+    assert [c.text for c in out.voice] == ["no way seen yet, turn slowly and look around"]
+    assert s.state == NavState.NO_PATH
+
+
+def test_no_path_without_a_camera_keeps_saying_no_path():
+    now = time.time()
+    s = walled_in(now)
+    out = s.step(Inbox(pose=pose(26, 15, now + 0.2)), now + 0.2)
+    assert [b.kind for b in out.belt] == [PatternKind.NO_PATH] and out.voice == []
+    stale = near(None, now - 5.0)  # a camera that stopped: its frames no longer count
+    out = s.step(Inbox(pose=pose(26, 15, now + 0.4), proximity=stale), now + 0.4)
+    assert [b.kind for b in out.belt] == [PatternKind.NO_PATH]
