@@ -63,14 +63,9 @@ class MapperSettings:
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
     forget_s: float = 10.0
-    """An obstacle that stood where the floor had been seen free (a mover: a person walking
-    in) and has not been seen again for this long, out of view, goes back to UNKNOWN (0:
-    never). A person who walked off while nobody looked is not a wall for good."""
-    forget_static_s: float = 60.0
-    """The same for an obstacle first seen as an obstacle (a face where nothing had been
-    seen before): kept longer. Forgotten after ``forget_s`` too, a dead end the user walked
-    away from came back 10 s later as open, and the walk went back to it, again and again.
-    Obstacles of the start map stay for good."""
+    """An obstacle the mapper saw but has not seen again for this long, out of view, goes back
+    to UNKNOWN (0: never). A person who walked off while nobody looked is not a wall for
+    good; a box still there is seen again on the way. Obstacles of the start map stay."""
     corridor_m: float = 0.2
     """Half-width of the walking corridor in which an obstacle counts as ahead: half a
     walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
@@ -101,8 +96,6 @@ class OccupancyMapper:
         else:
             self.occupancy = np.full(s.shape, UNKNOWN, np.uint8)
         self._fixed = self.occupancy == OCCUPIED
-        self.mover = np.zeros(s.shape, bool)
-        """Occupied cells whose floor had been seen free before: forgotten after ``forget_s``."""
         self.seen_at = np.zeros(s.shape, np.float64)
         """When each cell was last seen occupied or free."""
         self._forgot_at = 0.0
@@ -165,8 +158,6 @@ class OccupancyMapper:
         occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
         cleared = free.astype(bool) & (obst == 0)
         cells, values, seen = self._changes(win, occupied, cleared, floor >= s.min_points)
-        grew = values == OCCUPIED
-        movers = self.occupancy.reshape(-1)[cells[grew]] == FREE
         cells, values = self._forget(cells, values, seen, frame.stamp)
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
                                  frame.stamp)  # fmt: skip
@@ -174,7 +165,6 @@ class OccupancyMapper:
         # Everything is known: only now does the map change.
         self.occupancy.reshape(-1)[cells] = values
         self.seen_at.reshape(-1)[seen] = frame.stamp
-        self.mover.reshape(-1)[cells[: grew.size][grew]] = movers
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
         if refit is not None:
             self._floor, self._floor_age = refit, 0
@@ -212,15 +202,13 @@ class OccupancyMapper:
 
     def _forget(self, cells: np.ndarray, values: np.ndarray, seen: np.ndarray,
                 stamp: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Add to the change the obstacles gone unseen for ``forget_s`` (movers) or
-        ``forget_static_s`` (the rest), checked once a second: the whole map is scanned."""
+        """Add to the change the obstacles gone unseen for ``forget_s`` (checked once a
+        second: the whole map is scanned)."""
         s = self.settings
         if s.forget_s <= 0 or stamp - self._forgot_at < 1.0:
             return cells, values
         self._forgot_at = stamp
-        static_s = max(s.forget_s, s.forget_static_s)
-        unseen = self.seen_at < stamp - np.where(self.mover, s.forget_s, static_s)
-        old = (self.occupancy == OCCUPIED) & ~self._fixed & unseen
+        old = (self.occupancy == OCCUPIED) & ~self._fixed & (self.seen_at < stamp - s.forget_s)
         old.reshape(-1)[seen] = False
         gone = np.flatnonzero(old)
         if gone.size == 0:

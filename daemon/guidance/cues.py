@@ -267,9 +267,10 @@ class CueMaker:
         return self._say(text, CuePriority.ROUTINE, "countdown", now)
 
     def look_around(self, now: float) -> VoiceCue | None:
-        """No path on the camera's map so far: turn and look (a routine cue, not repeated
-        for 12 s), so the camera sees what it has not seen."""
-        return self._say(PHRASES[self.lang]["look_around"], CuePriority.ROUTINE, "look", now)
+        """No path on the camera's map so far: turn and look, so the camera sees what it has
+        not seen. Said at once, as a safety cue (an instruction to act, right after "no path
+        to the goal"; the turn lasts a few steps)."""
+        return self._say(PHRASES[self.lang]["look_around"], CuePriority.SAFETY, "look", now)
 
     def event(self, kind: PatternKind, now: float) -> VoiceCue | None:
         if kind not in PHRASES[self.lang]:

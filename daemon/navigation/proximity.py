@@ -15,8 +15,12 @@ user that an obstacle is close and its direction" (Díaz-Toro et al. 2022, §1).
 
 Guiding but with no path on the map the camera has built so far (NO_PATH said once): LOOK
 and "turn slowly and look around" instead of repeating NO_PATH, while the camera is sending
-frames. A camera sees only the first face in front of it: a corridor it has not looked down,
-or one a passer-by stood in, is closed on its map until it looks again.
+frames, for ``look_steps`` steps (a turn about at 45° a step), then NO_PATH again. A camera
+sees only the first face in front of it: a corridor it has not looked down, or one a
+passer-by stood in, is closed on its map until it looks again. Only once: a user who kept
+turning would keep every wall around in view, and an obstacle out of view is what the mapper
+forgets (``forget_s``), which is how a pocket entered through a gap now seen too narrow opens
+again.
 
 Not guiding, a camera that looks for the target (seed 004's colour map, ``target_seen``)
 and does not see it: LOOK, the belt's "turn and look", and its cue. Rettkowski et al. turn
@@ -42,6 +46,9 @@ class ProximitySettings:
     hold_s: float = 0.5
     rearm_m: float = 0.15
     max_age_s: float = 1.0
+    look_steps: int = 8
+    new_look_s: float = 3.0
+    """A NO_PATH after this long without one is a new one: the user looks round again."""
 
 
 class ProximityGuard:
@@ -52,13 +59,20 @@ class ProximityGuard:
         """STOPs armed so far (each a new close obstacle)."""
         self._since: float | None = None
         self._armed_at_m = 0.0
+        self._looks, self._look_at = 0, -1e9
 
     def look_around(self, now: float, guidance: Guidance, out: StepOutput) -> bool:
         """LOOK for a user with no path while a camera is mapping; False (nothing added)
         when no camera frame is fresh: a map from elsewhere is not improved by turning."""
-        p = self.latest
-        if p is None or now - p.frame_stamp > self.settings.max_age_s:
+        p, s = self.latest, self.settings
+        if p is None or now - p.frame_stamp > s.max_age_s:
             return False
+        if now - self._look_at > s.new_look_s:
+            self._looks = 0
+        self._look_at = now
+        self._looks += 1
+        if self._looks > s.look_steps:
+            return False  # looked round once: stand, and let what is out of view be forgotten
         out.belt.append(guidance.patterns.event(PatternKind.LOOK, now))
         cue = guidance.cues.look_around(now)
         if cue is not None:
