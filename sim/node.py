@@ -266,15 +266,9 @@ class SimNode:
                     result.arrived, result.reason = True, "arrived"
                     break
                 if path is None:
-                    # No path, but the daemon may ask the user to turn and look (a camera's
-                    # map): that pattern is acted on, anything else is waited out.
-                    belt = self._look_since(stamp)
-                    if belt is None:
-                        continue
-                    cells = np.empty((0, 2), np.int32)
-                else:
-                    result.step_ms.append((time.perf_counter() - t0) * 1e3)
-                    cells = np.array(path.cells, dtype=np.int32).reshape(-1, 2)
+                    continue
+                result.step_ms.append((time.perf_counter() - t0) * 1e3)
+                cells = np.array(path.cells, dtype=np.int32).reshape(-1, 2)
                 if belt is not None:
                     result.belts.append(belt)
                 action = self.world.act(cells, belt, time.time())
@@ -296,14 +290,6 @@ class SimNode:
                 result.known = self.world.known.copy()
             self.close()
         return result
-
-    def _look_since(self, stamp: float) -> BeltPattern | None:
-        """The LOOK pattern of a step after the pose stamped ``stamp``, if that is the latest."""
-        with self._cond:
-            belt = self._belt
-        if belt is None or belt.kind != PatternKind.LOOK or belt.stamp < stamp:
-            return None
-        return belt
 
     def _wait_for_belt(self, stamp: float, stop: threading.Event) -> BeltPattern | None:
         """The pattern made in the same step as the path stamped ``stamp`` (the daemon sends

@@ -51,7 +51,6 @@ PHRASES: dict[str, dict[str, str]] = {
         PatternKind.PAUSED: "guidance paused",
         PatternKind.RESUMED: "guidance resumed",
         PatternKind.LOOK: "turn slowly and look for the target",
-        "look_around": "no way seen yet, turn slowly and look around",
         "repeat_none": "nothing to repeat yet",
         "where_goal": "goal {dist} at {hour} o'clock",
         "where_turn": "next turn {dist} at {hour} o'clock",
@@ -91,7 +90,6 @@ PHRASES: dict[str, dict[str, str]] = {
         PatternKind.PAUSED: "guía en pausa",
         PatternKind.RESUMED: "guía reanudada",
         PatternKind.LOOK: "gira despacio y busca el objetivo",
-        "look_around": "aún no veo camino, gira despacio y mira alrededor",
         "repeat_none": "aún no hay nada que repetir",
         "where_goal": "destino a {dist}, a las {hour}",
         "where_turn": "próximo giro a {dist}, a las {hour}",
@@ -265,12 +263,6 @@ class CueMaker:
         dist = say_distance(metres, self.lang, self.units)
         text = PHRASES[self.lang]["goal_in"].format(dist=dist)
         return self._say(text, CuePriority.ROUTINE, "countdown", now)
-
-    def look_around(self, now: float) -> VoiceCue | None:
-        """No path on the camera's map so far: turn and look, so the camera sees what it has
-        not seen. Said at once, as a safety cue (an instruction to act, right after "no path
-        to the goal"; the turn lasts a few steps)."""
-        return self._say(PHRASES[self.lang]["look_around"], CuePriority.SAFETY, "look", now)
 
     def event(self, kind: PatternKind, now: float) -> VoiceCue | None:
         if kind not in PHRASES[self.lang]:

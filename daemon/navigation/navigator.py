@@ -319,7 +319,7 @@ class Navigator:
             if self.state != NavState.NO_PATH:
                 no_path = Rejection(StatusCode.NO_PATH, "no path to the goal", counted=False)
                 self._reject(no_path, now, out)
-            elif not self.safety.look_around(now, self.guidance, out):  # a camera: turn, look
+            else:  # said already: the belt keeps showing it (its pattern expires), no new words
                 out.belt.append(self.guidance.patterns.event(PatternKind.NO_PATH, now))
             return
         self._distance_m = cost / 10 * self.settings.cell_m
