@@ -16,6 +16,16 @@ def mapper(
     size: Annotated[str, typer.Option(help="Map height,width in cells.")] = "100,100",
     cell_m: Annotated[float, typer.Option(help="Cell side, metres.")] = 0.10,
     backend: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "auto",
+    floor_every: Annotated[
+        int, typer.Option(min=1, help="Refit the floor every N frames (4 keeps cuda under 1 ms).")
+    ] = 1,
+    birdseye: Annotated[
+        bool,
+        typer.Option(
+            help="Seed 004's colour map instead of depth: the frames' colour images to a "
+            "bird's-eye map, the green target sent as the goal (turn and look until seen)."
+        ),
+    ] = False,
     rate: Annotated[
         float, typer.Option(help="Frames per second to replay at (0: as fast as mapped).")
     ] = 0.0,
@@ -42,9 +52,24 @@ def mapper(
     except ValueError as exc:
         raise typer.BadParameter(f"--size must be HEIGHT,WIDTH, not {size!r}") from exc
     console = Console()
-    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend)
+    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend, floor_every=floor_every)
+    view = None
+    if birdseye:
+        from mapper.birdseye.node import BirdsEyeMapper, BirdsEyeSettings
+        from mapper.frames_io import frame_files, read_frame
+
+        files = frame_files(frames)
+        try:
+            view = BirdsEyeMapper.for_frame(read_frame(files[0]), BirdsEyeSettings((h, w), cell_m))
+        except (IndexError, FrameRejected) as exc:
+            raise typer.BadParameter(f"--birdseye needs a readable first frame: {exc}") from exc
     session = open_peer(connect, scout, zenoh_config)
-    node = MapperNode(session, user, OccupancyMapper(settings))
+    if view is not None:
+        from mapper.birdseye.node import BirdsEyeNode
+
+        node: MapperNode = BirdsEyeNode(session, user, view)
+    else:
+        node = MapperNode(session, user, OccupancyMapper(settings))
     try:
         node.start()
         mapped, last_own = 0, None

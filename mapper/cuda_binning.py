@@ -36,7 +36,9 @@ def _buffers(side: int, bins: int) -> tuple:
     key = (side, bins)
     if key not in _BUFFERS:
         n = 2 * side * side
-        out = cp.empty(n + 1 + 6 * bins * 2, cp.int32)  # counts | valid | hit, far (doubles)
+        # counts | valid, pad | hit, far (doubles). The pad keeps the doubles 8-byte aligned:
+        # n is even, so they start at an even int32 offset (n + 1 gave misaligned writes).
+        out = cp.empty(n + 2 + 6 * bins * 2, cp.int32)
         _BUFFERS[key] = (
             out,
             cp.empty(bins, cp.uint64),
@@ -71,8 +73,8 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     far_key.fill(0)
     mod = _module(depth.dtype)
     counts, valid = out[:n], out[n : n + 1]
-    hit = out[n + 1 : n + 1 + 6 * bins].view(cp.float64)
-    far = out[n + 1 + 6 * bins :].view(cp.float64)
+    hit = out[n + 2 : n + 2 + 6 * bins].view(cp.float64)
+    far = out[n + 2 + 6 * bins :].view(cp.float64)
     grid = ((h * w + THREADS - 1) // THREADS,)
     mod.get_function("bin_pixels")(
         grid, (THREADS,),
@@ -87,7 +89,7 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     host = out.get()  # the one copy back
     return Binned(
         host[:n].reshape(2, win.side, win.side).copy(),
-        host[n + 1 : n + 1 + 6 * bins].view(np.float64).reshape(bins, 3).copy(),
-        host[n + 1 + 6 * bins :].view(np.float64).reshape(bins, 3).copy(),
+        host[n + 2 : n + 2 + 6 * bins].view(np.float64).reshape(bins, 3).copy(),
+        host[n + 2 + 6 * bins :].view(np.float64).reshape(bins, 3).copy(),
         int(host[n]),
     )

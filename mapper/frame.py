@@ -35,6 +35,7 @@ class Refusal(StrEnum):
     STALE = "stale"
     POSE_JUMP = "pose_jump"
     UNREADABLE = "unreadable"
+    NO_COLOUR = "no_colour"  # a colour-camera mode (seed 004) got a frame without colour
 
 
 class FrameRejected(ValueError):

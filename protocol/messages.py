@@ -90,6 +90,7 @@ class PatternKind(StrEnum):
     PAUSED = "paused"  # the user paused guidance (belt button): one tap, then quiet
     RESUMED = "resumed"  # the user resumed it: a short three-motor tap, then GUIDE
     OBSTACLE = "obstacle"  # not guiding: the nearest obstacle's side, fast on one motor
+    LOOK = "look"  # no goal and the camera does not see the target: turn in place and look
 
 
 class BeltPattern(Message):
@@ -309,6 +310,11 @@ class Proximity(Message):
         le=4.0,
         allow_inf_nan=False,
         description="of the nearest obstacle, radians from the heading, CCW positive (left)",
+    )
+    target_seen: bool | None = Field(
+        default=None,
+        description="a camera that looks for the target (seed 004's colour map): whether this "
+        "frame saw it; None: this camera does not look for one",
     )
     frame_stamp: Stamp = Field(description="when the frame was taken")
     stamp: Stamp

@@ -213,7 +213,8 @@ MAP_SOURCE = _t("map_source", "map/source", MapSnapshot, Q, "mapper / sim",
                 "daemon (after a sequence gap)", by=(M, S), to=(D,), qos=BULK)
 POSE = _t("pose", "pose", Pose, PS, "localiser / RFID node / sim", "daemon", by=(R, S), to=(D,),
           qos=QoS(congestion=Congestion.DROP, priority=Priority.INTERACTIVE_HIGH, express=True))
-GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI", "daemon", by=(U, S), to=(D,))
+GOAL = _t("goal", "goal", Goal, PS, "client / phone / CLI / mapper (the target it sees)",
+          "daemon", by=(U, S, M), to=(D,))
 PATH = _t("path", "path", NavPath, PS, "daemon", "sim, view, recorder", to=(U, S, MON),
           qos=LATEST_WINS)
 STATUS = _t("status", "status", NavStatus, PS, "daemon", "client, CLI, sim, recorder",

@@ -1,7 +1,8 @@
 """Mapper speed: a 640 x 480 depth frame to a published ``MapDelta``, per frame.
 
-Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu|cuda] [--frames 200]
-       [--json out/mapper_bench.json]
+Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
+       [--frames 200] [--json out/mapper_bench.json]
+Each backend x floor-refit interval is one row, on the same rendered frames.
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
 noise and missing pixels), then each is timed from the call that takes it to the delta
 encoded and put on a zenoh publisher (loopback session): floor fit, the per-pixel pass,
@@ -11,6 +12,7 @@ ray clearing, merge, proximity, encoding, put. Seed 000's mapper: 7.56 fps on th
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -49,7 +51,8 @@ def route_frames(n: int, seed: int = 0):
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--backend", default="cpu")
+    ap.add_argument("--backend", nargs="+", default=["cpu"])
+    ap.add_argument("--floor-every", type=int, nargs="+", default=[1])
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
@@ -57,50 +60,58 @@ def main() -> None:
     frames = route_frames(args.frames)
     render_s = time.perf_counter() - t0
     try:  # the published delta: encoded and put on zenoh, where zenoh is installed
-        from mapper.node import MapperNode
         from protocol.session import ZenohSettings, open_session
 
         session = open_session(ZenohSettings(connect=[], multicast_scouting=False))
     except ImportError:
         session = None
-    mapper = OccupancyMapper(MapperSettings(backend=args.backend))
-    node = MapperNode(session, "bench", mapper) if session is not None else None
+    rows = [bench(session, frames, b, k) for b in args.backend for k in args.floor_every]
+    for row in rows:
+        row["render_s"] = round(render_s, 1)
+        print(json.dumps(row))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(rows, indent=1) + "\n")
+    if session is not None:
+        session.close()
+
+
+def bench(session, frames: list, backend: str, floor_every: int) -> dict:
+    settings = MapperSettings(backend=backend, floor_every=floor_every)
+    mapper = OccupancyMapper(settings)
+    node = None
+    if session is not None:
+        from mapper.node import MapperNode
+
+        node = MapperNode(session, "bench", mapper)
     feed = node.feed if node is not None else mapper.process
     for f in frames[:3]:  # compile / warm the device, then start over
         feed(f)
-    mapper = OccupancyMapper(MapperSettings(backend=args.backend))
+    mapper = OccupancyMapper(settings)
     if node is not None:
         node.mapper = mapper
     feed = node.feed if node is not None else mapper.process
     ms, parts = [], {}
     for i, f in enumerate(frames):
-        import dataclasses
-
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
         t = time.perf_counter()
         r = feed(f)
         ms.append((time.perf_counter() - t) * 1e3)
-        res = r if r is not None else None
-        if res is not None:
-            for k, v in res.ms.items():
+        if r is not None:
+            for k, v in r.ms.items():
                 parts.setdefault(k, []).append(v)
+    if node is not None:
+        node.close()
     ms = np.array(ms)
-    row = {
-        "backend": mapper.backend, "frames": len(ms), "size": "640x480",
-        "published": node is not None,
-        "median_ms": round(float(np.median(ms)), 3),
+    return {
+        "backend": mapper.backend, "floor_every": floor_every, "frames": len(ms),
+        "size": "640x480", "published": node is not None,
+        "median_ms": round(float(np.median(ms)), 3), "mean_ms": round(float(ms.mean()), 3),
         "p99_ms": round(float(np.percentile(ms, 99)), 3), "max_ms": round(float(ms.max()), 3),
         "fps_median": round(1e3 / float(np.median(ms)), 1),
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
-        "render_s": round(render_s, 1),
+        "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
     }  # fmt: skip
-    print(json.dumps(row))
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(row, indent=1) + "\n")
-    if node is not None:
-        node.close()
-        session.close()
 
 
 if __name__ == "__main__":

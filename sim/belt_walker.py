@@ -9,6 +9,7 @@ Each step the walker takes the latest BeltPattern (any object with ``kind``, ``m
   drawn around a cautious walking pace; while the belt pulses (an obstacle is near) the steps
   are shorter, the faster the pulse the shorter (a quarter at the fastest).
 - TURN_AROUND: turn on the spot towards the felt side (back and one side motor), about 180°.
+- LOOK ("turn and look"): turn on the spot, clockwise, by ``look_turn_deg`` a step.
 - STOP, WAIT, NO_PATH, REROUTE, ARRIVED, OFF: stand still.
 
 Steps happen in continuous metres (x east, y north, origin at the map's south-west corner).
@@ -46,6 +47,8 @@ class WalkerParams:
     turn_in_place_deg: float = 40.0
     """Directions further off than this are turned to on the spot before stepping: half the
     sensor's 80° field of view, so a step never goes where the sensor has not just looked."""
+    look_turn_deg: float = 45.0
+    """A slow turn on LOOK: about half a camera's view per step, so nothing is skipped."""
 
 
 def felt_direction(motors: tuple[int, int, int, int] | list[int]) -> float | None:
@@ -114,6 +117,11 @@ class BeltWalker:
             side = -QUARTER if felt is not None and felt < math.pi else QUARTER  # right: cw
             turn = 2.0 * side + self._noise(self.params.perception_sd_deg)
             self.heading = _wrap(self.heading + turn)
+            self.turns += 1
+            return "turn"
+        if kind == "look":
+            turn = math.radians(self.params.look_turn_deg)
+            self.heading = _wrap(self.heading - turn + self._noise(self.params.perception_sd_deg))
             self.turns += 1
             return "turn"
         if kind != "guide":

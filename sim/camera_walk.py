@@ -42,6 +42,8 @@ class CameraWalk:
     mapper_ms: np.ndarray
     walk_s: float
     people: int
+    actions: dict[str, int]
+    """The walker's actions by kind (step, turn, stand, bump)."""
 
 
 def camera_walk(seed: int, unknown: float = CAMERA_UNKNOWN, people: int = 3,
@@ -85,5 +87,5 @@ def camera_walk(seed: int, unknown: float = CAMERA_UNKNOWN, people: int = 3,
         collisions=int(getattr(node.walker, "collisions", 0)), stops=stops[0],
         frames=len(node.frame_ms), refused=sum(node.mapper.refused.values()),
         mapper_ms=np.array(node.frame_ms), walk_s=time.monotonic() - t0,
-        people=len(node.movers.people),
+        people=len(node.movers.people), actions=dict(result.actions),
     )  # fmt: skip

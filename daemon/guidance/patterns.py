@@ -46,6 +46,10 @@ EVENT_SHAPES: dict[PatternKind, EventShape] = {
     # pattern drives exactly three) for a moment, then GUIDE takes over.
     PatternKind.PAUSED: EventShape((0, 0, 255, 0), 0, 100),
     PatternKind.RESUMED: EventShape((0, 200, 200, 200), 0, 150),
+    # Seed 004's "turn and look": no goal and the camera does not see the target. The front
+    # and both sides (the half of the belt the user turns through), slow: no other pattern
+    # drives these three, and RESUMED's three are a 150 ms tap, not a pulse.
+    PatternKind.LOOK: EventShape((180, 180, 0, 180), 1000, 2100),
 }
 OBSTACLE_PULSE_MS = 120
 """OBSTACLE's pulse: faster than GUIDE's fastest (200 ms), so the two never feel alike."""

@@ -6,7 +6,7 @@ import numpy as np
 
 from mapper.occupancy_mapper import FREE, OCCUPIED, UNKNOWN
 
-from .scenes import box_scene, frame, mapper
+from .scenes import NORTH, box_scene, frame, mapper
 
 
 def test_box_of_known_size_lands_in_its_cells():
@@ -52,6 +52,25 @@ def test_tilted_camera_still_finds_the_floor():
     assert marked[:, 0].min() >= 33 and marked[:, 0].max() <= 39
     assert marked[:, 1].min() >= 27 and marked[:, 1].max() <= 34
     assert (m.occupancy[38, 29:33] == OCCUPIED).all()
+
+
+def test_a_kept_floor_fit_follows_the_camera_as_it_turns():
+    """Refitting every 4th frame (the GPU path's budget): the slipped camera's tilt, kept in
+    the camera's frame, still levels the floor while the user turns between fits; a refit
+    comes only when due, and a kept fit leaves the map as a fresh fit every frame would."""
+    headings = [NORTH + a for a in (0.0, 0.25, -0.25, 0.15)]
+    frames = [frame(box_scene(), 1.0 + i, heading=h, pitch=42.0, reported_pitch=30.0)
+              for i, h in enumerate(headings)]  # fmt: skip
+    every, kept = mapper(), mapper(floor_every=4)
+    fits = []
+    for f in frames:
+        every.process(f)
+        fits.append(kept.process(f).floor)
+    assert all(f is fits[0] for f in fits) and fits[0].fitted  # one fit, carried along
+    assert (kept.occupancy == OCCUPIED).sum() < 60
+    marked = np.argwhere(kept.occupancy == OCCUPIED)
+    assert marked[:, 0].min() >= 32 and marked[:, 0].max() <= 39
+    assert np.abs(kept.occupancy.astype(int) - every.occupancy).sum() <= 3 * 2
 
 
 def test_table_a_cane_would_miss_is_an_obstacle():

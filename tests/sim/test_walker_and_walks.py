@@ -52,6 +52,13 @@ def test_walker_stands_still_for_events_and_turns_around() -> None:
     assert abs(abs(w.heading) - math.pi) < 1e-9
 
 
+def test_walker_turns_on_the_spot_to_look() -> None:
+    w = BeltWalker(x=2.5, y=2.5, heading=0.0, cell_m=0.1, params=EXACT)
+    look = PatternMaker().event(PatternKind.LOOK, 0.0)
+    assert w.react(look, open_world()) == "turn" and w.react(look, open_world()) == "turn"
+    assert (w.x, w.y) == (2.5, 2.5) and w.heading == pytest.approx(-math.radians(90))
+
+
 def test_walker_counts_a_collision_and_does_not_walk_through() -> None:
     world = open_world()
     world[20:30, 30] = 1  # a wall 0.45 m east of the walker

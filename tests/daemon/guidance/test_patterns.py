@@ -84,6 +84,17 @@ def test_each_event_has_its_own_documented_shape() -> None:
         maker.event(PatternKind.GUIDE, 1.0)
 
 
+def test_look_drives_a_set_of_motors_no_other_pattern_does() -> None:
+    """Turn and look: front and both sides, slowly; RESUMED (the other three-motor pattern)
+    is the back and both sides, a steady tap."""
+    look = PatternMaker().event(PatternKind.LOOK, 1.0)
+    on = {i for i, m in enumerate(look.motors) if m}
+    assert on == {0, 1, 3} and look.period_ms == 1000
+    for kind, shape in EVENT_SHAPES.items():
+        if kind is not PatternKind.LOOK:
+            assert {i for i, m in enumerate(shape.motors) if m} != on, kind
+
+
 def test_no_event_feels_like_guide() -> None:
     """GUIDE drives at most two adjacent motors and never pulses slower than 800 ms. It
     never drives the back motor alone (a target behind is TURN_AROUND: see the next test),

@@ -82,3 +82,33 @@ def test_not_guiding_the_obstacle_is_felt_on_its_side():
     assert motors[3] > 0 and motors[0] == motors[1] == motors[2] == 0
     assert out.belt[0].period_ms < 200  # faster than any GUIDE pulse
     assert s.state == NavState.IDLE
+
+
+def looking(seen: bool | None, now: float) -> Proximity:
+    return Proximity(target_seen=seen, frame_stamp=now, stamp=now)
+
+
+def test_no_goal_and_the_target_not_in_view_says_turn_and_look():
+    now = time.time()
+    s = Navigator("u", NavigatorSettings(backend="cpu"))
+    out = s.step(Inbox(proximity=looking(False, now)), now)
+    assert [b.kind for b in out.belt] == [PatternKind.LOOK]
+    assert out.belt[0].motors == (180, 180, 0, 180) and out.belt[0].period_ms == 1000
+    assert [c.text for c in out.voice] == ["turn slowly and look for the target"]
+    # Every frame keeps the belt on; the voice does not nag (a routine cue, 12 s apart).
+    again = s.step(Inbox(proximity=looking(False, now + 0.2)), now + 0.2)
+    assert [b.kind for b in again.belt] == [PatternKind.LOOK] and again.voice == []
+    later = s.step(Inbox(proximity=looking(False, now + 13.0)), now + 13.0)
+    assert [c.text for c in later.voice] == ["turn slowly and look for the target"]
+
+
+def test_no_look_when_the_target_is_seen_a_camera_does_not_look_or_guidance_is_on():
+    now = time.time()
+    idle = Navigator("u", NavigatorSettings(backend="cpu"))
+    for seen in (True, None):
+        out = idle.step(Inbox(proximity=looking(seen, now)), now)
+        assert out.belt == [] and out.voice == []
+    s = guiding(now)  # guiding to where the target was seen: it may leave the view
+    out = s.step(Inbox(pose=pose(25, 15, now + 0.1), proximity=looking(False, now + 0.1)),
+                 now + 0.1)  # fmt: skip
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
