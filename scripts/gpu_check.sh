@@ -46,7 +46,7 @@ step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAM
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"  # a copied checkout may be stale: dirty says so
 } >"$OUT/device.txt"
-has tests && step pytest 200 python3 -m pytest -m gpu tests/daemon/planning -q \
+has tests && step pytest 420 python3 -m pytest -m gpu tests/daemon/planning -q \
     -p no:cacheprovider --timeout 120 --durations=8
 has bench && {
 step bench_cuda 150 python3 -m cli.app bench --grid 100,200,400 --unknown 0.2,0.4,0.6 \
