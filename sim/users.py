@@ -186,8 +186,19 @@ def at_rate(users: list[Replay], hz: float, seconds: float) -> dict[str, Any]:
     total = time.perf_counter() - t0
     lat = np.asarray(late)
     return {"hz": hz, "seconds": total, "steps": int(lat.size), "steps_per_s": lat.size / total,
-            "kept_up": bool(lat.size and lat.size >= 0.95 * n * hz * seconds),
+            "kept_up": kept_up(lat, total, n * hz, period * 1e3),
             **spread(lat), "own": spread(np.asarray(own))}  # fmt: skip
+
+
+def kept_up(late_ms: np.ndarray, total_s: float, due_per_s: float, period_ms: float) -> bool:
+    """Whether the device kept up with the users: it served the steps at the rate they fell
+    due, and 99 % of them within one period of falling due. Every due step is served in the
+    end (the run goes on past its seconds), so a count alone says nothing: at 1,000 users a
+    backlog grew to ~0.5 s while all 10,000 a second were served."""
+    if late_ms.size == 0:
+        return False
+    at_rate = late_ms.size / total_s >= 0.95 * due_per_s
+    return bool(at_rate and np.percentile(late_ms, 99) <= period_ms)
 
 
 def memory_per_user(planner: Any) -> dict[str, int]:
