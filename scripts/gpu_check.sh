@@ -29,18 +29,6 @@ rm -f "$OUT/steps.txt"
 source scripts/device_env.sh
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}${CLI_SITE:+:$CLI_SITE}"
 fail=0
-step() {  # step NAME SECONDS COMMAND...: run with a time limit, log to $OUT/NAME.log
-    local name=$1 limit=$2
-    shift 2
-    echo "== $name: $*"
-    local t0=$SECONDS
-    timeout "$limit" "$@" >"$OUT/$name.log" 2>&1
-    local rc=$?
-    [ "$rc" -eq 0 ] || fail=1
-    echo "$name rc=$rc $((SECONDS - t0))s" >>"$OUT/steps.txt"
-    tail -n 2 "$OUT/$name.log"
-    echo "   rc=$rc in $((SECONDS - t0)) s"
-}
 {
     nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
     date -u +%Y-%m-%dT%H:%MZ
