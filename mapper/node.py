@@ -17,6 +17,7 @@ import logging
 import threading
 import time
 from collections import Counter
+from typing import Any
 
 import numpy as np
 import zenoh
@@ -69,6 +70,19 @@ class MapperNode:
 
     def feed(self, frame: DepthFrame) -> FrameResult | None:
         """Map one frame and publish what it changed; None (counted) if it was refused."""
+        result = self._map_and_publish(frame)
+        if result is None:
+            return None
+        p = result.proximity
+        msg = Proximity(ahead_m=p.ahead_m, nearest_m=p.nearest_m, bearing=p.bearing,
+                        frame_stamp=frame.stamp, stamp=time.time())  # fmt: skip
+        self._prox.put(codec.encode(msg))
+        self.last = result
+        return result
+
+    def _map_and_publish(self, frame: DepthFrame) -> Any:  # the mapper's own result type
+        """The mapper's result for ``frame`` once its map deltas are out; None (counted) if
+        the frame was refused, the map then unchanged."""
         try:
             with self._lock:  # the map and its sequence number change together
                 result = self.mapper.process(frame)
@@ -79,12 +93,7 @@ class MapperNode:
         # Published outside the lock: zenoh's thread may be waiting on it for a snapshot.
         for delta in deltas:
             self._delta.put(codec.encode(delta))
-        p = result.proximity
-        msg = Proximity(ahead_m=p.ahead_m, nearest_m=p.nearest_m, bearing=p.bearing,
-                        frame_stamp=frame.stamp, stamp=time.time())  # fmt: skip
-        self._prox.put(codec.encode(msg))
         self.published += len(deltas)
-        self.last = result
         return result
 
     def refuse(self, exc: FrameRejected) -> None:

@@ -133,16 +133,9 @@ class BirdsEyeNode(MapperNode):
         self.goals_sent = 0
 
     def feed(self, frame: DepthFrame) -> BirdsEyeResult | None:  # type: ignore[override]
-        try:
-            with self._lock:
-                result = self.mapper.process(frame)
-                deltas = self._deltas(result.cells, result.values, frame.stamp)
-        except FrameRejected as exc:
-            self.refuse(exc)
+        result = self._map_and_publish(frame)
+        if result is None:
             return None
-        for delta in deltas:
-            self._delta.put(codec.encode(delta))
-        self.published += len(deltas)
         t = result.target_xy
         s = self.mapper.settings
         if t is not None and (self.goal_xy is None
