@@ -3,6 +3,8 @@ corridor where ``1 − u`` falls below what a float holds."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,27 @@ def random_map(rng: np.random.Generator, h: int, w: int, density: float) -> np.n
         r, c = int(rng.integers(0, h)), int(rng.integers(0, w))
         blocked[r : r + int(rng.integers(1, 4)), c : c + int(rng.integers(1, 6))] = True
     return blocked
+
+
+def walled_map(
+    rng: np.random.Generator, side: int, density: float, goal: tuple, start: tuple
+) -> np.ndarray:
+    """``random_map`` inside a wall, with the goal and start cells open (the band's maps)."""
+    blocked = random_map(rng, side, side, density)
+    blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
+    blocked[goal] = blocked[start] = False
+    return blocked
+
+
+def segments_free(blocked: np.ndarray, pts: np.ndarray) -> bool:
+    """Whether each segment between consecutive band points stays off blocked cells (sampled
+    50 times a segment, points in cell units with cell centres at +0.5)."""
+    for a, b in itertools.pairwise(pts):
+        for t in np.linspace(0.0, 1.0, 50):
+            r, c = np.floor(a + t * (b - a)).astype(int)
+            if blocked[r, c]:
+                return False
+    return True
 
 
 def serpentine(side: int, lane: int = 3, wall: int = 1) -> tuple[np.ndarray, tuple, tuple]:
@@ -48,4 +71,10 @@ def maps():
     """The map makers above, for tests (``--import-mode=importlib`` imports no sibling)."""
     from types import SimpleNamespace
 
-    return SimpleNamespace(random_map=random_map, serpentine=serpentine, reachable=reachable)
+    return SimpleNamespace(
+        random_map=random_map,
+        walled_map=walled_map,
+        segments_free=segments_free,
+        serpentine=serpentine,
+        reachable=reachable,
+    )

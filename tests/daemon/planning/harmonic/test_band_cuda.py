@@ -3,8 +3,6 @@ and the harmonic planner's ``band`` (its smoothing model) reading the device fie
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
@@ -25,24 +23,13 @@ but for the rounding of ``exp`` and ``hypot``, where a tie between two moves may
 other way."""
 
 
-def free_along(blocked: np.ndarray, pts: np.ndarray) -> bool:
-    for a, b in itertools.pairwise(pts):
-        for t in np.linspace(0.0, 1.0, 50):
-            r, c = np.floor(a + t * (b - a)).astype(int)
-            if blocked[r, c]:
-                return False
-    return True
-
-
 @pytest.mark.parametrize("seed", range(4))
 def test_gpu_band_matches_the_cpu_band(maps, seed):
     from daemon.planning.harmonic.band_cuda import rubber_band_cuda
 
     rng = np.random.default_rng(seed)
-    blocked = maps.random_map(rng, 80, 80, 0.05)
-    blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
     goal, start = (3, 3), (76, 74)
-    blocked[goal] = blocked[start] = False
+    blocked = maps.walled_map(rng, 80, 0.05, goal, start)
     planner = make_planner("harmonic", "cpu")
     planner.plan(blocked, goal)
     path = planner.path(start)
@@ -52,23 +39,21 @@ def test_gpu_band_matches_the_cpu_band(maps, seed):
     gpu, iterations = rubber_band_cuda(path, planner.field(), blocked)
     assert iterations > 0 and gpu.shape == cpu.shape
     assert np.allclose(gpu[[0, -1]], path[[0, -1]] + 0.5)
-    assert free_along(blocked, gpu)
+    assert maps.segments_free(blocked, gpu)
     assert abs(path_length(gpu) - path_length(cpu)) <= LENGTH_TOL * path_length(cpu)
     assert (turning_angles(gpu) > 30).sum() <= (turning_angles(path) > 30).sum()
 
 
 def test_cuda_planner_bands_from_its_device_field(maps):
     rng = np.random.default_rng(7)
-    blocked = maps.random_map(rng, 120, 120, 0.04)
-    blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
     goal, start = (4, 5), (115, 112)
-    blocked[goal] = blocked[start] = False
+    blocked = maps.walled_map(rng, 120, 0.04, goal, start)
     gpu = make_planner("harmonic", "cuda")
     gpu.plan(blocked, goal)
     path = gpu.path(start)
     band = gpu.band(path, blocked)
     # The same band as from the host copy of the field, in float64.
     host = rubber_band(path, gpu.field(), blocked, iterations=BAND_ITERATIONS)
-    assert free_along(blocked, band)
+    assert maps.segments_free(blocked, band)
     assert abs(path_length(band) - path_length(host)) <= LENGTH_TOL * path_length(host)
     assert path_length(band) < path_length(path + 0.5)

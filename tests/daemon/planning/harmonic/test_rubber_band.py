@@ -3,8 +3,6 @@ blocked cell, and the harmonic path's 45° and 90° turns spread into small ones
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from daemon.guidance.smoothing import path_length, smooth_path, smoothing_model, turning_angles
@@ -12,22 +10,11 @@ from daemon.planning import make_planner
 from daemon.planning.harmonic.rubber_band import rubber_band
 
 
-def sample_free(blocked: np.ndarray, pts: np.ndarray) -> bool:
-    for a, b in itertools.pairwise(pts):
-        for t in np.linspace(0.0, 1.0, 50):
-            r, c = np.floor(a + t * (b - a)).astype(int)
-            if blocked[r, c]:
-                return False
-    return True
-
-
 def test_the_band_shortens_and_smooths_without_touching_an_obstacle(maps):
     rng = np.random.default_rng(5)
     for _ in range(4):
-        blocked = maps.random_map(rng, 50, 50, 0.06)
-        blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
         goal, start = (3, 3), (46, 45)
-        blocked[goal] = blocked[start] = False
+        blocked = maps.walled_map(rng, 50, 0.06, goal, start)
         planner = make_planner("harmonic", "cpu")
         planner.plan(blocked, goal)
         path = planner.path(start)
@@ -35,17 +22,15 @@ def test_the_band_shortens_and_smooths_without_touching_an_obstacle(maps):
             continue
         band = rubber_band(path, planner.field(), blocked)
         assert np.allclose(band[0], path[0] + 0.5) and np.allclose(band[-1], path[-1] + 0.5)
-        assert sample_free(blocked, band)
+        assert maps.segments_free(blocked, band)
         assert path_length(band) <= path_length(path + 0.5) + 1e-9
         assert (turning_angles(band) > 30).sum() < max(1, (turning_angles(path) > 30).sum())
 
 
 def test_the_band_goes_on_from_where_the_last_call_left_it(maps):
     rng = np.random.default_rng(9)
-    blocked = maps.random_map(rng, 60, 60, 0.06)
-    blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True
     goal, start = (3, 3), (56, 55)
-    blocked[goal] = blocked[start] = False
+    blocked = maps.walled_map(rng, 60, 0.06, goal, start)
     planner = make_planner("harmonic", "cpu")
     planner.plan(blocked, goal)
     path = planner.path(start)
@@ -59,7 +44,7 @@ def test_the_band_goes_on_from_where_the_last_call_left_it(maps):
     rest = path[7:]
     band = planner.band(rest, blocked)
     assert np.allclose(band[[0, -1]], rest[[0, -1]] + 0.5)
-    assert sample_free(blocked, band)
+    assert maps.segments_free(blocked, band)
     # A new plan forgets the old band.
     planner.plan(blocked, goal)
     assert np.allclose(planner.band(path, blocked), first)
