@@ -49,6 +49,10 @@ _CHANGE = re.compile(r"^(?:new route|off route|nueva ruta|fuera de ruta), ")
 _GOAL_IN = re.compile(r"^(?:goal in|destino a) ")
 _WAIT_AFTER = re.compile(r"\b(?:and wait|y espera)$")
 _AROUND = ("turn around", "da la vuelta")
+_LOOK = ("turn slowly and look for the target", "gira despacio y busca el objetivo")
+LOOK_TURN_RAD = -math.radians(45.0)
+"""On LOOK the listener turns on the spot, clockwise, as the belt walker does, and stands: the
+camera sees the next half of its view (``belt_walker``'s ``look_turn_deg``)."""
 _HALT = (
     "stop", "alto", "wait", "espera", "path blocked, rerouting",
     "camino bloqueado, buscando otra ruta", "no path to the goal",
@@ -93,6 +97,8 @@ def understand(text: str) -> Heard | None:
         return Heard("keep")  # the distance left: walk on as before
     if t in _AROUND:
         return Heard("around", math.pi)
+    if t in _LOOK:
+        return Heard("turn_wait", LOOK_TURN_RAD)
     if t in _HALT:
         return Heard("halt")
     half = _HALF.search(t)

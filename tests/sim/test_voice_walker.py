@@ -12,6 +12,7 @@ import pytest
 from daemon.guidance.cues import PHRASES, direction_text
 from daemon.navigation.controls import CONTROL_PHRASES
 from daemon.planning.grid import OCCUPIED, UNKNOWN
+from protocol.messages import PatternKind
 from sim.courtyard import make_courtyard
 from sim.voice_walker import VoiceWalker, VoiceWalkerParams, understand
 from sim.walks import belt_walk, run_table
@@ -35,6 +36,8 @@ def test_it_understands_every_phrase_the_daemon_can_say() -> None:
             if key in CONTROL_PHRASES:
                 continue  # answers to the belt's buttons and the battery: no instruction
             assert understand(text) is not None, (lang, text)
+        look = understand(table[PatternKind.LOOK])
+        assert look is not None and look.action == "turn_wait" and look.turn_rad < 0  # clockwise
         for hour in range(1, 13):
             rel = -math.radians(30 * hour)  # clockwise hours are negative (left-positive)
             heard = understand(direction_text(rel, 3.2, lang))  # type: ignore[arg-type]
