@@ -53,6 +53,7 @@ from .repair_queue import (
     apply_changes,
     heap_push,
     heap_room,
+    sift_down,
 )
 
 NBR = 2 * DIAGONAL + 1
@@ -105,18 +106,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
             size = hs[0] - 1
             hs[0] = size
             if size > 0:  # sift the last entry down from the root
-                last, i = heap[size], 0
-                while True:
-                    c = 2 * i + 1
-                    if c >= size:
-                        break
-                    if c + 1 < size and heap[c + 1] < heap[c]:
-                        c += 1
-                    if heap[c] >= last:
-                        break
-                    heap[i] = heap[c]
-                    i = c
-                heap[i] = last
+                sift_down(heap, size, 0, heap[size])
             v = e & CELL
             if qkey[v] != e >> SHIFT:
                 continue  # stale
@@ -168,18 +158,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
             v = tie[0] & CELL
             tn -= 1
             if tn > 0:
-                last, i = tie[tn], 0
-                while True:
-                    c = 2 * i + 1
-                    if c >= tn:
-                        break
-                    if c + 1 < tn and tie[c + 1] < tie[c]:
-                        c += 1
-                    if tie[c] >= last:
-                        break
-                    tie[i] = tie[c]
-                    i = c
-                tie[i] = last
+                sift_down(tie, tn, 0, tie[tn])
             if qkey[v] != level:
                 continue  # stale
             if pops >= budget:

@@ -29,8 +29,10 @@ OCTILE = DIAGONAL - STRAIGHT
 # -- the heap ------------------------------------------------------------------------------
 
 
-@njit(cache=True, nogil=True)
-def _sift_down(heap, size, i, entry):
+@njit(cache=True, nogil=True, inline="always")
+def sift_down(heap, size, i, entry):
+    """Inlined into its callers' compiled code (numba's IR inlining): a call would have numba
+    reference-count the heap array on every pop, a third of the worst repair steps' time."""
     while True:
         c = 2 * i + 1
         if c >= size:
@@ -72,7 +74,7 @@ def heap_room(heap, hs, qkey, need):
             live += 1
     hs[0] = live
     for i in range(live // 2 - 1, -1, -1):
-        _sift_down(heap, live, i, heap[i])
+        sift_down(heap, live, i, heap[i])
     return live + need <= heap.size - heap.size // 4
 
 
