@@ -36,7 +36,7 @@ from .admission import Admission, AdmissionSettings, map_too_big
 from .bridge import Bridge
 from .config import DaemonConfig
 from .persistence import Persistence
-from .queries import QueryAnswers, say_who_may_connect
+from .queries import QueryAnswers, rejections_by_code, say_who_may_connect
 from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
@@ -380,22 +380,13 @@ class Daemon:
             backend=self.config.backend,
             rejected=self.rejected_unrouted
             + sum(r.navigator.rejected for r in self.runners.values()),
-            rejected_by_code=self._rejected_by_code(),
+            rejected_by_code=rejections_by_code(self.rejected_unrouted, self.runners),
             log_lines_suppressed=self.log_limit.suppressed_total
             + sum(r.navigator.log_limit.suppressed_total for r in self.runners.values()),
             overloaded=self.admission.shed,
             lag_p95_ms=round(self.admission.last_p95_ms, 3),
             stamp=time.time(),
         )
-
-    def _rejected_by_code(self) -> dict[str, int]:
-        totals: dict[str, int] = {}
-        if self.rejected_unrouted:
-            totals["unrouted"] = self.rejected_unrouted
-        for runner in self.runners.values():
-            for code, n in runner.navigator.rejected_by_code.items():
-                totals[str(code)] = totals.get(str(code), 0) + n
-        return totals
 
 
 async def serve(config: DaemonConfig, observers: Sequence[Observer] = ()) -> None:

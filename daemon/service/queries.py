@@ -73,6 +73,16 @@ class QueryAnswers:
         task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
 
 
+def rejections_by_code(unrouted: int, runners: dict[str, UserRunner]) -> dict[str, int]:
+    """Health's count of refused messages by status code, every user's together; ``unrouted``:
+    those whose key named no user the daemon could route to."""
+    totals: dict[str, int] = {"unrouted": unrouted} if unrouted else {}
+    for runner in runners.values():
+        for code, n in runner.navigator.rejected_by_code.items():
+            totals[str(code)] = totals.get(str(code), 0) + n
+    return totals
+
+
 def say_who_may_connect(z: ZenohSettings) -> None:
     """One line at start on who can reach the daemon: the first thing to read when a phone
     cannot connect, or when the daemon is exposed more than meant."""
