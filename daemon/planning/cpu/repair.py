@@ -53,6 +53,7 @@ from .repair_queue import (
     apply_changes,
     heap_push,
     heap_room,
+    pool_take,
     sift_down,
 )
 
@@ -119,12 +120,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                 continue
             if pending + 1 > pool.shape[0]:
                 return OVERFLOW, 0
-            if free >= 0:
-                e = free
-                free = pool[e, 1]
-            else:
-                e = used
-                used += 1
+            e, free, used = pool_take(pool, free, used)
             pool[e, 0] = v
             pool[e, 1] = head[b]
             head[b] = e
@@ -210,27 +206,13 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                     continue
                 qkey[n] = key
                 if level <= key < level + NBR:  # a bucket (this level's: its tie heap next)
-                    if free >= 0:
-                        e = free
-                        free = pool[e, 1]
-                    else:
-                        e = used
-                        used += 1
+                    e, free, used = pool_take(pool, free, used)
                     pool[e, 0] = n
                     pool[e, 1] = head[key % NBR]
                     head[key % NBR] = e
                     pending += 1
                 else:
-                    x = (np.int64(key) << SHIFT) | n
-                    i = hs[0]
-                    hs[0] = i + 1
-                    while i > 0:
-                        p = (i - 1) >> 1
-                        if heap[p] <= x:
-                            break
-                        heap[i] = heap[p]
-                        i = p
-                    heap[i] = x
+                    heap_push(heap, hs, (np.int64(key) << SHIFT) | n)
         level += 1
     # What the buckets still hold waits in the heap for the next call.
     for b in range(NBR):

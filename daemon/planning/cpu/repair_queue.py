@@ -46,7 +46,16 @@ def sift_down(heap, size, i, entry):
     heap[i] = entry
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
+def pool_take(pool, free, used):
+    """A bucket entry of ``pool``: the head of the free list, else the next never used.
+    Returns (entry, free list's new head, entries used)."""
+    if free >= 0:
+        return free, pool[free, 1], used
+    return used, free, used + 1
+
+
+@njit(cache=True, nogil=True, inline="always")
 def heap_push(heap, hs, entry):
     i = hs[0]
     hs[0] = i + 1
