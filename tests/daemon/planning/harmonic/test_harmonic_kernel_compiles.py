@@ -15,17 +15,6 @@ SOURCE = (
 )  # fmt: skip
 
 
-def nvrtc() -> ctypes.CDLL:
-    try:
-        import nvidia.cuda_nvrtc as pkg
-    except ImportError:
-        pytest.skip("nvidia-cuda-nvrtc-cu12 is not installed (pip install -e '.[test]')")
-    libs = sorted(Path(next(iter(pkg.__path__))).glob("lib/libnvrtc.so*"))
-    if not libs:
-        pytest.skip("the nvrtc wheel holds no libnvrtc.so for this platform")
-    return ctypes.CDLL(str(libs[0]))
-
-
 def cuda_include(lib: ctypes.CDLL) -> Path:
     """The CUDA headers (cooperative_groups.h): cupy passes its toolkit's; here the system's
     toolkit or the nvidia-cuda-runtime wheel's."""
@@ -50,24 +39,12 @@ def cuda_include(lib: ctypes.CDLL) -> Path:
 
 
 @pytest.mark.parametrize("real,eps", [("float", "1.1920929e-7f"), ("double", "2.2e-16")])
-def test_the_harmonic_kernel_compiles_for_sm90(real, eps):
-    lib = nvrtc()
-    include = cuda_include(lib)
-    prog = ctypes.c_void_p()
-    rc = lib.nvrtcCreateProgram(ctypes.byref(prog), SOURCE.read_bytes(), b"harmonic.cu", 0,
-                                None, None)  # fmt: skip
-    assert rc == 0
-    try:
-        # -rdc: grid-wide sync (cooperative groups) needs relocatable device code, as cupy's
-        # enable_cooperative_groups compiles it.
-        opts = [b"--std=c++17", b"--gpu-architecture=sm_90", b"-rdc=true", f"-I{include}".encode(),
-                f"-I{include / 'cccl'}".encode(),
-                f"-DREAL={real}".encode(), f"-DREAL_EPS={eps}".encode()]  # fmt: skip
-        rc = lib.nvrtcCompileProgram(prog, len(opts), (ctypes.c_char_p * len(opts))(*opts))
-        size = ctypes.c_size_t()
-        lib.nvrtcGetProgramLogSize(prog, ctypes.byref(size))
-        log = ctypes.create_string_buffer(size.value)
-        lib.nvrtcGetProgramLog(prog, log)
-        assert rc == 0, log.value.decode(errors="replace")
-    finally:
-        lib.nvrtcDestroyProgram(ctypes.byref(prog))
+def test_the_harmonic_kernel_compiles_for_sm90(nvrtc, real, eps):
+    include = cuda_include(nvrtc.lib)
+    # -rdc: grid-wide sync (cooperative groups) needs relocatable device code, as cupy's
+    # enable_cooperative_groups compiles it.
+    opts = [b"--std=c++17", b"--gpu-architecture=sm_90", b"-rdc=true", f"-I{include}".encode(),
+            f"-I{include / 'cccl'}".encode(),
+            f"-DREAL={real}".encode(), f"-DREAL_EPS={eps}".encode()]  # fmt: skip
+    rc, log = nvrtc.compile(SOURCE.read_bytes(), "harmonic.cu", opts)
+    assert rc == 0, log
