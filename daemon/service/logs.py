@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+from typing import TextIO
 
 _PRIORITY = {
     logging.DEBUG: 7,
@@ -55,8 +56,22 @@ class JsonFormatter(logging.Formatter):
         return json.dumps(out, default=str)
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Writes to ``sys.stderr`` as it is when a record is emitted, not as it was at set-up: a
+    command run in-process (as the tests run the CLI) swaps stderr and closes its copy after,
+    and a handler bound to that copy failed every later record ("I/O operation on closed file")."""
+
+    @property  # type: ignore[override]
+    def stream(self) -> TextIO:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value) -> None:  # StreamHandler.__init__ and setStream assign it
+        pass
+
+
 def setup_logging(level: str = "INFO", fmt: str = "journal") -> None:
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _StderrHandler()
     handler.setFormatter(JsonFormatter() if fmt == "json" else JournalFormatter())
     root = logging.getLogger()
     root.handlers[:] = [handler]
