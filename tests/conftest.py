@@ -6,8 +6,10 @@ imported inside the fixtures: the GPU machine, which has neither, collects these
 
 from __future__ import annotations
 
+import ctypes
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -59,3 +61,44 @@ def peer(daemon):
     session = daemon.peer()
     yield session
     session.close()
+
+
+class Nvrtc:
+    """NVRTC, the runtime compiler CuPy itself uses, from the ``nvidia-cuda-nvrtc-cu12`` wheel
+    of the ``test`` extra: the kernels compile for the H100's sm_90 on a machine without a GPU."""
+
+    def __init__(self, lib: ctypes.CDLL) -> None:
+        self.lib = lib
+
+    def compile(self, source: bytes, name: str, opts: list[bytes]) -> tuple[int, str]:
+        """(NVRTC's result code, its log) for ``source`` compiled with ``opts``."""
+        lib, prog = self.lib, ctypes.c_void_p()
+        rc = lib.nvrtcCreateProgram(ctypes.byref(prog), source, name.encode(), 0, None, None)
+        assert rc == 0, f"nvrtcCreateProgram: {rc}"
+        try:
+            rc = lib.nvrtcCompileProgram(prog, len(opts), (ctypes.c_char_p * len(opts))(*opts))
+            size = ctypes.c_size_t()
+            lib.nvrtcGetProgramLogSize(prog, ctypes.byref(size))
+            log = ctypes.create_string_buffer(size.value)
+            lib.nvrtcGetProgramLog(prog, log)
+            return rc, log.value.decode(errors="replace")
+        finally:
+            lib.nvrtcDestroyProgram(ctypes.byref(prog))
+
+    def compile_file(self, path: Path, defines: tuple[str, ...] = ()) -> tuple[int, str]:
+        """``path`` (a ``.cu`` file) for sm_90, its folder on the include path, with ``defines``."""
+        opts = [b"--std=c++17", f"-I{path.parent}".encode(), b"--gpu-architecture=sm_90"]
+        opts += [f"-D{d}".encode() for d in defines]
+        return self.compile(path.read_bytes(), path.name, opts)
+
+
+@pytest.fixture
+def nvrtc() -> Nvrtc:
+    try:
+        import nvidia.cuda_nvrtc as pkg
+    except ImportError:
+        pytest.skip("nvidia-cuda-nvrtc-cu12 is not installed (pip install -e '.[test]')")
+    libs = sorted(Path(next(iter(pkg.__path__))).glob("lib/libnvrtc.so*"))
+    if not libs:
+        pytest.skip("the nvrtc wheel holds no libnvrtc.so for this platform")
+    return Nvrtc(ctypes.CDLL(str(libs[0])))

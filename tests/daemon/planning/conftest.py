@@ -8,9 +8,7 @@ where no CUDA device answers, so the GPU machine runs exactly these tests with
 
 from __future__ import annotations
 
-import ctypes
 from collections.abc import Callable
-from pathlib import Path
 
 import pytest
 
@@ -46,38 +44,3 @@ def make(request) -> Callable[..., FieldPlanner]:
         return planner
 
     return factory
-
-
-class Nvrtc:
-    """NVRTC, the runtime compiler CuPy itself uses, from the ``nvidia-cuda-nvrtc-cu12`` wheel
-    of the ``test`` extra: the kernels compile for the H100's sm_90 on a machine without a GPU."""
-
-    def __init__(self, lib: ctypes.CDLL) -> None:
-        self.lib = lib
-
-    def compile(self, source: bytes, name: str, opts: list[bytes]) -> tuple[int, str]:
-        """(NVRTC's result code, its log) for ``source`` compiled with ``opts``."""
-        lib, prog = self.lib, ctypes.c_void_p()
-        rc = lib.nvrtcCreateProgram(ctypes.byref(prog), source, name.encode(), 0, None, None)
-        assert rc == 0, f"nvrtcCreateProgram: {rc}"
-        try:
-            rc = lib.nvrtcCompileProgram(prog, len(opts), (ctypes.c_char_p * len(opts))(*opts))
-            size = ctypes.c_size_t()
-            lib.nvrtcGetProgramLogSize(prog, ctypes.byref(size))
-            log = ctypes.create_string_buffer(size.value)
-            lib.nvrtcGetProgramLog(prog, log)
-            return rc, log.value.decode(errors="replace")
-        finally:
-            lib.nvrtcDestroyProgram(ctypes.byref(prog))
-
-
-@pytest.fixture
-def nvrtc() -> Nvrtc:
-    try:
-        import nvidia.cuda_nvrtc as pkg
-    except ImportError:
-        pytest.skip("nvidia-cuda-nvrtc-cu12 is not installed (pip install -e '.[test]')")
-    libs = sorted(Path(next(iter(pkg.__path__))).glob("lib/libnvrtc.so*"))
-    if not libs:
-        pytest.skip("the nvrtc wheel holds no libnvrtc.so for this platform")
-    return Nvrtc(ctypes.CDLL(str(libs[0])))

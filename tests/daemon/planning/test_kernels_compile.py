@@ -23,9 +23,7 @@ def compile_kernel(
     nvrtc, name: str, defines: tuple[str, ...], folder: Path = KERNELS
 ) -> tuple[int, str]:
     """(NVRTC's result code, its log) for <folder>/<name>.cu compiled for sm_90."""
-    opts = [b"--std=c++17", f"-I{folder}".encode(), b"--gpu-architecture=sm_90"]
-    opts += [f"-D{d}".encode() for d in defines]
-    return nvrtc.compile((folder / f"{name}.cu").read_bytes(), f"{name}.cu", opts)
+    return nvrtc.compile_file(folder / f"{name}.cu", defines)
 
 
 @pytest.mark.parametrize(
