@@ -49,9 +49,20 @@ MB_POST = 6
 MB_COUNT = 7
 
 # The shared loop's box (mapped, 16 bytes, polled in one read): the slot of the call posted
-# last, the stop word, the post's generation and its delta's length (the last two in one
-# 8-byte store).
+# last (or -k: a batch of k calls, listed from BOX_QUEUE), the stop word, the post's
+# generation and its delta's length (the last two in one 8-byte store).
 BOX_SLOT, BOX_STOP, BOX_POST, BOX_COUNT = range(4)
+BOX_QUEUE = 4
+"""A batch's calls in the box after its four words: (slot, delta length) pairs."""
+BATCH_MAX = 256
+"""Calls in one batch at most (the box's queue; a larger due set goes as several batches)."""
+BATCH_RING = 4
+"""Batches the loop's ctrl holds at once (``C_QUEUE``): block 0 publishes a batch while
+blocks still serve the three before it."""
+BATCH_WORDS = 4 + 2 * BATCH_MAX
+"""A batch in the loop's ctrl: its call count (0: the loop ends), whether block 0 took the
+first call's delta already, then the (slot, delta length) pairs; two words spare, so that
+every batch starts 16-byte aligned (its first four words are one read)."""
 
 # A slot of the shared loop's table (uint64 words in device memory): one planner's buffers.
 SLOT_G, SLOT_BLOCKED, SLOT_RAISED, SLOT_PARAMS, SLOT_FLAGS, SLOT_CTRL = range(6)
@@ -103,6 +114,14 @@ runs (-1: the loop ends)."""
 C_SERVED = 59
 """The shared loop's ctrl: the post generation the last launch served (the next one starts
 there)."""
+C_TAKEN = 60
+"""The shared loop's ctrl: blocks that finished a batch (only grows; block 0 reuses a ring
+entry once every block has finished the batch it held)."""
+C_REJECT = 61
+"""A planner's ctrl: the REJECT_* bits of the delta its group's first block took, read by
+the group after a barrier (0 between calls)."""
+C_QUEUE = 64
+"""The shared loop's ctrl: the ring of BATCH_RING batches (BATCH_WORDS each) from here."""
 CTRL_READ = 13
 """ctrl words the host reads back as statistics (C_BAR .. C_CHANGED)."""
 PATH_CTRL = 64
@@ -130,7 +149,9 @@ _WORDS = (
     "C_BAR", "C_CNT", "C_CUT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
     "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
     "C_CMD", "C_SLOT", "C_SERVED",
-    "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT",
+    "C_TAKEN", "C_REJECT", "C_QUEUE",
+    "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",
+    "BATCH_WORDS",
     "SLOT_G", "SLOT_BLOCKED", "SLOT_RAISED", "SLOT_PARAMS", "SLOT_FLAGS", "SLOT_CTRL",
     "SLOT_EXITS", "SLOT_SEGS", "SLOT_IO", "SLOT_MAIL", "SLOT_H", "SLOT_W", "SLOT_CAP",
     "SLOT_LIMIT", "SLOT_WORDS",

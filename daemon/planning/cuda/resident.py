@@ -81,19 +81,20 @@ class ResidentLoop:
     """The device's loop (``kernels/resident.cuh``, ``plan_users``): one launch serves every
     attached planner's calls. ``attach(words, keep)`` gives a planner a slot: ``words`` are
     its descriptor (``abi.SLOT_*``), ``keep`` the buffers they point to, held until the slot
-    is given back. Calls are serialised by the caller (``device.DEVICE_LOCK``): one is posted,
-    then waited for."""
+    is given back. Calls are serialised by the caller (``device.DEVICE_LOCK``): one call, or
+    one batch of calls of different slots (``post_batch``), is posted, then waited for."""
 
     def __init__(self, launch: Callable[..., None] | None = None) -> None:
         # launch(stream, table, ctrl, box_ptr): queues the loop; a stand-in in host tests.
         self._launch = launch or _launch_users
-        self._box = device.Pinned(4, np.int32, mapped=True)
+        self._box = device.Pinned(abi.BOX_QUEUE + 2 * abi.BATCH_MAX, np.int32, mapped=True)
         self._mail = self._box.array
         # (generation, delta length) as one 8-byte item: a memoryview's store is ~1 µs cheaper
         # than numpy's, cold; BOX_POST is 8-byte aligned, so the store is one move.
         self._post = memoryview(self._mail).cast("B").cast("q")
         self._words = self._box.view
-        self._ctrl = cp.zeros(abi.IO_PATH, dtype=np.uint32)
+        self._queue = self._mail[abi.BOX_QUEUE :].reshape(abi.BATCH_MAX, 2)
+        self._ctrl = cp.zeros(abi.C_QUEUE + abi.BATCH_RING * abi.BATCH_WORDS, dtype=np.uint32)
         self._table = cp.zeros((SLOTS, abi.SLOT_WORDS), dtype=np.uint64)
         self._keep: dict[int, tuple] = {}
         self._dead: list[tuple] = []  # given back while the loop ran: freed at its stop
@@ -139,10 +140,7 @@ class ResidentLoop:
     def post(self, slot: int, n_delta: int) -> None:
         """Hand the loop ``slot``'s call (params and delta in the slot's mailbox, ``n_delta``
         cells). Starts the loop if none runs."""
-        if _ACTIVE is not self:
-            evict()
-        if self._running and time.perf_counter() - self._served_at > 0.5e-3 * IDLE_MS:
-            self._ended()  # the loop may have ended idle: then start it now, not in wait
+        self._before_post()
         self._words[abi.BOX_SLOT] = slot
         self._gen = gen = self._gen % 0x7FFFFFFF + 1
         # Last, as one 8-byte store: x86 makes the earlier stores visible first, and the loop
@@ -150,6 +148,30 @@ class ResidentLoop:
         self._post[abi.BOX_POST // 2] = (n_delta << 32) | gen
         if not self._running:
             self._start()
+
+    def post_batch(self, calls: np.ndarray) -> None:
+        """Hand the loop several slots' calls at once, served side by side (``calls``: one
+        (slot, delta length) row each, at most ``abi.BATCH_MAX``, no slot twice). One call
+        goes as ``post`` does: its group is the whole device, as fast as before batches."""
+        k = len(calls)
+        if k == 1:
+            self.post(int(calls[0, 0]), int(calls[0, 1]))
+            return
+        if not 1 < k <= abi.BATCH_MAX:
+            raise ValueError(f"a batch holds 1 to {abi.BATCH_MAX} calls, not {k}")
+        self._before_post()
+        self._queue[:k] = calls
+        self._words[abi.BOX_SLOT] = -k
+        self._gen = gen = self._gen % 0x7FFFFFFF + 1
+        self._post[abi.BOX_POST // 2] = gen  # after the queue (x86 keeps the stores' order)
+        if not self._running:
+            self._start()
+
+    def _before_post(self) -> None:
+        if _ACTIVE is not self:
+            evict()
+        if self._running and time.perf_counter() - self._served_at > 0.5e-3 * IDLE_MS:
+            self._ended()  # the loop may have ended idle: then start it now, not in wait
 
     def _start(self) -> None:
         global _ACTIVE

@@ -41,10 +41,17 @@
 #define C_CMD 57
 #define C_SLOT 58
 #define C_SERVED 59
+#define C_TAKEN 60
+#define C_REJECT 61
+#define C_QUEUE 64
 #define BOX_SLOT 0
 #define BOX_STOP 1
 #define BOX_POST 2
 #define BOX_COUNT 3
+#define BOX_QUEUE 4
+#define BATCH_MAX 256
+#define BATCH_RING 4
+#define BATCH_WORDS 516
 #define SLOT_G 0
 #define SLOT_BLOCKED 1
 #define SLOT_RAISED 2

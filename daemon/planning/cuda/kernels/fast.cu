@@ -11,9 +11,9 @@
 // changed after it last read it is flagged again. The fixpoint of g[v] = min(g[v], g[n] + c)
 // is then the exact field, whatever the schedule.
 //
-// The relaxation has no rounds: block b owns tiles b, b + gridDim.x, ... and relaxes each as
-// soon as it is flagged, so the wave moves at the pace of one tile instead of a grid-wide
-// round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
+// The relaxation has no rounds: block b of the call's GSIZE owns tiles b, b + GSIZE, ... and
+// relaxes each as soon as it is flagged, so the wave moves at the pace of one tile instead of
+// a grid-wide round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
 // whole shadow behind it) gives up the repair at the end of that round and computes the
@@ -83,15 +83,15 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
     __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
     __shared__ int s_emin[8];
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
-    if (blockIdx.x >= G.ntiles) return;
+    if (GBLOCK >= G.ntiles) return;
     if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
     unsigned idle = 0, longest = 0, visits = 0;
     while (true) {
         int visited = 0;
-        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+        for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
             // The first chunk's pass also reads the work count, for the test below.
             int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
-                                     base == (int)blockIdx.x ? work : nullptr, &s_work, &s_taken);
+                                     base == (int)GBLOCK ? work : nullptr, &s_work, &s_taken);
             for (int i = 0; i < count; ++i) {
                 int tile = s_list[i];
                 int k = threadIdx.x;
@@ -180,7 +180,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     unsigned* depth = flags + 4 * G.ntiles;
     unsigned* deferred = flags + 5 * G.ntiles;
     int* lb = (int*)(flags + 6 * G.ntiles);
-    int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
     __syncthreads();
     const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
@@ -299,8 +299,8 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         unsigned char(*code)[TILE] = (unsigned char(*)[TILE]) & rs[0][0];
         unsigned char(*code2)[TILE] = (unsigned char(*)[TILE]) & bs[0][0];  // 1056 >= 1024 bytes
         int start_tile = tile_of(start, w, G.tiles_x);
-        if (threadIdx.x == 0 && start_tile % gridDim.x == blockIdx.x) stale[start_tile] = 1u;
-        for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+        if (threadIdx.x == 0 && start_tile % GSIZE == GBLOCK) stale[start_tile] = 1u;
+        for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
             int count = take_flagged(stale, G.ntiles, base, s_list, &s_n);
             // Two tiles at a time, one in each half of the block: a block that owns two
             // stale tiles (37 at 400²) would otherwise make the phase twice as long.

@@ -1,4 +1,4 @@
-// The grid-wide barrier of the kernels whose blocks are all resident (fast.cu, path_tiles.cu).
+// The grid-wide (group-wide: GSIZE blocks) barrier of the kernels whose blocks are all resident (fast.cu, path_tiles.cu).
 //
 // Valid only when every block of the launch is resident at once (the host sizes the grid
 // from the occupancy). ctrl[C_BAR] counts arrivals and only ever grows: the host passes the
@@ -10,10 +10,26 @@
 
 #define SPIN_LIMIT (1u << 26)  // ~seconds of __nanosleep(32) before a wait is called hung
 
+// The blocks a call runs on: its group of the launch's blocks. The resident loop serves the
+// calls of a batch side by side, each on a group of its own (resident.cuh, serve_batch); a
+// call and its barriers see only its group: block GBLOCK of GSIZE. Every kernel sets both
+// before its first use (path_tiles: the whole grid).
+__shared__ unsigned s_gblock, s_gsize;
+#define GBLOCK s_gblock
+#define GSIZE s_gsize
+
+__device__ __forceinline__ void whole_grid_group() {
+    if (threadIdx.x == 0) {
+        s_gblock = blockIdx.x;
+        s_gsize = gridDim.x;
+    }
+    __syncthreads();
+}
+
 __device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
     __syncthreads();
     if (threadIdx.x == 0) {
-        *target += gridDim.x;
+        *target += GSIZE;
         __threadfence();
         unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
         volatile unsigned* release = ctrl + C_RELEASE;
@@ -41,7 +57,7 @@ __device__ bool grid_arrive_last(unsigned* ctrl, unsigned* target) {
     __shared__ int s_last;
     __syncthreads();
     if (threadIdx.x == 0) {
-        *target += gridDim.x;
+        *target += GSIZE;
         __threadfence_system();
         unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
         s_last = arrived == *target;

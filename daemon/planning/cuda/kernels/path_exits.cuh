@@ -16,6 +16,7 @@
 // out[2 + 2k], out[3 + 2k] = row and column of the k-th cell. ctrl[P_SEG..P_NSEGS] pass
 // values between the phases.
 #pragma once
+#include "grid_sync.cuh"  // GBLOCK, GSIZE: the blocks of the call
 #include "tile.cuh"
 
 #define EXIT_GOAL -2
@@ -144,7 +145,7 @@ __device__ void walk_segments(const int* g, int h, int w, const int4* segs, int*
     __syncthreads();
     int2* cells = (int2*)&gs[0][0];
     int2* path = (int2*)(out + 2);  // (row, column) pairs: the host's path as is
-    for (int k = blockIdx.x; k < s_nsegs; k += gridDim.x) {
+    for (int k = GBLOCK; k < s_nsegs; k += GSIZE) {
         int4 s = __ldcg(segs + k);
         int y = s.x / w, x = s.x % w;
         int oy = (y / TILE) * TILE, ox = (x / TILE) * TILE;

@@ -12,6 +12,7 @@ path_tiles(const int* g, int h, int w, int start, int2* exits, int4* segs, int* 
            unsigned* ctrl, unsigned bar_base) {
     __shared__ __align__(16) int gs[HT][HT];  // aligned: walk_segments stores int2 pairs in it
     __shared__ unsigned char code[TILE][TILE];
+    whole_grid_group();
     unsigned bar = bar_base;
     int ntiles = ((w + TILE - 1) / TILE) * ((h + TILE - 1) / TILE);
     for (int t = blockIdx.x; t < ntiles; t += gridDim.x) tile_exits(g, h, w, t, start, exits, ctrl, gs, code);

@@ -23,7 +23,7 @@ __device__ __forceinline__ int tile_h(const Grid& G, int n, int fy, int fx) {
 
 // Block 0's thread 0 stamps phase boundary i (ctrl[C_STAMP + i], scripts/profile_cuda_phases.py).
 __device__ __forceinline__ void stamp(unsigned* ctrl, int i) {
-    if (blockIdx.x == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
+    if (GBLOCK == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
 }
 
 // Count n newly raised cells; past `limit` in all, set CUT_PENDING in *cnt, the count of the
@@ -34,7 +34,7 @@ __device__ __forceinline__ void count_raised(unsigned* ctrl, unsigned n, unsigne
     if (before + n > limit) atomicOr(cnt, CUT_PENDING);
 }
 
-// Take this block's flagged tiles of the chunk at `base` (t = base + k * gridDim.x) into
+// Take this block's flagged tiles of the chunk at `base` (t = base + k * GSIZE) into
 // s_list (take_flag: one atomic each; a read first would cost a second round trip on the
 // wave's critical path). With `watch`, the block's last thread reads *watch into *s_watch in
 // the same pass; with `s_sum`, the flags' counts are summed there. Returns how many tiles,
@@ -48,7 +48,7 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
         if (s_sum) *s_sum = 0;
     }
     __syncthreads();
-    int t = base + threadIdx.x * gridDim.x;
+    int t = base + threadIdx.x * GSIZE;
     unsigned count = t < ntiles ? take_flag(flags, t) : 0u;
     if (count) {
         s_list[atomicAdd(s_n, 1)] = t;
@@ -72,11 +72,11 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
                               int* s_n, unsigned* bar, unsigned limit, unsigned* deferred = nullptr,
                               int* lb = nullptr, int g_focus = INF, int fy = -1, int fx = 0) {
     unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
-    if (blockIdx.x == 0 && threadIdx.x == 0) {
+    if (GBLOCK == 0 && threadIdx.x == 0) {
         ctrl[C_CNT + (r + 2) % 3] = 0;
         ctrl[C_ROUNDS] += 1;
     }
-    for (int base = blockIdx.x; base < G.ntiles; base += gridDim.x * THREADS) {
+    for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
         int count = take_flagged(in, G.ntiles, base, s_list, s_n);
         for (int i = 0; i < count; ++i) {
             int tile = s_list[i];
@@ -98,7 +98,7 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
         }
     }
     if (deferred) {
-        for (int t = blockIdx.x * THREADS + threadIdx.x; t < G.ntiles; t += gridDim.x * THREADS) {
+        for (int t = GBLOCK * THREADS + threadIdx.x; t < G.ntiles; t += GSIZE * THREADS) {
             if (!__ldcg(deferred + t)) continue;
             int bound = __ldcg(lb + t);
             if (fy >= 0 && bound + tile_h(G, t, fy, fx) > g_focus) continue;  // stays deferred
@@ -121,7 +121,7 @@ __device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, uns
                                unsigned* dirty, unsigned* cnt, unsigned* seeds,
                                unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
                                unsigned* bar) {
-    int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     for (int i = tid; i < G.h * G.w; i += stride) {
         g[i] = INF;
         raised[i] = 0;
