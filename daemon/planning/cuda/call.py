@@ -80,6 +80,24 @@ class FastCall:
         right after the walk's other work). The loop checks the delta: a cell outside the map is an
         IndexError (nothing applied); cells out of order (a cell twice, say) are sorted here,
         each keeping its last value, and posted ``again``."""
+        seq, n = self._stage_fast(eds, cells, blocked, start, focus)
+        loop = self._loop
+        assert loop is not None
+        loop.post(seq, n)
+        loop.wait(self._io_host.view, seq)
+        self._finish_fast(eds, cells, blocked, start, again, focus)
+
+    def _stage_fast(
+        self,
+        eds: bool,
+        cells: np.ndarray | None,
+        blocked: np.ndarray | None,
+        start: int = -1,
+        focus: int = -1,
+    ) -> tuple[int, int]:
+        """A fast call's params and delta into this planner's mailbox, the slot made if it has
+        none; the call's seq and delta length, for a post (``_call_fast``, or a batch's:
+        ``batch.py``)."""
         n = 0
         if cells is not None:
             # Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy
@@ -100,16 +118,24 @@ class FastCall:
             as_int64[abi.PARAMS // 2 : abi.PARAMS // 2 + n] = cells
             at = 4 * abi.PARAMS + 8 * n
             as_bytes[at : at + n] = blocked
-        loop = self._loop  # after staging: a stage that had to grow stopped the loop
-        if loop is None:
-            loop = self._loop = self._new_loop()
+        if self._loop is None:  # after staging: a stage that had to grow stopped the loop
+            self._loop = self._new_loop()
         if focus >= 0 and eds:
             self._unsettled = True
-        seq = self._pack_params(eds, n, start, focus)
-        loop.post(seq, n)
-        io = self._io_host.view
-        loop.wait(io, seq)
-        self._result = result = RESULT_WORDS.unpack_from(io)
+        return self._pack_params(eds, n, start, focus), n
+
+    def _finish_fast(
+        self,
+        eds: bool,
+        cells: np.ndarray | None,
+        blocked: np.ndarray | None,
+        start: int,
+        again: bool,
+        focus: int,
+    ) -> None:
+        """After the done word: the result words into ``_result``; a refused delta raised, or
+        sorted and called again."""
+        self._result = result = RESULT_WORDS.unpack_from(self._io_host.view)
         reject = result[R_REJECT]
         if not reject:
             return

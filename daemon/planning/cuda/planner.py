@@ -284,26 +284,41 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             stats, path = super().update_and_path(cells, blocked, start)
             self.last_stats = stats  # the whole step's, as for fast
             return stats, path
+        t0 = time.perf_counter()
+        with device.DEVICE_LOCK:
+            step = self._stage_step(cells, blocked, start)
+            seq, n = step[1], step[2]
+            self._loop.post(seq, n)  # type: ignore[union-attr]  # _stage_step made it
+            self._loop.wait(self._io_host.view, seq)  # type: ignore[union-attr]
+            return self._finish_step(step, t0)
+
+    def _stage_step(self, cells: np.ndarray, blocked: np.ndarray, start: Cell) -> tuple:
+        """A walking step's call staged for a post (lock held): (start, seq, delta length,
+        cells, blocked, flat start). ``update_and_path`` posts it alone, ``batch.py`` with
+        other planners' steps; ``_finish_step`` reads it once done."""
         # Every walking step runs this: checks inline rather than in helpers (a cold Python call
         # costs 1-2 µs right after the caller's other work).
-        t0 = time.perf_counter()
         if self._fault is not None:
             self._check_fault()
         h, w = self._shape
         if not h:
             self._require_plan()
         y, x = int(start[0]), int(start[1])
-        inside = 0 <= y < h and 0 <= x < w
-        cell = y * w + x if inside else -1
-        if inside and self.focused:
+        cell = y * w + x if 0 <= y < h and 0 <= x < w else -1
+        if cell >= 0 and self.focused:
             self._focus = cell
-        with device.DEVICE_LOCK:
-            self._call_fast(not self.dss, cells, blocked, cell, focus=self._focus)
-            if inside:
-                path = self._path_locked((y, x), fused=True)
-            else:
-                path = np.empty((0, 2), dtype=np.int32)
-            iterations, touched = self._read_fast_stats()
+        seq, n = self._stage_fast(not self.dss, cells, blocked, cell, self._focus)
+        return (y, x), seq, n, cells, blocked, cell
+
+    def _finish_step(self, step: tuple, t0: float) -> tuple[UpdateStats, np.ndarray]:
+        """The staged step's statistics and path, its call done (lock held)."""
+        start, _, _, cells, blocked, cell = step
+        self._finish_fast(not self.dss, cells, blocked, cell, False, self._focus)
+        if cell >= 0:
+            path = self._path_locked(start, fused=True)
+        else:
+            path = np.empty((0, 2), dtype=np.int32)
+        iterations, touched = self._read_fast_stats()
         stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
         self.last_stats = stats
         return stats, path

@@ -1,8 +1,9 @@
 """Many planners on one device (issue 28): the device's one resident loop serves them all.
 
-Planners of different map sizes and modes step interleaved, each step bit-exact with the
-reference Dijkstra, without the loop ever stopping; planners that go away give their slot
-back to the next, and a table that fills up grows.
+Planners of different map sizes and modes step interleaved, and in batches served side by
+side (``cuda/batch.py``), each step bit-exact with the reference Dijkstra, without the loop
+ever stopping; planners that go away give their slot back to the next, and a table that
+fills up grows.
 """
 
 from __future__ import annotations
@@ -48,19 +49,26 @@ class User:
         self.p = CudaPlanner("fast", dss=dss)
         self.p.plan(self.truth, self.goal)
 
-    def step(self) -> None:
+    def change(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+        """The next step's delta (a patch opened and closed at random) and start."""
         h, w = self.truth.shape
         cy, cx, r = (int(v) for v in self.rng.integers((0, 0, 1), (h, w, 5)))
         ys, xs = np.mgrid[max(cy - r, 0) : min(cy + r + 1, h), max(cx - r, 0) : min(cx + r + 1, w)]
         cells = (ys * w + xs).ravel().astype(np.int64)
         values = self.rng.random(cells.size) < 0.6
         values[cells == self.goal[0] * w + self.goal[1]] = False
-        start = (int(self.rng.integers(h)), int(self.rng.integers(w)))
         self.truth.reshape(-1)[cells] = values
-        _, path = self.p.update_and_path(cells, values, start)
+        return cells, values, (int(self.rng.integers(h)), int(self.rng.integers(w)))
+
+    def check(self, path: np.ndarray, start: tuple[int, int]) -> None:
         g = dijkstra_field(self.truth, self.goal)
         assert np.array_equal(path, reference_path(g, self.truth, start))
         assert np.array_equal(self.p.costs(), g)
+
+    def step(self) -> None:
+        cells, values, start = self.change()
+        _, path = self.p.update_and_path(cells, values, start)
+        self.check(path, start)
 
 
 def test_planners_of_every_size_step_interleaved_in_one_launch(_fresh_loop):
@@ -94,3 +102,61 @@ def test_slots_are_given_back_and_the_table_grows(_fresh_loop):
     assert loop.attached == len(kept) + 3
     for u in [*fresh, *kept[::5]]:
         u.step()
+
+
+def batch_step(users: list[User]) -> None:
+    """One step of every user as one batch; every path and field exact."""
+    from daemon.planning.cuda.batch import step_many
+
+    changes = [u.change() for u in users]
+    results = step_many([(u.p, *c) for u, c in zip(users, changes, strict=True)])
+    for u, c, res in zip(users, changes, results, strict=True):
+        assert not isinstance(res, BaseException), res
+        u.check(res[1], c[2])
+
+
+def test_batched_steps_of_every_size_are_exact_in_one_launch(_fresh_loop):
+    """Four planners (one tile, a few tiles, more tiles than the loop has blocks, DSS beside
+    EDS) step as one batch, each on its own group of blocks, between steps of their own."""
+    shapes = [(1, 1), (30, 70), (20, 20), (390, 380)]
+    users = [User(10 + s, shape, dss=s == 2) for s, shape in enumerate(shapes)]
+    loop = _fresh_loop.active()
+    launches = loop.launches
+    for r in range(5):
+        batch_step(users if r % 2 else users[::-1])
+        users[r % 4].step()
+        batch_step(users[1:3])
+    assert _fresh_loop.active() is loop and loop.launches == launches
+
+
+def test_a_batch_of_more_calls_than_blocks_or_than_the_box_holds(_fresh_loop):
+    """More calls than the device has blocks (a group serves several, one after another) and
+    than one post holds (two batches): every step exact."""
+    from daemon.planning.cuda import abi
+
+    users = [User(1000 + k, (20 + k % 7, 24)) for k in range(abi.BATCH_MAX + 20)]
+    for _ in range(2):
+        batch_step(users)
+    batch_step(users[::3])
+
+
+def test_a_refused_delta_in_a_batch_is_its_users_alone(_fresh_loop):
+    """In one batch: a delta out of order (a cell twice: sorted and posted again, its last
+    value kept), a delta outside the map (IndexError in its place, nothing applied), and
+    steps beside them served exact."""
+    from daemon.planning.cuda.batch import step_many
+
+    users = [User(2000 + k, (40, 50)) for k in range(4)]
+    changes = [u.change() for u in users]
+    cells, values, start = changes[1]
+    changes[1] = (np.concatenate([cells, cells[:1]]), np.concatenate([values, values[:1]]), start)
+    before = users[2].p.costs()
+    bad = (np.array([40 * 50 + 3], dtype=np.int64), np.array([True]), changes[2][2])
+    users[2].truth.reshape(-1)[changes[2][0]] = users[2].p.blocked().reshape(-1)[changes[2][0]]
+    posted = [*changes[:2], bad, changes[3]]
+    results = step_many([(u.p, *c) for u, c in zip(users, posted, strict=True)])
+    assert isinstance(results[2], IndexError)
+    assert np.array_equal(users[2].p.costs(), before)
+    for k in (0, 1, 3):
+        users[k].check(results[k][1], changes[k][2])
+    batch_step(users)
