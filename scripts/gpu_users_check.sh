@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Issue 28's check in one device call: many users on one GPU.
-#   1. pytest -m gpu over tests/daemon/planning/cuda: the cuda planner's tests, the shared
-#      loop's (test_users.py: planners stepping interleaved, exact against Dijkstra);
+#   1. pytest -m gpu over $TESTS (default tests/daemon/planning/cuda): the cuda planner's
+#      tests, the shared loop's (test_users.py: planners stepping interleaved and in batches,
+#      exact against Dijkstra);
 #   2. guidebelt bench, one user's closed-loop walk (400², 40 %, EDS): the 1-user figure of
 #      BENCHMARKS.md, to see it unchanged;
 #   3. guidebelt bench --users $COUNTS --backend cuda (and cpu): round-robin replay of each
 #      user's own recorded walk, per-user step latency;
 #   4. the same on $BASE (a tree whose daemon/planning/cuda is the one before the shared
 #      loop), when given: the "before" figures, on the same card in the same call;
-#   5. guidebelt bench --users $RATE_USERS --rate 10: open loop, every user at 10 Hz;
+#   5. guidebelt bench --users $RATE_USERS --rate 10: open loop, every user at 10 Hz, the
+#      steps due together served as one batch;
 #   6. the short table, last.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_users_check.sh
 # (PARTS, default "tests walk cuda cpu rate", picks steps 1, 2, 3, the cpu half of 3, and 5)
@@ -18,7 +20,8 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${GPU_CHECK_OUT:-out/gpu_users}
 COUNTS=${COUNTS:-1,4,16}
-RATE_USERS=${RATE_USERS:-500,1000}
+RATE_USERS=${RATE_USERS:-1,16,1000}
+TESTS=${TESTS:-tests/daemon/planning/cuda}
 RATE_S=${RATE_S:-8}
 BASE=${BASE:-}
 PARTS=${PARTS:-tests walk cuda cpu rate}
@@ -40,7 +43,8 @@ users() {  # users NAME SECONDS ARGS...: guidebelt bench --users at 400², 40 %
     date -u +%Y-%m-%dT%H:%MZ
     git describe --always --dirty 2>/dev/null || echo "commit unknown"
 } >"$OUT/device.txt"
-has tests && step pytest 420 python3 -m pytest -m gpu tests/daemon/planning/cuda -q -p no:cacheprovider \
+# shellcheck disable=SC2086  # TESTS: several paths
+has tests && step pytest 420 python3 -m pytest -m gpu $TESTS -q -p no:cacheprovider \
     --timeout 180 --durations=5
 has walk && step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --planner eds \
     --backend cuda --json "$OUT/walk1.json"
@@ -71,7 +75,8 @@ for name in ("users_base", "users_cuda", "users_cpu", "users_rate"):
         print(f"{name:<11}{r['backend']:<8}{r['mode']:<12}{r['users']:>6}{r['steps']:>8}"
               f"{r['median']:>8.3f}{r['p99']:>8.3f}{r['max']:>8.3f}{r['steps_per_s']:>9.0f}"
               f"{r['device_bytes'] / 1e6:>8.2f}"
-              + (f" own p99 {r['own']['p99']:.3f}, kept up: {r['kept_up']}" if "own" in r else ""))
+              + (f" own p99 {r['own']['p99']:.3f}, kept up: {r['kept_up']}" if "own" in r else "")
+              + (f", batch mean {r['batch_mean']:.1f} max {r['batch_max']}" if "batches" in r else ""))
 for name in ("walk1_base", "walk1"):
     w = out / f"{name}.json"
     for r in json.loads(w.read_text()) if w.exists() else []:

@@ -10,7 +10,9 @@ then gives every user a planner of the backend under test and replays the users'
 - ``rate`` (``--rate HZ``): every user steps at HZ, the users' phases spread evenly over a
   period; one host thread serves the steps in the order they fall due, so a step's latency is
   from when it fell due to when its call returned: the wait behind other users' steps
-  included. Users whose walk is done start it again (their planner plans from scratch).
+  included. On cuda the steps due when the host comes round go to the device as one batch
+  (``daemon/planning/cuda/batch.py``: served side by side); on cpu one after another. Users
+  whose walk is done start it again (their planner plans from scratch).
 
 Every replayed path must equal the recorded one, which the CPU planner read from its exact
 field (its contract, tested against the reference Dijkstra): a mismatch ends the bench with
@@ -23,6 +25,7 @@ from __future__ import annotations
 import heapq
 import pickle
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -114,7 +117,7 @@ class Replay:
             elif op[0] == "update":
                 self.p.update(op[1], op[2])
             else:
-                self._check(self.p.path(op[1]), op[2])
+                self.check(self.p.path(op[1]), op[2])
         return None
 
     def step(self, op: tuple) -> float:
@@ -122,10 +125,10 @@ class Replay:
         t0 = time.perf_counter()
         _, path = self.p.update_and_path(op[1], op[2], op[3])
         ms = (time.perf_counter() - t0) * 1e3
-        self._check(path, op[4])
+        self.check(path, op[4])
         return ms
 
-    def _check(self, path: np.ndarray, want: np.ndarray) -> None:
+    def check(self, path: np.ndarray, want: np.ndarray) -> None:
         if not np.array_equal(path, want):
             raise AssertionError(f"user {self.user}: a replayed path differs from the CPU's")
 
@@ -158,8 +161,12 @@ def round_robin(users: list[Replay]) -> dict[str, Any]:
             **spread(arr)}  # fmt: skip
 
 
-def at_rate(users: list[Replay], hz: float, seconds: float) -> dict[str, Any]:
-    """Every user steps at ``hz`` for ``seconds``; latency from due to done."""
+def at_rate(
+    users: list[Replay], hz: float, seconds: float, batch: Callable[[list], list] | None = None
+) -> dict[str, Any]:
+    """Every user steps at ``hz`` for ``seconds``; latency from due to done. With ``batch``
+    (``cuda.batch.step_many``), the steps due when the host comes round go to it together
+    (their latency ends when the batch returns); else one after another."""
     n = len(users)
     period = 1.0 / hz
     # (due, user): the users' phases spread over a period; a heap, since a scan of 1,000
@@ -169,25 +176,48 @@ def at_rate(users: list[Replay], hz: float, seconds: float) -> dict[str, Any]:
     ops = [u.until_step() for u in users]
     late: list[float] = []
     own: list[float] = []
+    sizes: list[int] = []
     t0 = time.perf_counter()
     while queue[0][0] < seconds:
-        due, k, j = queue[0]
-        while time.perf_counter() - t0 < due:
+        while time.perf_counter() - t0 < queue[0][0]:
             pass  # wait for the step to fall due: a sleep's timer slack is ~50 µs
-        u, op = users[k], ops[k]
-        if op is None:  # the walk is done: again from its plan
-            u.at, u.laps = 0, u.laps + 1
-            op = u.until_step()
-            assert op is not None
-        own.append(u.step(op))
-        late.append((time.perf_counter() - t0 - due) * 1e3)
-        ops[k] = u.until_step()
-        heapq.heapreplace(queue, (k * period / n + (j + 1) * period, k, j + 1))
+        now = time.perf_counter() - t0
+        due = [heapq.heappop(queue)]
+        while batch is not None and queue and queue[0][0] <= now:
+            due.append(heapq.heappop(queue))
+        for _, k, _ in due:
+            if ops[k] is None:  # the walk is done: again from its plan
+                u = users[k]
+                u.at, u.laps = 0, u.laps + 1
+                ops[k] = u.until_step()
+                assert ops[k] is not None
+        if batch is None:
+            own.append(users[due[0][1]].step(ops[due[0][1]]))
+            late.append((time.perf_counter() - t0 - due[0][0]) * 1e3)
+        else:
+            b0 = time.perf_counter()
+            results = batch([(users[k].p, *ops[k][1:4]) for _, k, _ in due])
+            done = time.perf_counter()
+            for (when, k, _), res in zip(due, results, strict=True):
+                if isinstance(res, BaseException):
+                    raise res
+                users[k].check(res[1], ops[k][4])
+                late.append((done - t0 - when) * 1e3)
+                own.append((done - b0) * 1e3)
+            sizes.append(len(due))
+        for _, k, j in due:
+            ops[k] = users[k].until_step()
+            heapq.heappush(queue, (k * period / n + (j + 1) * period, k, j + 1))
     total = time.perf_counter() - t0
     lat = np.asarray(late)
-    return {"hz": hz, "seconds": total, "steps": int(lat.size), "steps_per_s": lat.size / total,
-            "kept_up": kept_up(lat, total, n * hz, period * 1e3),
-            **spread(lat), "own": spread(np.asarray(own))}  # fmt: skip
+    row = {"hz": hz, "seconds": total, "steps": int(lat.size), "steps_per_s": lat.size / total,
+           "kept_up": kept_up(lat, total, n * hz, period * 1e3),
+           **spread(lat), "own": spread(np.asarray(own))}  # fmt: skip
+    if sizes:
+        row["batches"] = len(sizes)
+        row["batch_mean"] = float(np.mean(sizes))
+        row["batch_max"] = int(max(sizes))
+    return row
 
 
 def kept_up(late_ms: np.ndarray, total_s: float, due_per_s: float, period_ms: float) -> bool:
@@ -255,6 +285,9 @@ def run_users(
         row["mode"] = "round-robin"
         row.update(round_robin(replays))
     else:
-        row["mode"] = "rate"
-        row.update(at_rate(replays, hz, seconds))
+        row["mode"] = "rate" if backend != "cuda" else "rate batched"
+        step_many = None
+        if backend == "cuda":
+            from daemon.planning.cuda.batch import step_many
+        row.update(at_rate(replays, hz, seconds, step_many))
     return row
