@@ -50,9 +50,9 @@ has walk && step walk1 120 python3 -m cli.app bench --grid 400 --unknown 0.4 --p
     --backend cuda --json "$OUT/walk1.json"
 has cuda && users users_cuda 240 --users "$COUNTS" --backend cuda
 if [ -n "$BASE" ]; then
-    OUT_ABS="$PWD/$OUT"
+    OUT_ABS=$(realpath -m "$OUT") WALKS_ABS=$(realpath -m "$WALKS_FILE")
     (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 240 python3 -m cli.app \
-        bench --grid 400 --unknown 0.4 --walks-file "$OLDPWD/$WALKS_FILE" --users "$COUNTS" \
+        bench --grid 400 --unknown 0.4 --walks-file "$WALKS_ABS" --users "$COUNTS" \
         --backend cuda --json "$OUT_ABS/users_base.json" >"$OUT_ABS/users_base.log" 2>&1)
     echo "users_base rc=$? " >>"$OUT/steps.txt"
     (cd "$BASE" && PYTHONPATH="$PWD${CLI_SITE:+:$CLI_SITE}" timeout 120 python3 -m cli.app \

@@ -272,9 +272,17 @@ def run_users(
     t0 = time.perf_counter()
     replays = [Replay(make_planner("eds", backend), recs[i % len(recs)], i) for i in range(users)]
     firsts = [u.until_step() for u in replays]  # every user's first plan, untimed
-    setup_s = time.perf_counter() - t0
     for u, op in zip(replays, firsts, strict=True):
-        u.at -= 1 if op is not None else 0  # the step itself is replayed by the run
+        if op is None:
+            continue
+        if hz is None:
+            u.at -= 1  # the step itself is replayed by the run
+        else:
+            # At a rate, users walk on: their first step (every tile's path exits computed
+            # for the first time) is taken here, as a venue's users join over time, not all
+            # in the same period.
+            u.step(op)
+    setup_s = time.perf_counter() - t0
     row: dict[str, Any] = {
         "scenario": scenario_name, "grid": grid, "unknown": unknown, "backend": backend,
         "device": device_name(backend), "users": users, "walks": len(recs),

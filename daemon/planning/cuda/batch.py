@@ -29,9 +29,22 @@ Step = tuple[Any, np.ndarray, np.ndarray, tuple[int, int]]
 """(planner, cells, blocked, start): one user's ``update_and_path``."""
 
 
-def step_many(steps: Sequence[Step]) -> list[Any]:
+GROUP_MIN = 8
+"""Blocks a batched call gets at least: a post holds at most the loop's blocks / GROUP_MIN
+calls. A post ends when its slowest call does, and a call that recomputes its field (the
+cut-over) or all its exits on one block takes milliseconds."""
+
+
+def batch_size() -> int:
+    """Calls a post holds: the device's resident loop blocks / ``GROUP_MIN``."""
+    blocks = device.resident_blocks(device.kernel("fast", "plan_users"))
+    return max(1, min(abi.BATCH_MAX, blocks // GROUP_MIN))
+
+
+def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
     """Every step's ``(UpdateStats, path)``, or the exception it raised, in order. The fast
-    cuda planners' steps go to the device in batches of up to ``abi.BATCH_MAX``."""
+    cuda planners' steps go to the device in posts of up to ``max_batch`` calls (default
+    ``batch_size()``), one after another."""
     out: list[Any] = [None] * len(steps)
     fast = []
     for i, (p, cells, blocked, start) in enumerate(steps):
@@ -44,8 +57,9 @@ def step_many(steps: Sequence[Step]) -> list[Any]:
             out[i] = exc
     if len({id(steps[i][0]) for i in fast}) != len(fast):
         raise ValueError("a batch holds each planner once")
-    for at in range(0, len(fast), abi.BATCH_MAX):
-        _batch(steps, fast[at : at + abi.BATCH_MAX], out)
+    size = min(max_batch or batch_size(), abi.BATCH_MAX)
+    for at in range(0, len(fast), size):
+        _batch(steps, fast[at : at + size], out)
     return out
 
 

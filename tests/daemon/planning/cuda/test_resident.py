@@ -234,9 +234,6 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
     g = dijkstra_field(truth, goal)
     assert np.array_equal(p.costs(), g)
     assert np.array_equal(path, reference_path(g, truth, (0, 0)))
-    # the delta grew the planner's buffers, which stopped the loop once; the rest is served
-    # by the launch that followed
-    launches = p._loop.launches
     for x in others[2000:2005]:
         # entries 1023 and 1024 both name x: blocked, then free (the last wins)
         dup = np.concatenate([np.sort(rng.choice(others[others < x], 1023, replace=False)), [x, x]])
@@ -248,6 +245,7 @@ def test_deltas_longer_than_one_pass_of_the_loop(monkeypatch):
         assert np.array_equal(p.blocked(), truth)
         assert np.array_equal(p.costs(), dijkstra_field(truth, goal))
     before, known = p.costs(), p.blocked()
+    launches = p._loop.launches  # a refused delta leaves the loop running
     bad = others[:1500].copy()
     bad[1400] = h * w  # in the second pass
     with pytest.raises(IndexError):
