@@ -10,8 +10,9 @@ of 1,000 users at 10 Hz.
 
 A batch holds each planner once (a planner has one call in flight); a step that fails (a
 delta outside the map, a device fault) is returned as its exception, in its place, and the
-others are still served. Planners that are not the cuda backend's ``fast`` variant step one
-after another, as their own ``update_and_path`` does.
+others are still served. The cuda backend's EDS (``SmallGridsOnCpu``) is batched when its map
+is served by the device; other planners step one after another, as their own
+``update_and_path`` does.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import numpy as np
 
 from . import abi, device, resident
 from .planner import CudaPlanner
+from .small_grids import SmallGridsOnCpu
 
 Step = tuple[Any, np.ndarray, np.ndarray, tuple[int, int]]
 """(planner, cells, blocked, start): one user's ``update_and_path``."""
@@ -46,29 +48,35 @@ def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
     cuda planners' steps go to the device in posts of up to ``max_batch`` calls (default
     ``batch_size()``), one after another."""
     out: list[Any] = [None] * len(steps)
+    planners: dict[int, CudaPlanner] = {}
     fast = []
     for i, (p, cells, blocked, start) in enumerate(steps):
+        if isinstance(p, SmallGridsOnCpu):  # the cuda backend's EDS: which one serves the map
+            p = p._serving
         if isinstance(p, CudaPlanner) and p.variant == "fast":
             fast.append(i)
+            planners[i] = p
             continue
         try:
-            out[i] = p.update_and_path(cells, blocked, start)
+            out[i] = steps[i][0].update_and_path(cells, blocked, start)
         except Exception as exc:  # one user's failure is that user's result
             out[i] = exc
-    if len({id(steps[i][0]) for i in fast}) != len(fast):
+    if len({id(p) for p in planners.values()}) != len(fast):
         raise ValueError("a batch holds each planner once")
     size = min(max_batch or batch_size(), abi.BATCH_MAX)
     for at in range(0, len(fast), size):
-        _batch(steps, fast[at : at + size], out)
+        _batch(steps, planners, fast[at : at + size], out)
     return out
 
 
-def _batch(steps: Sequence[Step], which: list[int], out: list[Any]) -> None:
+def _batch(
+    steps: Sequence[Step], planners: dict[int, CudaPlanner], which: list[int], out: list[Any]
+) -> None:
     with device.DEVICE_LOCK:
         t0 = time.perf_counter()
         staged: list[tuple[int, CudaPlanner, tuple]] = []
         for i in which:
-            p, cells, blocked, start = steps[i]
+            p, (_, cells, blocked, start) = planners[i], steps[i]
             try:
                 staged.append((i, p, p._stage_step(cells, blocked, start)))
             except Exception as exc:

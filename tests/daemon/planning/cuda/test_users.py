@@ -38,7 +38,7 @@ def _fresh_loop(monkeypatch):
 class User:
     """One planner, its map and goal, and a seeded walk of patches that open and close."""
 
-    def __init__(self, seed: int, shape: tuple[int, int], dss: bool = False) -> None:
+    def __init__(self, seed: int, shape: tuple[int, int], dss: bool = False, planner=None) -> None:
         from daemon.planning.cuda.planner import CudaPlanner
 
         self.rng = np.random.default_rng(seed)
@@ -46,7 +46,7 @@ class User:
         h, w = shape
         self.goal = (int(self.rng.integers(h)), int(self.rng.integers(w)))
         self.truth[self.goal] = False
-        self.p = CudaPlanner("fast", dss=dss)
+        self.p = planner or CudaPlanner("fast", dss=dss)
         self.p.plan(self.truth, self.goal)
 
     def change(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
@@ -160,3 +160,15 @@ def test_a_refused_delta_in_a_batch_is_its_users_alone(_fresh_loop):
     for k in (0, 1, 3):
         users[k].check(results[k][1], changes[k][2])
     batch_step(users)
+
+
+def test_the_backends_planners_are_batched_where_the_device_serves_their_map(_fresh_loop):
+    """make_planner("eds", "cuda") plans small maps on the CPU (small_grids.py): in a batch,
+    those step on the host and the others go to the device, every one exact."""
+    from daemon.planning.registry import make_planner
+
+    users = [User(3000 + k, shape, planner=make_planner("eds", "cuda"))
+             for k, shape in enumerate([(40, 50), (210, 200), (30, 30), (205, 210)])]  # fmt: skip
+    assert [u.p.name for u in users] == ["eds-cpu-fast", "eds-cuda-fast"] * 2
+    for _ in range(3):
+        batch_step(users)
