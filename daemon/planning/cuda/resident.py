@@ -13,6 +13,10 @@ Before, each planner had a loop of its own, and a call of another planner stoppe
 launched its own: with 4 or 16 users stepping in turn a step cost ~0.25 ms and single steps
 stalled ~45 ms (issue 28, H100). One loop for all removes the stop and the launch.
 
+``post_batch`` hands the loop several planners' calls in one post (``batch.py``): the loop
+serves them side by side, each on a group of its blocks, where one call at a time held every
+SM for a few tiles' work and one host thread topped out at ~9,200 steps/s at 400².
+
 The loop holds every SM (it polls), so only one runs per process (``_ACTIVE``), and any other
 work that launches kernels on the device first stops it (``evict``). Copies do not need to:
 the loop runs on its own non-blocking stream and touches no planner state between calls.
