@@ -234,6 +234,9 @@ def kept_up(late_ms: np.ndarray, total_s: float, due_per_s: float, period_ms: fl
 def memory_per_user(planner: Any) -> dict[str, int]:
     """Bytes a user's planner holds: device memory, and page-locked host memory (cuda)."""
     out = {"device_bytes": int(getattr(planner, "device_bytes", lambda: 0)())}
+    # The cuda backend's EDS wraps the planner that serves the map (small_grids.py), whose
+    # private buffers its attribute lookup does not pass on.
+    planner = getattr(planner, "_serving", None) or planner
     pinned = [getattr(planner, n, None) for n in ("_io_host", "_stage")]
     out["pinned_bytes"] = int(sum(p.array.nbytes for p in pinned if p is not None))
     return out
