@@ -47,22 +47,21 @@ def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
     """Every step's ``(UpdateStats, path)``, or the exception it raised, in order. The fast
     cuda planners' steps go to the device in posts of up to ``max_batch`` calls (default
     ``batch_size()``), one after another."""
+    if len({id(step[0]) for step in steps}) != len(steps):
+        raise ValueError("a batch holds each planner once")
     out: list[Any] = [None] * len(steps)
     planners: dict[int, CudaPlanner] = {}
-    fast = []
     for i, (p, cells, blocked, start) in enumerate(steps):
         if isinstance(p, SmallGridsOnCpu):  # the cuda backend's EDS: which one serves the map
             p = p._serving
         if isinstance(p, CudaPlanner) and p.variant == "fast":
-            fast.append(i)
             planners[i] = p
             continue
         try:
             out[i] = steps[i][0].update_and_path(cells, blocked, start)
         except Exception as exc:  # one user's failure is that user's result
             out[i] = exc
-    if len({id(p) for p in planners.values()}) != len(fast):
-        raise ValueError("a batch holds each planner once")
+    fast = list(planners)
     size = min(max_batch or batch_size(), abi.BATCH_MAX)
     for at in range(0, len(fast), size):
         _batch(steps, planners, fast[at : at + size], out)
@@ -97,7 +96,6 @@ def _batch(
                 loop.wait(p._io_host.view, step[1])
             except Exception as exc:  # a CUDA fault: every step has it
                 out[i] = exc
-                continue
         for i, p, step in staged:
             if out[i] is not None:
                 continue
