@@ -51,7 +51,7 @@ import numpy as np
 from ..field import FieldPlanner
 from ..grid import INF, Cell, checked_plan_input, in_bounds
 from ..interface import UpdateStats
-from . import abi, device, resident
+from . import abi, device, posting, resident
 from .call import FastCall
 from .paper import PaperForm
 from .path import PathReader
@@ -278,19 +278,16 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self, cells: np.ndarray, blocked: np.ndarray, start: Cell
     ) -> tuple[UpdateStats, np.ndarray]:
         """``fast``: one call that repairs (EDS) or recomputes (DSS) the field and extracts the
-        path, statistics and path read back after a single wait. ``paper`` syncs per iteration
+        path, statistics and path read back after a single wait; the steps that several
+        threads call at once share posts (``combine.py``). ``paper`` syncs per iteration
         anyway and takes the interface's default."""
         if self.variant != "fast":
             stats, path = super().update_and_path(cells, blocked, start)
             self.last_stats = stats  # the whole step's, as for fast
             return stats, path
-        t0 = time.perf_counter()
-        with device.DEVICE_LOCK:
-            step = self._stage_step(cells, blocked, start)
-            seq, n = step[1], step[2]
-            self._loop.post(seq, n)  # type: ignore[union-attr]  # _stage_step made it
-            self._loop.wait(self._io_host.view, seq)  # type: ignore[union-attr]
-            return self._finish_step(step, t0)
+        # Posted alone when the device is free, else with the steps other threads call
+        # meanwhile, as the next post (posting.py).
+        return posting.STEPS.call((self, cells, blocked, start, time.perf_counter()))
 
     def _stage_step(self, cells: np.ndarray, blocked: np.ndarray, start: Cell) -> tuple:
         """A walking step's call staged for a post (lock held): (start, seq, delta length,

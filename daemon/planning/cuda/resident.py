@@ -187,7 +187,8 @@ class ResidentLoop:
     def wait(self, io: memoryview, seq: int) -> None:
         """Until the loop has set ``io[abi.IO_DONE]`` to ``seq``. Spins; after
         ``device.SPIN_S`` each poll first yields the GIL (the daemon's event loop runs during
-        long plans; a sleep of any length would add Linux's 50 µs timer slack to the wait).
+        long plans; a sleep of any length would add Linux's 50 µs timer slack to the wait),
+        before that every 256th spin does.
         Every ``CHECK_S`` the stream is queried: a CUDA fault is raised as a cupy error, and a
         loop that ended before taking the call (idle) is started again, once."""
         at = abi.IO_DONE
@@ -199,8 +200,11 @@ class ResidentLoop:
             if spins & 31:
                 continue
             now = time.perf_counter()
-            if now - t0 > device.SPIN_S:
-                time.sleep(0)  # a long call: let the daemon's other threads have the GIL
+            if now - t0 > device.SPIN_S or not spins & 255:
+                # A long call: let the daemon's other threads have the GIL. And every ~20 µs
+                # anyway: a thread whose step falls due meanwhile then queues it for the next
+                # post (combine.py) instead of waiting for the GIL until this one returns.
+                time.sleep(0)
             if now - last < CHECK_S:
                 continue
             last = now

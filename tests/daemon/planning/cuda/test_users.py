@@ -172,3 +172,58 @@ def test_the_backends_planners_are_batched_where_the_device_serves_their_map(_fr
     assert [u.p.name for u in users] == ["eds-cpu-fast", "eds-cuda-fast"] * 2
     for _ in range(3):
         batch_step(users)
+
+
+def test_planners_stepped_from_their_own_threads_at_once_share_posts_and_stay_exact(_fresh_loop):
+    """As the daemon steps its users: each planner on a thread of its own, all released
+    together each round. The steps combine into shared posts (``combine.py``); every path is
+    the reference Dijkstra's and the CPU planner's, every field Dijkstra's. A delta outside
+    its map fails that thread's step alone, and no thread is left behind."""
+    import threading
+
+    from daemon.planning.cuda import posting
+    from daemon.planning.registry import make_planner
+
+    shapes = [(30, 70), (20, 20), (64, 64), (390, 380), (45, 33), (100, 120), (1, 1), (64, 200)]
+    users = [User(4000 + k, shape, dss=k == 2) for k, shape in enumerate(shapes)]
+    cpus = [make_planner("dss" if k == 2 else "eds", "cpu") for k in range(len(users))]
+    for u, cpu in zip(users, cpus, strict=True):
+        cpu.plan(u.truth, u.goal)
+    before = set(threading.enumerate())
+    posts, calls = posting.STEPS.posts, posting.STEPS.calls
+    barrier = threading.Barrier(len(users))
+    refused: list[BaseException] = []
+    failures: list[BaseException] = []
+
+    def walk(k: int) -> None:
+        u, cpu = users[k], cpus[k]
+        try:
+            for r in range(6):
+                if k == 0 and r == 3:  # a cell past the map's end
+                    h, w = u.truth.shape
+                    barrier.wait()
+                    try:
+                        u.p.update_and_path(np.array([h * w + 3]), np.array([True]), (0, 0))
+                    except IndexError as exc:
+                        refused.append(exc)
+                    continue
+                cells, values, start = u.change()
+                barrier.wait()
+                _, path = u.p.update_and_path(cells, values, start)
+                _, want = cpu.update_and_path(cells, values, start)
+                assert np.array_equal(path, want)
+                u.check(path, start)
+        except BaseException as exc:
+            failures.append(exc)
+            barrier.abort()
+
+    threads = [threading.Thread(target=walk, args=(k,)) for k in range(len(users))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    assert not failures, failures
+    assert len(refused) == 1
+    assert posting.STEPS.calls - calls == 6 * len(users)
+    assert posting.STEPS.posts - posts < posting.STEPS.calls - calls  # some posts were shared
+    assert set(threading.enumerate()) == before
