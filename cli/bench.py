@@ -44,6 +44,9 @@ def bench(
         float | None, typer.Option(min=0.1, help="--users: every user steps at HZ (open loop).")
     ] = None,
     seconds: Annotated[float, typer.Option(min=0.1, help="--rate: how long.")] = 10.0,
+    threads: Annotated[
+        bool, typer.Option(help="--rate: each user on a thread of its own, as the daemon.")
+    ] = False,
     walks: Annotated[int, typer.Option(min=1, help="--users: distinct walks recorded.")] = 16,
     walks_file: Annotated[
         Path | None, typer.Option(help="--users: recorded walks read from (or written to) here.")
@@ -52,7 +55,7 @@ def bench(
     """Walk the simulated scenarios with each planner; print Steps, Iter_avg and ms per step."""
     if users is not None:
         how = {"seed": seed, "walks": walks, "max_steps": max_steps, "hz": rate,
-               "seconds": seconds, "cache": walks_file}  # fmt: skip
+               "seconds": seconds, "cache": walks_file, "threads": threads}  # fmt: skip
         bench_users(scenario, grid, unknown, backend, users, how, json_out)
         return
     from rich import box

@@ -11,9 +11,12 @@
 #      loop), when given: the "before" figures, on the same card in the same call;
 #   5. guidebelt bench --users $RATE_USERS --rate 10: open loop, every user at 10 Hz, the
 #      steps due together served as one batch;
-#   6. the short table, last.
+#   6. the same with --threads: a thread per user, as the daemon steps them; the calls that
+#      meet on the device combined into shared posts (cuda/combine.py);
+#   7. the short table, last.
 # Usage, from the repository root on the GPU machine: bash scripts/gpu_users_check.sh
-# (PARTS, default "tests walk cuda cpu rate", picks steps 1, 2, 3, the cpu half of 3, and 5)
+# (PARTS, default "tests walk cuda cpu rate threads", picks steps 1, 2, 3, the cpu half of 3,
+# 5 and 6)
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_users). WALKS_FILE: recorded walks
 # (written by the first bench that needs them, read by the rest).
 set -uo pipefail
@@ -24,7 +27,7 @@ RATE_USERS=${RATE_USERS:-1,16,1000}
 TESTS=${TESTS:-tests/daemon/planning/cuda}
 RATE_S=${RATE_S:-8}
 BASE=${BASE:-}
-PARTS=${PARTS:-tests walk cuda cpu rate}
+PARTS=${PARTS:-tests walk cuda cpu rate threads}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
 WALKS_FILE=${WALKS_FILE:-$OUT/walks.pkl}
 mkdir -p "$OUT"
@@ -63,20 +66,22 @@ if [ -n "$BASE" ]; then
 fi
 has cpu && users users_cpu 120 --users "$COUNTS" --backend cpu
 has rate && users users_rate 300 --users "$RATE_USERS" --rate 10 --seconds "$RATE_S" --backend cuda
+has threads && users users_threads 300 --users "$RATE_USERS" --rate 10 --seconds "$RATE_S" \
+    --backend cuda --threads
 python3 - "$OUT" <<'EOF'
 import json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 print(open(out / "device.txt").read().strip().replace("\n", " | "))
-print(f"{'run':<11}{'backend':<8}{'mode':<12}{'users':>6}{'steps':>8}{'median':>8}{'p99':>8}"
+print(f"{'run':<14}{'backend':<8}{'mode':<13}{'users':>6}{'steps':>8}{'median':>8}{'p99':>8}"
       f"{'max':>8}{'steps/s':>9}{'MB/user':>8}")
-for name in ("users_base", "users_cuda", "users_cpu", "users_rate"):
+for name in ("users_base", "users_cuda", "users_cpu", "users_rate", "users_threads"):
     f = out / f"{name}.json"
     for r in json.loads(f.read_text()) if f.exists() else []:
-        print(f"{name:<11}{r['backend']:<8}{r['mode']:<12}{r['users']:>6}{r['steps']:>8}"
+        print(f"{name:<14}{r['backend']:<8}{r['mode']:<13}{r['users']:>6}{r['steps']:>8}"
               f"{r['median']:>8.3f}{r['p99']:>8.3f}{r['max']:>8.3f}{r['steps_per_s']:>9.0f}"
               f"{r['device_bytes'] / 1e6:>8.2f}"
               + (f" own p99 {r['own']['p99']:.3f}, kept up: {r['kept_up']}" if "own" in r else "")
-              + (f", batch mean {r['batch_mean']:.1f} max {r['batch_max']}" if "batches" in r else ""))
+              + (f", batch mean {r['batch_mean']:.1f} max {r.get('batch_max', '-')}" if "batches" in r else ""))
 for name in ("walk1_base", "walk1"):
     w = out / f"{name}.json"
     for r in json.loads(w.read_text()) if w.exists() else []:

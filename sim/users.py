@@ -13,6 +13,8 @@ then gives every user a planner of the backend under test and replays the users'
   included. On cuda the steps due when the host comes round go to the device as one batch
   (``daemon/planning/cuda/batch.py``: served side by side); on cpu one after another. Users
   whose walk is done start it again (their planner plans from scratch).
+- ``rate threads`` (``--rate HZ --threads``): the same steps, each user on a thread of its
+  own as the daemon runs them; on cuda the calls that meet combine into shared posts.
 
 Every replayed path must equal the recorded one, which the CPU planner read from its exact
 field (its contract, tested against the reference Dijkstra): a mismatch ends the bench with
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import heapq
 import pickle
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -220,6 +223,62 @@ def at_rate(
     return row
 
 
+def at_rate_threads(users: list[Replay], hz: float, seconds: float) -> dict[str, Any]:
+    """``at_rate`` as the daemon serves its users: each user on a thread of its own
+    (``daemon/service/runner.py``), sleeping until its step falls due and then calling its
+    planner's ``update_and_path``; the cuda backend combines the calls that meet on the device
+    into shared posts (``daemon/planning/cuda/combine.py``). Latency from due to the call's
+    return, the thread's wake-up and its wait for the GIL included."""
+    n = len(users)
+    period = 1.0 / hz
+    late: list[list[float]] = [[] for _ in range(n)]
+    own: list[list[float]] = [[] for _ in range(n)]
+    failed: list[BaseException] = []
+    ready = threading.Barrier(n + 1)
+    t0 = 0.0
+
+    def run(k: int) -> None:
+        u = users[k]
+        op = u.until_step()
+        ready.wait()
+        try:
+            for j in range(int(seconds * hz) + 1):
+                due = k * period / n + j * period
+                if due >= seconds or failed:
+                    break
+                if op is None:  # the walk is done: again from its plan
+                    u.at, u.laps = 0, u.laps + 1
+                    op = u.until_step()
+                    assert op is not None
+                wait = t0 + due - time.perf_counter()
+                if wait > 0:
+                    time.sleep(wait)
+                b0 = time.perf_counter()
+                _, path = u.p.update_and_path(op[1], op[2], op[3])
+                done = time.perf_counter()
+                u.check(path, op[4])
+                late[k].append((done - t0 - due) * 1e3)
+                own[k].append((done - b0) * 1e3)
+                op = u.until_step()
+        except BaseException as exc:
+            failed.append(exc)
+
+    threads = [threading.Thread(target=run, args=(k,), name=f"user-{k}") for k in range(n)]
+    for t in threads:
+        t.start()
+    t0 = time.perf_counter() + 0.05  # every thread at its first sleep before the first step
+    ready.wait()
+    for t in threads:
+        t.join()
+    total = time.perf_counter() - t0
+    if failed:
+        raise failed[0]
+    lat = np.concatenate([np.asarray(v) for v in late])
+    return {"hz": hz, "seconds": total, "steps": int(lat.size), "steps_per_s": lat.size / total,
+            "kept_up": kept_up(lat, total, n * hz, period * 1e3),
+            **spread(lat), "own": spread(np.concatenate([np.asarray(v) for v in own]))}  # fmt: skip
+
+
 def kept_up(late_ms: np.ndarray, total_s: float, due_per_s: float, period_ms: float) -> bool:
     """Whether the device kept up with the users: it served the steps at the rate they fell
     due, and 99 % of them within one period of falling due. Every due step is served in the
@@ -255,10 +314,12 @@ def run_users(
     hz: float | None = None,
     seconds: float = 10.0,
     cache: Path | None = None,
+    threads: bool = False,
 ) -> dict[str, Any]:
     """Record ``min(users, walks)`` walks (seeds ``seed``, ``seed + 1``, ...), give each of
     ``users`` users a planner of ``backend`` and replay them round-robin, or at ``hz`` each
-    for ``seconds`` when given. Returns the row for the JSON."""
+    for ``seconds`` when given (``threads``: a thread per user, as the daemon). Returns the row
+    for the JSON."""
     from daemon.planning.registry import make_planner
 
     from .benchmark import device_name
@@ -295,6 +356,14 @@ def run_users(
     if hz is None:
         row["mode"] = "round-robin"
         row.update(round_robin(replays))
+    elif threads:
+        row["mode"] = "rate threads"
+        before = _posts(backend)
+        row.update(at_rate_threads(replays, hz, seconds))
+        after = _posts(backend)
+        if before is not None and after is not None:
+            row["batches"] = after[0] - before[0]
+            row["batch_mean"] = (after[1] - before[1]) / max(row["batches"], 1)
     else:
         row["mode"] = "rate" if backend != "cuda" else "rate batched"
         step_many = None
@@ -302,3 +371,12 @@ def run_users(
             from daemon.planning.cuda.batch import step_many
         row.update(at_rate(replays, hz, seconds, step_many))
     return row
+
+
+def _posts(backend: str) -> tuple[int, int] | None:
+    """The cuda backend's (posts, calls) so far: the threads' mean batch is their ratio."""
+    if backend != "cuda":
+        return None
+    from daemon.planning.cuda.posting import STEPS
+
+    return STEPS.posts, STEPS.calls

@@ -46,6 +46,19 @@ def test_users_at_a_rate_are_served_when_due():
     assert row["median"] >= row["own"]["median"] > 0
 
 
+def test_users_on_threads_of_their_own_are_served_when_due():
+    """The daemon's form: a thread per user; every step due is served, each path checked
+    against the recording, and no thread is left behind."""
+    import threading
+
+    before = set(threading.enumerate())
+    row = run_users("courtyard", 50, 0.4, "cpu", 4, walks=2, hz=20.0, seconds=0.5, threads=True)
+    assert row["mode"] == "rate threads" and isinstance(row["kept_up"], bool)
+    assert row["steps"] == 40
+    assert row["median"] >= row["own"]["median"] > 0
+    assert set(threading.enumerate()) == before
+
+
 def test_the_cli_prints_a_row_per_user_count(tmp_path):
     out = tmp_path / "users.json"
     result = CliRunner().invoke(
