@@ -21,6 +21,12 @@ each as long as its slowest call, plus one thread wake-up per hand-over. At 16 t
 
 A leader hands the lead on rather than posting the queue itself, so its own call's latency is
 its post's alone; nothing here starts a thread.
+
+**The GIL.** A post's wait spins on a mapped word, holding the GIL: a thread whose step falls
+due meanwhile could not even queue it. So once calls have been seen to queue (``contended``)
+the wait yields the GIL every ~256 polls (``resident.wait``'s ``share``); a thread that steps
+alone never yields, since a yield that lets another thread in is a ``sleep(0)``, 50-70 µs of
+Linux's timer slack.
 """
 
 from __future__ import annotations
@@ -30,6 +36,9 @@ from collections.abc import Callable, Hashable
 from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
+
+CONTENDED_POSTS = 64
+"""Posts after a call last queued during which the combiner counts as contended."""
 
 
 class _Call(Generic[T]):
@@ -70,6 +79,14 @@ class Combiner(Generic[T]):
         self.posts = 0
         """Posts made, and calls they held (statistics: the mean batch is calls / posts)."""
         self.calls = 0
+        self._queued_at = -CONTENDED_POSTS
+        """``posts`` when a call last had to queue."""
+
+    @property
+    def contended(self) -> bool:
+        """Whether a call queued within the last ``CONTENDED_POSTS`` posts: other threads call
+        too, and a post's wait should let them have the GIL to queue (``resident.wait``)."""
+        return self.posts - self._queued_at < CONTENDED_POSTS
 
     def call(self, item: T) -> Any:
         with self._lock:
@@ -80,6 +97,7 @@ class Combiner(Generic[T]):
                 me.wake = threading.Lock()
                 me.wake.acquire()
                 self._queue.append(me)
+                self._queued_at = self.posts
         if alone:
             # No post in flight: this one at once, with as little as can be on the way (a
             # step at 400² costs the host ~35 µs in all).

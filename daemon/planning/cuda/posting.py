@@ -45,7 +45,7 @@ def post_steps(steps: list[Post]) -> list[Any]:
             with device.DEVICE_LOCK:
                 step = p._stage_step(cells, blocked, start)
                 p._loop.post(step[1], step[2])
-                p._loop.wait(p._io_host.view, step[1])
+                p._loop.wait(p._io_host.view, step[1], STEPS.contended)
                 return [p._finish_step(step, t0)]
         except Exception as exc:  # the caller's own: raised in its thread
             return [exc]
@@ -68,9 +68,10 @@ def post_steps(steps: list[Post]) -> list[Any]:
             assert slot is not None and slot.loop is loop, "one loop per process"
             calls[row] = slot.index, step[2]
         loop.post_batch(calls)
+        share = STEPS.contended
         for i, p, step in staged:
             try:
-                loop.wait(p._io_host.view, step[1])
+                loop.wait(p._io_host.view, step[1], share)
             except Exception as exc:  # a CUDA fault: every step has it
                 out[i] = exc
         for i, p, step in staged:

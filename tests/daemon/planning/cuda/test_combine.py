@@ -174,3 +174,31 @@ def test_many_threads_at_random_every_call_its_own_result_and_no_thread_left():
     assert c.calls == 8 * 150 and not c._busy and not c._queue
     assert all(len(p) <= 4 and len({it[0] for it in p}) == len(p) for p in dev.posts)
     assert set(threading.enumerate()) == before
+
+
+def test_contended_once_calls_queue_and_again_not_after_posts_alone():
+    """A thread alone never makes the combiner contended (its waits never yield the GIL); a
+    call that queues does, until ``CONTENDED_POSTS`` posts have gone by."""
+    from daemon.planning.cuda.combine import CONTENDED_POSTS
+
+    dev = FakeDevice()
+    c = Combiner(dev.post, lambda: 16, key)
+    for k in range(3):
+        c.call(("u", k))
+    assert not c.contended
+    dev.gate.clear()
+    out: dict = {}
+    threads = [call_in_thread(c, ("u", 0), out)]
+    assert dev.entered.wait(5)
+    threads.append(call_in_thread(c, ("u", 1), out))
+    queued(c, 1)
+    assert c.contended
+    dev.gate.set()
+    for t in threads:
+        t.join(5)
+    alone = 0
+    while c.contended:
+        c.call(("u", alone))
+        alone += 1
+    # the queued call's own post counts as one of them
+    assert alone == CONTENDED_POSTS - 1
