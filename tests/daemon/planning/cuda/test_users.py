@@ -174,11 +174,15 @@ def test_the_backends_planners_are_batched_where_the_device_serves_their_map(_fr
         batch_step(users)
 
 
-def test_planners_stepped_from_their_own_threads_at_once_share_posts_and_stay_exact(_fresh_loop):
+def test_planners_stepped_from_their_own_threads_at_once_share_posts_and_stay_exact(
+    _fresh_loop, monkeypatch
+):
     """As the daemon steps its users: each planner on a thread of its own, all released
     together each round. The steps combine into shared posts (``combine.py``); every path is
     the reference Dijkstra's and the CPU planner's, every field Dijkstra's. A delta outside
-    its map fails that thread's step alone, and no thread is left behind."""
+    its map fails that thread's step alone, and no thread is left behind. The combiner starts
+    contended, as once calls have queued (a daemon under load): its waits let the other
+    threads in to queue (``test_combine.py`` covers how it becomes so)."""
     import threading
 
     from daemon.planning.cuda import posting
@@ -191,6 +195,7 @@ def test_planners_stepped_from_their_own_threads_at_once_share_posts_and_stay_ex
         cpu.plan(u.truth, u.goal)
     before = set(threading.enumerate())
     posts, calls = posting.STEPS.posts, posting.STEPS.calls
+    monkeypatch.setattr(posting.STEPS, "_queued_at", posts)
     barrier = threading.Barrier(len(users))
     refused: list[BaseException] = []
     failures: list[BaseException] = []
