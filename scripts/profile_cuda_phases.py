@@ -145,22 +145,25 @@ def recording(log: CallLog) -> Callable[[], None]:
 
 def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
     """One walk's calls. ``mode``: ``eds``, ``eds-unfocused`` (every call settles the whole
-    field) or ``dss``, with ``:RATE`` for another cut-over rate (``planner.CUT_OVER``)."""
+    field) or ``dss``, with ``:RATE`` for another cut-over rate (``planner.CUT_OVER``) and
+    ``:RATE:AREA`` for another least limit too (``planner.CUT_OVER_AREA``)."""
     from sim.benchmark import settle_heap
     from sim.walk import walk
 
-    name, _, rate = mode.partition(":")
+    name, _, limits = mode.partition(":")
+    rate, _, area = limits.partition(":")
     log = CallLog()
     undo = recording(log)
-    focused, cut_over = planner.FOCUSED, planner.CUT_OVER
+    focused, cut_over, cut_area = planner.FOCUSED, planner.CUT_OVER, planner.CUT_OVER_AREA
     planner.FOCUSED = name != "eds-unfocused"
     planner.CUT_OVER = float(rate) if rate else cut_over
+    planner.CUT_OVER_AREA = float(area) if area else cut_area
     try:
         settle_heap()
         walk(scenario, backend="cuda", mode=name.split("-")[0], max_steps=max_steps)
     finally:
         undo()
-        planner.FOCUSED, planner.CUT_OVER = focused, cut_over
+        planner.FOCUSED, planner.CUT_OVER, planner.CUT_OVER_AREA = focused, cut_over, cut_area
     return log
 
 

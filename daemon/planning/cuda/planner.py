@@ -75,6 +75,16 @@ planner is made, so a benchmark can try another."""
 CUT_OVER_AREA = 0.001
 """The least limit of an EDS repair's raise, as a share of the map's cells (see ``CUT_OVER``):
 4,000 cells at 2000², the limit measured best there; below ``CUT_OVER * (h + w)`` up to 1000²."""
+DELTA_ROOM = 1 / 16
+"""The share of a new map's cells that its stage (the mailbox) and params buffer have room
+for, at least ``DELTA_ROOM_MIN`` cells and at most all of them. A delta beyond the room moves
+the stage, which stops the resident loop, allocates page-locked memory and launches the loop
+again: when the room was 1,024 cells, the few steps of a walk whose delta passed each doubling
+(a wall seen whole, 1,000-9,000 cells at 400²) were its slowest, 0.3-0.6 ms, and made the p99
+(scripts/profile_cuda_phases.py, H100: 155 µs before the post, against 17 in a median call).
+The largest deltas of the benchmark's walks stay inside it: ~9,000 cells at 400² (room
+10,000), 30,000 at 2000² (room 250,000: 2.3 MB of page-locked memory)."""
+DELTA_ROOM_MIN = 4096
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
 settles the whole field, as before the focused repair. Read when a planner is made, so a
@@ -169,7 +179,9 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._ctrl = self._io[: abi.IO_PATH].view(np.uint32)
         self._path_d = self._io[abi.IO_PATH :]
         self._io_host.reserve(abi.IO_PATH + 2 + 2 * self._path_cap)
-        self._set_params_size(abi.PARAMS + 1024)
+        room = int(min(n, max(DELTA_ROOM_MIN, DELTA_ROOM * n)))
+        self._stage.reserve(abi.PARAMS + 4 * ((9 * room + 15) // 16))  # as _call_fast stages
+        self._set_params_size(abi.PARAMS + room)
         tiles = -(-h // abi.TILE) * -(-w // abi.TILE)
         # Path by tile jumps (path_exits.cuh): the border exits of every tile, kept between
         # steps (fast.cu recomputes only stale tiles), and the segments of one extraction.
