@@ -79,11 +79,12 @@ DELTA_ROOM = 1 / 16
 """The share of a new map's cells that its stage (the mailbox) and params buffer have room
 for, at least ``DELTA_ROOM_MIN`` cells and at most all of them. A delta beyond the room moves
 the stage, which stops the resident loop, allocates page-locked memory and launches the loop
-again: when the room was 1,024 cells, the few steps of a walk whose delta passed each doubling
-(a wall seen whole, 1,000-9,000 cells at 400²) were its slowest, 0.3-0.6 ms, and made the p99
-(scripts/profile_cuda_phases.py, H100: 155 µs before the post, against 17 in a median call).
-The largest deltas of the benchmark's walks stay inside it: ~9,000 cells at 400² (room
-10,000), 30,000 at 2000² (room 250,000: 2.3 MB of page-locked memory)."""
+again. With room for 1,024 cells, the steps whose delta passed a doubling (a wall seen whole:
+1,000-9,000 cells at 400²) were a walk's slowest: the calls at or above the p99 of a 400²
+courtyard walk spent 155 µs before the post, against 17 in a median call, and the bench's
+worst step was 0.74 ms; with this room 18.5 µs and 0.27 ms (H100, scripts/profile_cuda_phases.py
+and guidebelt bench, 2026-11-26). The benchmark's largest deltas stay inside it: ~9,000 cells
+at 400² (room 10,000), 30,000 at 2000² (room 250,000: 2.3 MB of page-locked memory)."""
 DELTA_ROOM_MIN = 4096
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
