@@ -81,10 +81,11 @@ for, at least ``DELTA_ROOM_MIN`` cells and at most all of them. A delta beyond t
 the stage, which stops the resident loop, allocates page-locked memory and launches the loop
 again. With room for 1,024 cells, the steps whose delta passed a doubling (a wall seen whole:
 1,000-9,000 cells at 400²) were a walk's slowest: the calls at or above the p99 of a 400²
-courtyard walk spent 155 µs before the post, against 17 in a median call, and the bench's
-worst step was 0.74 ms; with this room 18.5 µs and 0.27 ms (H100, scripts/profile_cuda_phases.py
-and guidebelt bench, 2026-11-26). The benchmark's largest deltas stay inside it: ~9,000 cells
-at 400² (room 10,000), 30,000 at 2000² (room 250,000: 2.3 MB of page-locked memory)."""
+courtyard walk spent 155 µs before the post, against 17 over all calls, and the bench's
+worst step was 0.59-0.77 ms; with this room 18.5 µs and 0.26-0.46 ms (H100, three runs,
+scripts/profile_cuda_phases.py and guidebelt bench, 2026-11-26; the p99, a cut-over's device
+work, did not move beyond the runs' spread). The benchmark's largest deltas stay inside it:
+~9,000 cells at 400² (room 10,000), 30,000 at 2000² (room 250,000: 2.3 MB page-locked)."""
 DELTA_ROOM_MIN = 4096
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
