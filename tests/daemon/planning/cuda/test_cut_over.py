@@ -94,6 +94,6 @@ def test_a_cut_over_keeps_the_field_between_the_goal_and_the_change():
     g = dijkstra_field(truth, goal)
     assert eds.cut_cells > eds.cut_over
     assert np.array_equal(path, reference_path(g, truth, user))
-    assert full.expansions >= n * n - wall.size  # from scratch: every free cell
-    assert stats.expansions < n * n // 2  # kept: the rows between goal and wall
+    assert full.cells_touched >= n * n - wall.size  # from scratch: every free cell
+    assert stats.cells_touched < n * n // 2  # kept: the rows between goal and wall
     np.testing.assert_array_equal(eds.costs(), g)
