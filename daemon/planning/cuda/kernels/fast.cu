@@ -16,9 +16,9 @@
 // round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
-// whole shadow behind it), or whose raise still spreads after RAISE_ROUNDS rounds, gives up
-// the repair at the end of that round: raising and re-lowering that many cells costs more
-// than a plan from the goal (the CPU's rule, cpu/dial.py). It keeps every cell whose old g lies below the least g the change can reach
+// whole shadow behind it) gives up the repair at the end of that round: raising and
+// re-lowering that many cells costs more than a plan from the goal (the CPU's rule,
+// cpu/dial.py). It keeps every cell whose old g lies below the least g the change can reach
 // and relaxes from there (cut_over.cuh), not from the goal. The raised cells are counted as
 // they are raised, into ctrl[C_RAISED]; the visit that passes the limit sets CUT_PENDING in
 // the round's flag count, which every block reads after the round's barrier anyway, so the
@@ -69,11 +69,6 @@
 // ctrl and io words: abi.cuh (generated from cuda/abi.py).
 
 #define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
-// Raise rounds before the repair is given up although the limit is not reached: a raise
-// still spreading after this many rounds (one ring of tiles each) is a shadow that mostly ends
-// in a cut-over anyway, and the rounds it would spend reaching the limit were the largest part
-// of the p99 step (39-58 µs at 400², H100) that the cut-over then threw away.
-#define RAISE_ROUNDS 3
 
 // The relaxation without rounds. *work is the sum of the flags' counts, set or taken
 // by a visit under way (a block uncounts what it took after its visits have flagged their
@@ -273,13 +268,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
     if (mode == MODE_EDS) {
-        // A planner whose limit is the whole map never gives up (the tests' pure repair).
-        const int cap = limit >= (unsigned)(h * w) ? 0x7fffffff : RAISE_ROUNDS;
         while (pending && !(pending & CUT_PENDING)) {
-            if (r > cap) {  // the same r and pending in every block: the same decision
-                pending |= CUT_PENDING;
-                break;
-            }
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
                                 ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
             ++r;
