@@ -13,13 +13,15 @@ calls at or above the p99 spent in each phase: the answer to "which steps make t
 from __future__ import annotations
 
 import argparse
+import gc
 import json
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from daemon.planning.cuda import abi, planner
+from daemon.planning.cuda import abi, planner, resident
 
 STAMP_PHASES = ("take", "delta", "raise", "reset", "relax", "exits", "hops", "walk")
 """The phases between stamps 8, 0, 1, ..., 7: the loop's block 0 takes the posted delta from
@@ -27,6 +29,10 @@ host memory and publishes the call, the delta applied (round 0), the raise round
 round (or the cut-over's clearing), the relaxation, the path's tile exits, the hops, the
 segments walked and the result copied. A call without a path stamps ``exits`` and ``hops``
 as empty. The host's share is the call's own time less these."""
+HOST_PARTS = ("pre", "wait", "post", "gc")
+"""The host's clock around the call: its start to the post into the loop's box, the post to
+the done word seen, the done word to the call's return; and the garbage collector's time
+inside the call (``gc.callbacks``)."""
 
 
 @dataclass
@@ -42,8 +48,11 @@ class CallLog:
     rounds: list[int] = field(default_factory=list)
     tiles: list[int] = field(default_factory=list)
     exit_tiles: list[int] = field(default_factory=list)
+    host_us: list[np.ndarray] = field(default_factory=list)
+    """Per call: before the post, the post to the done word seen, after it, and the time the
+    interpreter's garbage collector ran inside the call (µs)."""
 
-    def add(self, planner, ms: float, cells: int, launched: int) -> None:
+    def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 4) -> None:
         stamps = planner._io_host.array[abi.C_STAMP : abi.C_STAMP + 9].view(np.uint32)
         stamps = np.concatenate([stamps[8:], stamps[:8]])
         # differences of the low 32 bits of a ns timer: exact across a wrap
@@ -56,12 +65,14 @@ class CallLog:
         self.rounds.append(int(planner._result[abi.C_ROUNDS]))
         self.tiles.append(int(planner.tiles))
         self.exit_tiles.append(int(planner.exit_tiles))
+        self.host_us.append(np.asarray(host_us, np.float64))
 
     def summary(self) -> dict:
         """Median, p99, max of the own time; mean phases, host share and statistics of all
         calls and of the calls at or above the p99."""
         ms = np.asarray(self.ms)
         ph = np.stack(self.phases_us)
+        hs = np.stack(self.host_us)
         p99 = float(np.percentile(ms, 99))
         out: dict = {
             "calls": int(ms.size),
@@ -77,6 +88,8 @@ class CallLog:
                 "ms": float(ms[sel].mean()),
                 "host_us": float((ms[sel] * 1e3 - device_us).mean()),
                 **{f"{p}_us": float(ph[sel, i].mean()) for i, p in enumerate(STAMP_PHASES)},
+                **{f"{p}_us": float(hs[sel, i].mean()) for i, p in enumerate(HOST_PARTS)},
+                "gc_calls": int((hs[sel, 3] > 0).sum()),
                 **{
                     k: float(np.asarray(getattr(self, k))[sel].mean())
                     for k in ("cut", "cells", "launches", "raised", "rounds", "tiles", "exit_tiles")
@@ -87,43 +100,70 @@ class CallLog:
 
 def recording(log: CallLog) -> Callable[[], None]:
     """Record every ``CudaPlanner.update_and_path`` into ``log``; returns the undo."""
-    CudaPlanner = planner.CudaPlanner
-    original = CudaPlanner.update_and_path
+    CudaPlanner, Loop = planner.CudaPlanner, resident.ResidentLoop
+    original, post, wait = CudaPlanner.update_and_path, Loop.post, Loop.wait
+    clock: dict[str, float] = {"post": 0.0, "done": 0.0, "gc": 0.0, "gc_at": 0.0}
+
+    def timed_post(self, slot, n_delta):
+        clock["post"] = time.perf_counter()
+        post(self, slot, n_delta)
+
+    def timed_wait(self, io, seq):
+        wait(self, io, seq)
+        clock["done"] = time.perf_counter()
+
+    def collector(phase: str, info: dict) -> None:
+        if phase == "start":
+            clock["gc_at"] = time.perf_counter()
+        else:
+            clock["gc"] += time.perf_counter() - clock["gc_at"]
 
     def update_and_path(self, cells, blocked, start):
         before = self._loop.launches if self._loop is not None else 0
+        clock["gc"] = 0.0
+        t0 = time.perf_counter()
         stats, path = original(self, cells, blocked, start)
+        t1 = time.perf_counter()
         if self.variant == "fast":
             launched = self._loop.launches - before if self._loop is not None else 0
-            log.add(self, stats.ms, int(np.size(cells)), launched)
+            parts = (clock["post"] - t0, clock["done"] - clock["post"], t1 - clock["done"])
+            host = tuple(1e6 * v for v in (*parts, clock["gc"]))
+            log.add(self, stats.ms, int(np.size(cells)), launched, host)
         return stats, path
 
     CudaPlanner.update_and_path = update_and_path  # type: ignore[method-assign]
+    Loop.post, Loop.wait = timed_post, timed_wait  # type: ignore[method-assign]
+    gc.callbacks.append(collector)
 
     def undo() -> None:
         CudaPlanner.update_and_path = original  # type: ignore[method-assign]
+        Loop.post, Loop.wait = post, wait  # type: ignore[method-assign]
+        gc.callbacks.remove(collector)
 
     return undo
 
 
 def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
     """One walk's calls. ``mode``: ``eds``, ``eds-unfocused`` (every call settles the whole
-    field) or ``dss``, with ``:RATE`` for another cut-over rate (``planner.CUT_OVER``)."""
+    field) or ``dss``, with ``:RATE`` for another cut-over rate (``planner.CUT_OVER``) and
+    ``:RATE:AREA`` for another least limit too (``planner.CUT_OVER_AREA``)."""
     from sim.benchmark import settle_heap
     from sim.walk import walk
 
-    name, _, rate = mode.partition(":")
+    name, _, limits = mode.partition(":")
+    rate, _, area = limits.partition(":")
     log = CallLog()
     undo = recording(log)
-    focused, cut_over = planner.FOCUSED, planner.CUT_OVER
+    focused, cut_over, cut_area = planner.FOCUSED, planner.CUT_OVER, planner.CUT_OVER_AREA
     planner.FOCUSED = name != "eds-unfocused"
     planner.CUT_OVER = float(rate) if rate else cut_over
+    planner.CUT_OVER_AREA = float(area) if area else cut_area
     try:
         settle_heap()
         walk(scenario, backend="cuda", mode=name.split("-")[0], max_steps=max_steps)
     finally:
         undo()
-        planner.FOCUSED, planner.CUT_OVER = focused, cut_over
+        planner.FOCUSED, planner.CUT_OVER, planner.CUT_OVER_AREA = focused, cut_over, cut_area
     return log
 
 
@@ -147,6 +187,8 @@ def main(argv: list[str] | None = None) -> None:
         "ms",
         "host_us",
         *(f"{p}_us" for p in STAMP_PHASES),
+        *(f"{p}_us" for p in HOST_PARTS),
+        "gc_calls",
         "cut",
         "cells",
         "launches",

@@ -78,6 +78,9 @@ kernels' give-up bit, fast.cu's CUT_PENDING)."""
 C_CUT = 5
 """EDS: the cells raised when the call gave up its repair for a plan from scratch (0: it did
 not; ``C_RAISED`` is then 0)."""
+C_KEEP = 6
+"""EDS cut-over: ``INF`` minus the level below which the old field is kept (``cut_over.cuh``;
+0: no bound yet). Zeroed by the call's last block."""
 C_EXITS = 7
 """Tiles whose path exits were recomputed."""
 C_ROUNDS = 8
@@ -146,7 +149,7 @@ _WORDS = (
     "PARAM_USED", "PARAMS",
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
-    "C_BAR", "C_CNT", "C_CUT", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
+    "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
     "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
     "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",

@@ -20,9 +20,11 @@ superset); then raised and newly freed cells are re-seeded from their neighbours
 everything is relaxed until nothing changes. Every value is an integer path cost, so the
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
 As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` cells (a
-wall across the route raises the whole shadow behind it) and the same call computes the field
-from scratch, as DSS does: the device decides at the end of a raise round, with no host round
-trip (``fast.cu``); ``cut_cells`` tells whether the last call did.
+wall across the route raises the whole shadow behind it): the device decides at the end of a
+raise round, with no host round trip (``fast.cu``), and the same call keeps every cell whose
+old g lies below the least g the change can reach and relaxes the rest from there
+(``kernels/cut_over.cuh``, LPA*'s rule), instead of from the goal; ``cut_cells`` tells
+whether the last call gave up.
 
 ``fast``'s EDS repair is focused on the user (LPA*'s and D* Lite's keys g + h(user, ·), per
 32 x 32 tile, ``fast.cu``'s header): a walking step settles the tiles between the user and the
@@ -61,7 +63,7 @@ PATH_THREADS = 128
 """Threads of a path_tiles block (its __launch_bounds__)."""
 CUT_OVER = 0.5
 """How many cells an EDS repair (``fast``) may raise per row and column of the map before the
-call computes the field from scratch instead: the limit is ``CUT_OVER * (h + w)`` cells, or
+call gives the repair up (the cut-over, cut_over.cuh): the limit is ``CUT_OVER * (h + w)`` cells, or
 ``CUT_OVER_AREA`` of the cells where that is more. f8e1984 measured the side rule (a plan from
 scratch costs about as many tile visits in a row as the map is tiles across, a raise about as
 many as the cells it raises) at 1.0, before the repair was focused. With the focused repair
@@ -70,11 +72,25 @@ so does the plan from scratch it gives up for), and the planner's own time per c
 with scripts/profile_cuda_phases.py on one H100, put the best limit lower
 at 400² and 1000² but not at 2000²: 0.5 cut p99 by 3-13 % at 400² and 1000² in every scenario
 (courtyard, explore, building, streets) with median and walk time within noise, while at 2000²
-it made half the steps plans from scratch (median 0.28 -> 0.70 ms, walk +16 %). Read when a
-planner is made, so a benchmark can try another."""
+it made half the steps plans from scratch (median 0.28 -> 0.70 ms, walk +16 %). Since the
+cut-over keeps the field below the change (cut_over.cuh) it costs less, and 0.25 cut the 400²
+p99 by another 9-12 % but raised the 1000² median and walk (H100, one run each); 0.5 stays.
+Read when a planner is made, so a benchmark can try another."""
 CUT_OVER_AREA = 0.001
 """The least limit of an EDS repair's raise, as a share of the map's cells (see ``CUT_OVER``):
 4,000 cells at 2000², the limit measured best there; below ``CUT_OVER * (h + w)`` up to 1000²."""
+DELTA_ROOM = 1 / 16
+"""The share of a new map's cells that its stage (the mailbox) and params buffer have room
+for, at least ``DELTA_ROOM_MIN`` cells and at most all of them. A delta beyond the room moves
+the stage, which stops the resident loop, allocates page-locked memory and launches the loop
+again. With room for 1,024 cells, the steps whose delta passed a doubling (a wall seen whole:
+1,000-9,000 cells at 400²) were a walk's slowest: the calls at or above the p99 of a 400²
+courtyard walk spent 155 µs before the post, against 17 over all calls, and the bench's
+worst step was 0.59-0.77 ms; with this room 18.5 µs and 0.26-0.46 ms (H100, three runs,
+scripts/profile_cuda_phases.py and guidebelt bench, 2026-11-26; the p99, a cut-over's device
+work, did not move beyond the runs' spread). The benchmark's largest deltas stay inside it:
+~9,000 cells at 400² (room 10,000), 30,000 at 2000² (room 250,000: 2.3 MB page-locked)."""
+DELTA_ROOM_MIN = 4096
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
 settles the whole field, as before the focused repair. Read when a planner is made, so a
@@ -88,7 +104,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
     reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
     ``cut_over`` (``fast``): the cells an EDS repair may raise per row and column of the map
-    before the call computes the field from scratch instead (default ``CUT_OVER``;
+    before the call gives the repair up and relaxes from below the change (default ``CUT_OVER``;
     ``math.inf``: never). ``focused`` (``fast`` EDS, default ``FOCUSED``): a walking step's
     repair settles only what the user's path needs and defers the rest (``settle``).
     """
@@ -132,7 +148,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._slot = 0  # paper: which flag_stop slot the next launch writes
         # fast, last call: in-tile sweeps summed over tiles, cells raised to INF, tiles run,
         # tiles whose path exits were recomputed (update_and_path; the rest were reused), and
-        # the cells raised when the repair gave up for a plan from scratch (0: it did not).
+        # the cells raised when the repair gave up (cut over; 0: it did not).
         self.sweeps = self.raised_cells = self.tiles = self.exit_tiles = self.cut_cells = 0
         # The cell the last EDS path was read from (a step with no path read stays focused on
         # it; -1: none), and whether a focused call may have deferred tiles since the last
@@ -169,7 +185,9 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._ctrl = self._io[: abi.IO_PATH].view(np.uint32)
         self._path_d = self._io[abi.IO_PATH :]
         self._io_host.reserve(abi.IO_PATH + 2 + 2 * self._path_cap)
-        self._set_params_size(abi.PARAMS + 1024)
+        room = int(min(n, max(DELTA_ROOM_MIN, DELTA_ROOM * n)))
+        self._stage.reserve(abi.PARAMS + 4 * ((9 * room + 15) // 16))  # as _call_fast stages
+        self._set_params_size(abi.PARAMS + room)
         tiles = -(-h // abi.TILE) * -(-w // abi.TILE)
         # Path by tile jumps (path_exits.cuh): the border exits of every tile, kept between
         # steps (fast.cu recomputes only stale tiles), and the segments of one extraction.

@@ -25,6 +25,7 @@
 #define C_BAR 0
 #define C_CNT 2
 #define C_CUT 5
+#define C_KEEP 6
 #define C_EXITS 7
 #define C_ROUNDS 8
 #define C_TILES 9

@@ -16,9 +16,10 @@
 // a grid-wide round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
-// whole shadow behind it) gives up the repair at the end of that round and computes the
-// field from scratch, as a DSS call does: raising and re-lowering that many cells costs more
-// than a plan from the goal (the CPU's rule, cpu/dial.py). The raised cells are counted as
+// whole shadow behind it) gives up the repair at the end of that round: raising and
+// re-lowering that many cells costs more than a plan from the goal (the CPU's rule,
+// cpu/dial.py). It keeps every cell whose old g lies below the least g the change can reach
+// and relaxes from there (cut_over.cuh), not from the goal. The raised cells are counted as
 // they are raised, into ctrl[C_RAISED]; the visit that passes the limit sets CUT_PENDING in
 // the round's flag count, which every block reads after the round's barrier anyway, so the
 // decision is the same in every block and costs no extra barrier or host round trip.
@@ -40,7 +41,8 @@
 // a call with focus < 0 (settle: costs(), cost_at()) takes them all back. Cells of deferred
 // tiles hold upper bounds (costs of real paths) that can exceed a neighbour's g + c: the raise
 // counts such a neighbour as a support (raise_tile), so no cost is ever under its true value.
-// A plan from scratch (DSS, or the cut-over) clears every deferral; DSS is never focused.
+// A plan from scratch (DSS) and the cut-over (cut_over.cuh) clear every deferral; DSS is never
+// focused.
 //
 // With start >= 0 the call then extracts the path from `start` (path_exits.cuh), reusing
 // the exits of every tile whose g and halo did not change since the last extraction.
@@ -61,7 +63,8 @@
 
 #include "tile_relax.cuh"
 #include "path_exits.cuh"
-#include "rounds.cuh"  // the EDS step's grid-wide rounds, the cut-over
+#include "rounds.cuh"  // the EDS step's grid-wide rounds
+#include "cut_over.cuh"
 
 // ctrl and io words: abi.cuh (generated from cuda/abi.py).
 
@@ -148,7 +151,8 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 //   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
-//   Past `limit` raised cells: as MODE_DSS from there on (give_up_repair).
+//   Past `limit` raised cells: the cells the change cannot reach keep their g, the others
+//   take INF, and the relaxation goes on from there (keep_below_change, cut_over.cuh).
 //   focus >= 0 (EDS): the relaxation is focused on that cell (see the header).
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
 // params: device memory, the PARAM_* words; delta[i] = cell * 2 + new_blocked,
@@ -271,8 +275,9 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         }
         stamp(ctrl, 2);
         if (pending & CUT_PENDING) {
-            give_up_repair(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
-                           ctrl + C_CNT + (r + 1) % 3, seeds, stale, deferred, lb, ctrl, &bar);
+            keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
+                              (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
+                              deferred, lb, ctrl, &bar);
         } else {
             // The focus's g after the reset: the raise is over (its last barrier) and the
             // reset round lowers nothing.
@@ -334,6 +339,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
             ctrl[C_EXITS] = 0;
             ctrl[C_CUT] = 0;
+            ctrl[C_KEEP] = 0;
             for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
             ctrl[C_BASE] = bar;
         }

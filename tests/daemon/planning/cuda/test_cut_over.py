@@ -71,3 +71,29 @@ def test_a_big_raise_cuts_over_and_a_small_change_stays_a_repair():
     assert eds.cut_cells == 0 and eds.raised_cells == 0
     change(wall[::2], False)
     assert eds.cut_cells == 0
+
+
+@pytest.mark.timeout(60)
+def test_a_cut_over_keeps_the_field_between_the_goal_and_the_change():
+    """A wall across the far side of the map cuts over; the cells nearer the goal than any
+    wall cell keep their g (cut_over.cuh), so the relaxation lowers the wall's shadow, not the
+    whole map as a plan from scratch does; path, field and settle stay exact."""
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    n = 256
+    truth = np.zeros((n, n), bool)
+    goal, user = (5, 128), (250, 5)
+    eds, dss = CudaPlanner("fast"), CudaPlanner("fast", dss=True)
+    for p in (eds, dss):
+        p.plan(truth, goal)
+    wall = np.arange(200 * n, 200 * n + n - 1)  # open only at the east edge
+    truth.reshape(-1)[wall] = True
+    values = np.ones(wall.size, bool)
+    stats, path = eds.update_and_path(wall, values, user)
+    full, _ = dss.update_and_path(wall, values, user)
+    g = dijkstra_field(truth, goal)
+    assert eds.cut_cells > eds.cut_over
+    assert np.array_equal(path, reference_path(g, truth, user))
+    assert full.cells_touched >= n * n - wall.size  # from scratch: every free cell
+    assert stats.cells_touched < n * n // 2  # kept: the rows between goal and wall
+    np.testing.assert_array_equal(eds.costs(), g)

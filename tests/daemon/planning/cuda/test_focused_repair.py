@@ -73,10 +73,11 @@ def walks(draw):
 
 
 def draw_delta(data, truth: np.ndarray, walls: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """A wall across the map (with or without a gap), a wall reopened, or a box, set or
-    cleared: changes that raise or lower regions far from the user as well as near."""
+    """A wall across the map (with or without a gap), a wall reopened, or a box, set,
+    cleared or mixed (some cells freed, some blocked in one delta, as a sensor sweep reports
+    them): changes that raise or lower regions far from the user as well as near."""
     h, w = truth.shape
-    kind = data.draw(st.sampled_from(["wall", "reopen", "box"]), label="kind")
+    kind = data.draw(st.sampled_from(["wall", "reopen", "box", "mixed"]), label="kind")
     if kind == "reopen" and walls:
         cells = walls.pop(data.draw(st.integers(0, len(walls) - 1), label="which"))
         return cells, np.zeros(cells.size, bool)
@@ -91,20 +92,26 @@ def draw_delta(data, truth: np.ndarray, walls: list[np.ndarray]) -> tuple[np.nda
     r0, c0 = data.draw(st.integers(0, h - 1)), data.draw(st.integers(0, w - 1))
     rr, cc = np.mgrid[r0 : min(h, r0 + 12), c0 : min(w, c0 + 12)]
     cells = (rr * w + cc).ravel()
+    if kind == "mixed":
+        seed = data.draw(st.integers(0, 2**32 - 1), label="mix")
+        return cells, np.random.default_rng(seed).random(cells.size) < 0.5
     return cells, np.full(cells.size, data.draw(st.booleans(), label="block"))
 
 
 @pytest.mark.timeout(300)
+@pytest.mark.parametrize("cut_over", [None, 0.0], ids=["default", "always_cut"])
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(world=walks(), data=st.data())
-def test_every_step_reads_the_reference_path_and_the_field_settles_exact(world, data):
+def test_every_step_reads_the_reference_path_and_the_field_settles_exact(cut_over, world, data):
     """A walk of focused steps: after each delta the path read is the reference path tie
     for tie and costs the user's exact g; now and then a step reads no path (``update``, still
-    focused on the last user cell) or a path from elsewhere; at the end ``costs()`` is exact."""
+    focused on the last user cell) or a path from elsewhere; at the end ``costs()`` is exact.
+    ``always_cut``: a limit of a few cells, so nearly every raising step gives the repair up
+    and keeps only the old field below the change (cut_over.cuh), deferred tiles and all."""
     from daemon.planning.cuda.planner import CudaPlanner
 
     truth, goal, user = world
-    eds = CudaPlanner("fast")
+    eds = CudaPlanner("fast", cut_over=cut_over)
     eds.plan(truth, goal)
     walls: list[np.ndarray] = []
     for _ in range(data.draw(st.integers(1, 8), label="steps")):

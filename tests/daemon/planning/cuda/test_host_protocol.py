@@ -191,30 +191,44 @@ def test_a_cell_outside_the_map_is_refused_whole(cuda, bad):
 
 
 @pytest.mark.timeout(60)
-def test_a_delta_larger_than_the_mailbox_grows_it_and_restarts_the_loop(cuda):
-    """The mailbox and the loop's params buffer grow for a large delta (the loop, which polls
-    the mailbox, is stopped and a new one serves); a new map then shrinks the params buffer
-    while the mailbox stays large, and a large delta grows the params buffer again."""
-    ck = abi
-    rng, blocked, goal = world(3, shape=(60, 60))
+def test_a_new_map_has_room_for_large_deltas_and_a_larger_one_grows_it(cuda, monkeypatch):
+    """A new map's mailbox and params buffer hold a delta of ``DELTA_ROOM`` of its cells: the
+    growing deltas of a walk (a wall seen whole) are served by the loop that served the first
+    step, where each doubling used to stop it and start another. A delta beyond the room
+    grows them (the loop, which polls the mailbox, is stopped and a new one serves); a new map
+    sizes the params buffer for itself while the mailbox stays large. (A floor of 64 cells
+    instead of thousands: the rule at a map size the model's Dijkstra serves quickly.)"""
+    ck, planner = abi, cuda.planner
+    monkeypatch.setattr(planner, "DELTA_ROOM_MIN", 64)
+    shape = (60, 80)
+    room = int(planner.DELTA_ROOM * shape[0] * shape[1])
+    assert room > planner.DELTA_ROOM_MIN  # the share decides here, not the floor
+    rng, blocked, goal = world(3, shape=shape)
     p, model = made(cuda, dss=True)
     p.plan(blocked, goal)
     truth = blocked.copy()
-    loops = model.loops
-    for size in (10, 700, 2500, 3500):
-        cells, values = patch(rng, blocked.shape, size)
+
+    def step(size: int) -> None:
+        cells, values = patch(rng, shape, size)
         truth.reshape(-1)[cells] = values
-        _, path = p.update_and_path(cells, values, (50, 50))
+        _, path = p.update_and_path(cells, values, (50, 70))
         assert p._params.size >= ck.PARAMS + size
         assert p._stage.count >= ck.PARAMS + 4 * ((9 * size + 15) // 16)
-        assert np.array_equal(path, reference_path(dijkstra_field(truth, goal), truth, (50, 50)))
-    assert model.loops > loops
-    small = np.zeros((40, 40), dtype=bool)
+        ref = reference_path(dijkstra_field(truth, goal), truth, (50, 70))
+        assert np.array_equal(path, ref)
+
+    step(10)
+    loops = model.loops
+    for size in (40, 90, 200, room):
+        step(size)
+    assert model.loops == loops  # no stop, no new loop
+    step(room + 1)
+    assert model.loops == loops + 1
+    small = np.zeros((8, 8), dtype=bool)
     p.plan(small, (0, 0))
-    assert p._params.size < ck.PARAMS + 1500 < p._stage.count
-    cells, values = patch(rng, small.shape, 1500)
+    assert p._params.size == ck.PARAMS + 8 * 8 < p._stage.count  # room for every cell
+    cells, values = patch(rng, small.shape, 30)
     values[cells == 0] = False  # the goal stays free
     small.reshape(-1)[cells] = values
-    _, path = p.update_and_path(cells, values, (39, 39))
-    assert p._params.size >= ck.PARAMS + 1500
-    assert np.array_equal(path, reference_path(dijkstra_field(small, (0, 0)), small, (39, 39)))
+    _, path = p.update_and_path(cells, values, (7, 7))
+    assert np.array_equal(path, reference_path(dijkstra_field(small, (0, 0)), small, (7, 7)))
