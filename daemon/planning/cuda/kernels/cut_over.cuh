@@ -35,16 +35,16 @@
 #pragma once
 #include "rounds.cuh"
 
-// Every block, after the raise round that passed the limit. delta/ndelta: the call's delta
-// (cell * 2 + blocked). left, dirty, cnt, seeds, stale, deferred, lb as rounds.cuh's
-// give_up_repair: the flags the last raise round left, the flags the relaxation takes and
-// their count (zero), the tiles of the changed cells. Two grid barriers: the level, then the
-// reset.
+// Every block of the call's group, after the raise round that passed the limit. delta/ndelta:
+// the call's delta (cell * 2 + blocked). left: the flags the last raise round left; dirty, cnt:
+// the flags the relaxation takes and their count (zero); seeds: the tiles of the changed
+// cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words. Two
+// group barriers: the level, then the reset.
 __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, const int* delta,
                                   int ndelta, unsigned* left, unsigned* dirty, unsigned* cnt,
                                   unsigned* seeds, unsigned* stale, unsigned* deferred, int* lb,
                                   unsigned* ctrl, unsigned* bar) {
-    const int tid = blockIdx.x * THREADS + threadIdx.x, stride = gridDim.x * THREADS;
+    const int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     int low = INF;
     for (int i = tid; i < ndelta; i += stride) {
         int code = __ldcv(delta + i);
@@ -70,7 +70,7 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
     grid_barrier(ctrl, bar);
 
     const int level = INF - (int)__ldcg(ctrl + C_KEEP);
-    for (int t = blockIdx.x; t < G.ntiles; t += gridDim.x) {
+    for (int t = GBLOCK; t < G.ntiles; t += GSIZE) {
         const TileCell c = tile_cell(G, t);
         bool reset = false;
         if (c.inside) {

@@ -110,34 +110,3 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
     grid_barrier(ctrl, bar);
     return *((volatile unsigned*)cnt_next);
 }
-
-// EDS: the raise passed the limit (CUT_PENDING) in the round before round r. Give the repair
-// up for a plan from scratch, as MODE_DSS: g = INF and no cell raised anywhere, the flags that
-// round left for a next one (`left`) and the seeds dropped, every tile's exits stale, and the
-// goal flagged for the relaxation where the reset round would have flagged its tiles (`dirty`,
-// the flags that round took, all zero now, and its count `cnt`, which it zeroed). The raised
-// count moves to ctrl[C_CUT]: the call is then a plan from scratch, its statistics too.
-__device__ void give_up_repair(const Grid& G, int* g, unsigned char* raised, unsigned* left,
-                               unsigned* dirty, unsigned* cnt, unsigned* seeds,
-                               unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
-                               unsigned* bar) {
-    int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
-    for (int i = tid; i < G.h * G.w; i += stride) {
-        g[i] = INF;
-        raised[i] = 0;
-    }
-    for (int i = tid; i < G.ntiles; i += stride) {
-        left[i] = 0u;
-        seeds[i] = 0u;
-        stale[i] = 1u;
-        deferred[i] = 0u;
-        lb[i] = INF;
-    }
-    if (tid == 0) {
-        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
-        ctrl[C_RAISED] = 0u;
-        ctrl[C_ROUNDS] += 1;
-        if (G.goal >= 0) flag_tile(dirty, cnt, tile_of(G.goal, G.w, G.tiles_x));
-    }
-    grid_barrier(ctrl, bar);
-}
