@@ -90,7 +90,6 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
                      on_step=note)  # fmt: skip
             changed = r.changed > 0
-            filled = filled[len(filled) - changed.size :]  # the walk's steps after its first plan
             rows.append({
                 "planner": name, "step": step or "default", "backend": backend,
                 "grid": grid, "unknown": unknown,
@@ -99,12 +98,13 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "step_ms": _pcts(r.step_ms), "step_ms_changed": _pcts(r.step_ms[changed]),
                 "sweeps": _pcts(r.iterations.astype(float)),
                 "residual": _pcts(np.array(residuals)),
+                # Steps that ended with a fill, and the basin cells each filled (every step of
+                # the navigator, the walk's set-up included).
                 "fills": int(np.count_nonzero(filled)), "filled": _pcts(np.array(filled, float)),
                 "wall_s": round(time.perf_counter() - t0, 1),
-                # Each step's flipped cells, sweeps, ms and filled basin cells: which changes
-                # cost the tail.
-                "trace": [[int(c), int(i), round(float(m), 3), f] for c, i, m, f
-                          in zip(r.changed, r.iterations, r.step_ms, filled, strict=True)],
+                # Each step's flipped cells, sweeps and ms: which changes cost the tail.
+                "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
+                          in zip(r.changed, r.iterations, r.step_ms, strict=True)],
             })  # fmt: skip
     return rows
 

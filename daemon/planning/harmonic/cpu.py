@@ -54,10 +54,10 @@ class CpuField:
         count = fl.lowest_each(self.w, self.fixed, self.width, self.idx, pits)
         if count == 0:
             return 0, 0
-        n_basin, n_ring = fl.basins(self.idx, self.fixed, self.width, pits[:count].copy(),
-                                    self.mark, self.cells)  # fmt: skip
-        left = fl.flood(self.w, self.width, self.cells, n_basin, n_ring, eps,
-                        self.mark, self.idx)  # fmt: skip
+        counts = fl.basins(self.idx, self.fixed, self.width, pits[:count].copy(), self.mark,
+                           self.cells)  # fmt: skip
+        left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
+        n_basin = counts[0]
         return n_basin, left
 
     def descend(self, start: int) -> np.ndarray | None:

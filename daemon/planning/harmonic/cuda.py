@@ -140,13 +140,14 @@ class CudaField:
         if self.pit_count == 0:
             return 0, 0
         pits = self.pit_list[: self.pit_count].get().astype(np.int64)
-        n_basin, n_ring = fl.basins(self.idx_view, self.fixed_host, self.width, pits,
-                                    self.mark, self.cells)  # fmt: skip
-        cells = self.cells[: n_basin + n_ring]
+        counts = fl.basins(self.idx_view, self.fixed_host, self.width, pits, self.mark,
+                           self.cells)  # fmt: skip
+        n_basin = counts[0]
+        cells = self.cells[: sum(counts)]
         dev = cp.asarray(cells)
         self.vals[cells] = self.w[dev].get()
-        left = fl.flood(self.vals, self.width, self.cells, n_basin, n_ring,
-                        eps, self.mark, self.idx_view)  # fmt: skip
+        left = fl.flood(self.vals, self.width, self.cells, *counts, eps, self.mark,
+                        self.idx_view)  # fmt: skip
         self.w[dev[:n_basin]] = cp.asarray(self.vals[cells[:n_basin]])
         self.pit_count = left
         return n_basin, left

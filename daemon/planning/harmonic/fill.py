@@ -73,10 +73,11 @@ def lowest_each(w: np.ndarray, fixed: np.ndarray, width: int, idx: np.ndarray,
 
 @numba.njit(cache=True, nogil=True)
 def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
-           mark: np.ndarray, cells: np.ndarray) -> tuple[int, int]:  # fmt: skip
+           mark: np.ndarray, cells: np.ndarray) -> tuple[int, int, int]:  # fmt: skip
     """The pits' basins (back along Idx), then every other cell next to them (the ring the
-    flood reads), into ``cells``: returns (basin cells, ring cells). ``mark``: scratch of
-    zeros, left marked (1 basin, 2 ring) for ``flood``, which clears it."""
+    flood reads), then the cells next to the ring (the ring's Idx reads them), into
+    ``cells``: returns the three counts. ``mark``: scratch of zeros, left marked (1 basin,
+    2 ring, 4 outer ring) for ``flood``, which clears it."""
     n = 0
     for p in pits:
         if mark[p] == 0:
@@ -101,7 +102,23 @@ def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
                 mark[j] = 2
                 cells[ring] = j
                 ring += 1
-    return n, ring - n
+    outer = ring
+    for k in range(n, ring):
+        if _border(cells[k], width, cells.size):
+            continue
+        for d in range(9):
+            j = cells[k] + _offset(d, width)
+            if mark[j] == 0:
+                mark[j] = 4
+                cells[outer] = j
+                outer += 1
+    return n, ring - n, outer - ring
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _border(i: int, width: int, size: int) -> bool:
+    c = i % width
+    return i < width or i >= size - width or c == 0 or c == width - 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -139,11 +156,13 @@ def _pop(keys: np.ndarray, items: np.ndarray, size: int) -> tuple[int, int]:
 
 @numba.njit(cache=True, nogil=True)
 def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: int,
-          eps: float, mark: np.ndarray, idx: np.ndarray) -> int:  # fmt: skip
-    """Fill the basins ``cells[:n_basin]`` of ``w`` (valid there and on the ring
-    ``cells[n_basin:n_basin + n_ring]``; ``mark`` as ``basins`` left it, cleared here), write
-    their Idx, and return how many basin cells the flood did not reach (0: none can be left,
-    every basin borders a free cell or the goal)."""
+          n_outer: int, eps: float, mark: np.ndarray, idx: np.ndarray) -> int:  # fmt: skip
+    """Fill the basins ``cells[:n_basin]`` of ``w`` (valid there, on the ring
+    ``cells[n_basin:n_basin + n_ring]`` and on the outer ring after it; ``mark`` as
+    ``basins`` left it, cleared here), write the Idx of the basins and the ring, and return
+    how many basin cells the flood did not reach (0: none can be left, every basin borders a
+    free cell or the goal). The ring's Idx can change: a basin cell that had no value yet
+    may now be the lowest neighbour of a ring cell."""
     total = n_basin + n_ring
     keys = np.empty(total, dtype=np.float64)
     items = np.empty(total, dtype=np.int64)
@@ -180,16 +199,17 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
             tail += 1
     left = 0
     for k in range(n_basin):
+        left += mark[cells[k]] != 3
+    for k in range(total):
         i = cells[k]
-        if mark[i] != 3:
-            left += 1
+        if _border(i, width, w.size):
+            continue
         best, wb = 4, w[i]
         for d in range(9):
             v = w[i + _offset(d, width)]
             if v < wb:
                 best, wb = d, v
         idx[i] = 4 if wb >= BLOCKED_W else best
-        mark[i] = 0
-    for k in range(n_basin, total):
+    for k in range(total + n_outer):
         mark[cells[k]] = 0
     return left

@@ -57,7 +57,13 @@ def test_every_step_is_pit_free_and_converge_equals_a_cold_plan(maps, seed, h, w
         blocked.reshape(-1)[cells] = values
         assert stats.iterations <= 1  # bounded: one sweep, then the fill
         assert planner.settled
-        assert not rx.has_pit(planner.engine.w, planner.engine.fixed, planner.engine.width)
+        engine = planner.engine
+        assert not rx.has_pit(engine.w, engine.fixed, engine.width)
+        if stats.iterations:  # a step ran (a change the goal feels): its fill's Idx is the
+            # field's own (the GPU's host walks its copy of it)
+            fresh, pits = np.empty_like(engine.idx), np.empty(engine.idx.size, np.int64)
+            assert fl.lowest_each(engine.w, engine.fixed, engine.width, fresh, pits) == 0
+            assert (fresh == engine.idx).all()
         descents_hold(planner, blocked, maps.reachable(blocked, goal))
     assert planner.retries == 0  # no descent needed the tighter relaxation
     planner.converge()
@@ -141,8 +147,8 @@ def test_a_float32_fill_stays_strictly_above_where_eps_is_below_rounding():
     cells = np.empty(flat.size, dtype=np.int64)
     count = fl.lowest_each(flat, fixed, 7, idx, pits)
     assert count > 0
-    n_basin, n_ring = fl.basins(idx, fixed, 7, pits[:count].copy(), mark, cells)
-    assert fl.flood(flat, 7, cells, n_basin, n_ring, fl.EPS, mark, idx) == 0
+    counts = fl.basins(idx, fixed, 7, pits[:count].copy(), mark, cells)
+    assert fl.flood(flat, 7, cells, *counts, fl.EPS, mark, idx) == 0
     assert not rx.has_pit(flat, fixed, 7)
     assert (mark == 0).all()
     assert fl.lowest_each(flat, fixed, 7, idx.copy(), pits) == 0
