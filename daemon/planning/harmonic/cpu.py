@@ -57,8 +57,7 @@ class CpuField:
         counts = fl.basins(self.idx, self.fixed, self.width, pits[:count].copy(), self.mark,
                            self.cells)  # fmt: skip
         left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
-        n_basin = counts[0]
-        return n_basin, left
+        return counts[0], left
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

@@ -6,7 +6,7 @@ also keeps the binary in its on-disk cache), as the cuda planner's ``device.modu
 A relaxation is one cooperative launch — every sweep, the residual and pit checks, and the
 paper's Idx with the list of pits it leaves — then one copy of Idx (one byte a cell) into
 page-locked host memory and one of the sweep count, residual, pit verdict and pit count: the
-host walks the descent itself. ``fill`` (a replanning step that ran out of sweeps with pits
+host walks the descent itself. ``fill`` (after a replanning step's sweeps, when pits are
 left) fills their basins on the host (``fill.py``) from the pits, Idx and the few values of
 ``w`` it reads, and writes back the basins' ``w``. ``float32`` by
 default: ``w`` grows about linearly with distance, so single precision holds it at any grid
@@ -127,7 +127,7 @@ class CudaField:
         )  # fmt: skip
         return self._read()
 
-    def _read(self) -> tuple[int, float]:
+    def _read(self) -> tuple[int, float, bool]:
         self.launches += 1
         self.idx.get(out=self.idx_view)
         done, bits, settled, self.pit_count = (int(v) for v in self.result.get())
