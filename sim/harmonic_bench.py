@@ -44,8 +44,8 @@ def _pcts(values: np.ndarray) -> dict:
 def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool = False):
     """The walk's navigator; ``step`` sets the harmonic planner's replanning stop: ``full``
     relaxes every step to the tolerance, a number N stops after N sweeps on a field without
-    a pit ("": the planner's default); ``smooth`` asks guidance for the planner's smoothing
-    model."""
+    a pit, ``N/M`` also fills the pits' basins after M sweeps, not the planner's 40 ("": the
+    planner's default); ``smooth`` asks guidance for the planner's smoothing model."""
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
 
@@ -56,7 +56,9 @@ def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool =
 
         def factory(b: str):
             planner = make_harmonic(b)
-            planner.step_sweeps = None if step == "full" else int(step)
+            sweeps, _, cap = step.partition("/")
+            planner.step_sweeps = None if step == "full" else int(sweeps)
+            planner.step_cap = int(cap) if cap else planner.step_cap
             return planner
 
     guidance = Guidance(cell_m=settings.cell_m, radius_m=settings.user_radius_m,
@@ -79,9 +81,11 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             t0 = time.perf_counter()
             nav = _navigator(scenario, name, backend, step)
             residuals: list[float] = []
+            filled: list[int] = []
 
-            def note(*_, nav=nav, residuals=residuals) -> None:
+            def note(*_, nav=nav, residuals=residuals, filled=filled) -> None:
                 residuals.append(float(getattr(nav.route.planner, "residual", 0.0)))
+                filled.append(int(getattr(nav.route.planner, "filled", 0)))
 
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
                      on_step=note)  # fmt: skip
@@ -94,6 +98,9 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "step_ms": _pcts(r.step_ms), "step_ms_changed": _pcts(r.step_ms[changed]),
                 "sweeps": _pcts(r.iterations.astype(float)),
                 "residual": _pcts(np.array(residuals)),
+                # Steps that ended with a fill, and the basin cells each filled (every step of
+                # the navigator, the walk's set-up included).
+                "fills": int(np.count_nonzero(filled)), "filled": _pcts(np.array(filled, float)),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m

@@ -3,14 +3,15 @@
 The engine interface (the CUDA engine, ``cuda.py``, has the same): ``load`` the fixed cells
 (obstacles, cells the goal cannot reach, the goal) and a first field; ``set`` some cells'
 value and fixedness (the map's changes, as ``planner.py`` works them out); ``relax`` to the
-tolerance, or past a budget of sweeps to a field without a pit; ``descend`` from a cell;
-``field``, a host copy of ``w``.
+tolerance, or past a budget of sweeps to a field without a pit; ``fill`` the basins of the
+pits a relaxation left (``fill.py``); ``descend`` from a cell; ``field``, a host copy of ``w``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import fill as fl
 from . import relax as rx
 
 
@@ -31,6 +32,9 @@ class CpuField:
         self.w = w0.astype(np.float64)
         self.scratch = np.empty_like(self.w)
         self.buf = np.empty(self.w.size, dtype=np.int64)
+        self.idx = np.empty(self.w.size, dtype=np.int8)
+        self.mark = np.zeros(self.w.size, dtype=np.int8)
+        self.cells = np.empty(self.w.size, dtype=np.int64)
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         self.w[cells] = w
@@ -42,6 +46,18 @@ class CpuField:
         return rx.relax_log(self.w, self.fixed, self.width, self.order, self.omega, sweeps,
                             self.check_every, tol, self.scratch,
                             sweeps if budget is None else budget)  # fmt: skip
+
+    def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
+        """Fill the basins of the field's pits (``fill.py``); returns the basins' cells and
+        those the flood did not reach (0: the field has no pit)."""
+        pits = self.buf  # free until the next descent
+        count = fl.lowest_each(self.w, self.fixed, self.width, self.idx, pits)
+        if count == 0:
+            return 0, 0
+        counts = fl.basins(self.idx, self.fixed, self.width, pits[:count].copy(), self.mark,
+                           self.cells)  # fmt: skip
+        left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
+        return counts[0], left
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

@@ -42,9 +42,11 @@ __device__ __forceinline__ REAL moved(REAL old, REAL t, REAL omega, float* worst
 }
 
 // The paper's Idx of every cell: the neighbour (0..8) of lowest w, strictly below its own;
-// 4 (itself) where none is (the goal, a pocket's bottom, an obstacle's cells).
-__device__ void write_idx(const REAL* w, signed char* idx, int height, int width,
-                          long long first, long long stride) {
+// 4 (itself) where none is (the goal, a pocket's bottom, an obstacle's cells). A free cell
+// left at 4 (a pit) or still without a value is listed for the host's fill (fill.py).
+__device__ void write_idx(const REAL* w, const unsigned char* fixed, signed char* idx,
+                          int height, int width, long long first, long long stride,
+                          int* pit_list, unsigned* pit_count) {
     for (long long k = first; k < (long long)height * width; k += stride) {
         int i = (int)k, r = i / width, c = i % width, best = 4;
         if (r > 0 && r < height - 1 && c > 0 && c < width - 1) {
@@ -54,6 +56,7 @@ __device__ void write_idx(const REAL* w, signed char* idx, int height, int width
                 if (v < wb) { wb = v; best = d; }
             }
             if (wb >= BLOCKED_W) best = 4;
+            if ((best == 4 || w[i] >= BLOCKED_W) && !fixed[i]) pit_list[atomicAdd(pit_count, 1u)] = i;
         }
         idx[i] = (signed char)best;
     }
@@ -89,7 +92,7 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
                                           int height, int width, int jacobi, REAL omega,
                                           int max_sweeps, int check_every, float tol,
                                           unsigned* worst, int* result, signed char* idx,
-                                          int budget, unsigned* pits) {
+                                          int budget, unsigned* pits, int* pit_list) {
     cg::grid_group grid = cg::this_grid();
     const long long stride = (long long)gridDim.x * blockDim.x;
     const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
@@ -148,10 +151,13 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
             }
         }
     }
-    write_idx(w, idx, height, width, first, stride);
+    // pits[3] counts the listed pits (cleared with the other slots before the launch).
+    write_idx(w, fixed, idx, height, width, first, stride, pit_list, pits + 3);
+    grid.sync();
     if (first == 0) {
         result[0] = done;
         result[1] = (int)__float_as_uint(residual);
         result[2] = settled || residual < tol;
+        result[3] = (int)*(volatile unsigned*)(pits + 3);
     }
 }

@@ -89,3 +89,56 @@ def test_cuda_has_no_plateau_on_the_serpentine(maps):
     gpu.plan(blocked, goal)
     assert gpu.field()[start] > 40
     assert tuple(gpu.path(start)[-1]) == goal
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cuda_steps_filled_are_pit_free_and_converge_to_the_cold_field(maps, seed):
+    # One sweep a step, then the fill (fill.py) on the host from the kernel's pit list: the
+    # device's w and the host's Idx must both come out without a pit.
+    from daemon.planning.harmonic import relax as rx
+
+    rng = np.random.default_rng(100 + seed)
+    blocked = maps.random_map(rng, 50, 50, 0.15)
+    goal = (int(rng.integers(0, 50)), int(rng.integers(0, 50)))
+    blocked[goal] = False
+    warm = cuda_planner("rb")
+    warm.plan(blocked, goal)
+    warm.step_sweeps, warm.step_cap = 1, 1
+    engine = warm.engine
+    fills = 0
+    for _ in range(6):
+        r, c = int(rng.integers(2, 45)), int(rng.integers(2, 45))
+        cells = (np.arange(r, r + 5)[:, None] * 50 + np.arange(c, c + 5)[None, :]).ravel()
+        values = rng.random(cells.size) < 0.7
+        values[cells == goal[0] * 50 + goal[1]] = False
+        stats = warm.update(cells, values)
+        blocked.reshape(-1)[cells] = values
+        fills += warm.filled > 0
+        assert stats.iterations <= 1 and warm.settled
+        field = engine.w.get()
+        assert not rx.has_pit(field, engine.fixed_host.astype(bool), engine.width)
+        host_idx = engine.idx_view.copy()
+        engine.relax(0, 1e-4, 0)  # no sweep: the kernel's Idx of the same field
+        assert (engine.idx_view == host_idx).all()
+        paths_hold(warm, blocked, maps.reachable(blocked, goal))
+    assert fills > 0
+    warm.converge()
+    assert warm.residual < 1e-4
+    cold = cuda_planner("rb")
+    cold.plan(blocked, goal)
+    reach = maps.reachable(blocked, goal) & ~blocked
+    assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
+
+
+def test_cuda_fills_the_basin_a_wall_leaves(maps):
+    blocked = np.zeros((40, 40), dtype=bool)
+    blocked[20, :] = True
+    blocked[20, 2:4] = blocked[20, 34:38] = False
+    door = 20 * 40 + np.arange(34, 38)
+    gpu = cuda_planner("rb")
+    gpu.plan(blocked, (2, 36))
+    gpu.step_sweeps, gpu.step_cap = 5, 5
+    stats = gpu.update(door, True)
+    blocked.reshape(-1)[door] = True
+    assert stats.iterations <= 5 and gpu.filled > 100 and gpu.settled
+    paths_hold(gpu, blocked, maps.reachable(blocked, (2, 36)))

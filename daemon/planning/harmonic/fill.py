@@ -1,0 +1,218 @@
+"""A replanning step's bounded repair: fill the basins of a field's pits (priority-flood + ε).
+
+A *pit* is a free cell with no strictly lower neighbour; its *basin* the free cells whose
+descent (the paper's Idx, the neighbour of lowest ``w``) ends there. When the sensor reveals
+a wall across the way the field drained, a whole region behind it drains into pits at the
+wall, and relaxation must lift all of it until it spills the other way: 4 600–10 700 sweeps
+at 400² (as many as a plan from scratch). Instead, once a step's sweeps are spent, the
+basins are filled at once, as a hydrologist fills a digital elevation model's depressions:
+
+- the basins ``D``: from the pits (and the free cells with no value yet, ``BLOCKED_W``: a
+  basin's cell next to one could not fall on it), back along Idx (a cell joins when its Idx
+  points into D);
+- the seeds: the free cells round D (their descent reaches the goal: a chain of strictly
+  falling Idx steps ends at a pit, which would put it in D, or at the goal), and the goal;
+- the flood: lowest seed first (a heap), each cell of D the flood meets takes
+  ``max(w, w_from + ε)`` — at least ε above the cell it was reached from — and floods on
+  from there; raised cells go through a plain queue ahead of the heap.
+
+Barnes, Lehman & Mulla, "Priority-Flood: An optimal depression-filling and watershed-labeling
+algorithm for digital elevation models", Computers & Geosciences 62 (2014), the ε variant
+(their Algorithm 3, with the improved version's queue for raised cells). Every cell of D ends
+strictly above the cell it was reached from, whose value was final then; cells outside D are
+untouched and their Idx still falls towards the goal (D only rose). So the field has no pit
+and every descent reaches the goal, whatever the relaxation left: the work is a pass over the
+basins (``O(|D| log |D|)``), not sweeps over the grid. The fill is close to the smallest
+pit-free field ≥ ``w`` with slope ε (the queue may order raised cells a little off), so the
+later steps' sweeps relax from a field close to the one they left, towards the harmonic one.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .relax import BLOCKED_W
+
+EPS = 0.05
+"""``w`` (log units) a filled cell takes above the cell the flood reached it from: the cold
+plan's first-guess slope (``planner.INIT_SLOPE``). A filled basin so has a real slope, which a
+step's sweeps do not turn back into pits as easily as a near-flat one (H100, 2000² courtyard
+walk, steps at omega 1: fills on 9 of 60 steps; 1e-3 at omega 1.3: 58 of 60)."""
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _offset(d: int, width: int) -> int:
+    return (d // 3 - 1) * width + d % 3 - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def lowest_each(w: np.ndarray, fixed: np.ndarray, width: int, idx: np.ndarray,
+                pits: np.ndarray) -> int:  # fmt: skip
+    """The CPU's Idx of every cell (the GPU kernel's ``write_idx``: the first neighbour of
+    lowest ``w`` strictly below the cell's own, 4 when none is or it is ``BLOCKED_W``) and the
+    free pits into ``pits``, with the free cells that have no value yet (``BLOCKED_W``: the
+    flood gives them one, and their neighbours in a basin can then fall on them); returns
+    their count."""
+    idx[:] = 4
+    count = 0
+    for i in range(width, w.size - width):
+        c = i % width
+        if c == 0 or c == width - 1:
+            continue
+        best, wb = 4, w[i]
+        for d in range(9):
+            v = w[i + _offset(d, width)]
+            if v < wb:
+                best, wb = d, v
+        if wb >= BLOCKED_W:
+            best = 4
+        idx[i] = best
+        if (best == 4 or w[i] >= BLOCKED_W) and not fixed[i]:
+            pits[count] = i
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
+           mark: np.ndarray, cells: np.ndarray) -> tuple[int, int, int]:  # fmt: skip
+    """The pits' basins (back along Idx), then every other cell next to them (the ring the
+    flood reads), then the cells next to the ring (the ring's Idx reads them), into
+    ``cells``: returns the three counts. ``mark``: scratch of zeros, left marked (1 basin,
+    2 ring, 4 outer ring) for ``flood``, which clears it."""
+    n = 0
+    for p in pits:
+        if mark[p] == 0:
+            mark[p] = 1
+            cells[n] = p
+            n += 1
+    head = 0
+    while head < n:
+        cur = cells[head]
+        head += 1
+        for d in range(9):
+            j = cur - _offset(d, width)  # j's Idx step d leads to cur
+            if mark[j] == 0 and not fixed[j] and idx[j] == d and d != 4:
+                mark[j] = 1
+                cells[n] = j
+                n += 1
+    ring = n
+    for k in range(n):
+        for d in range(9):
+            j = cells[k] + _offset(d, width)
+            if mark[j] == 0:
+                mark[j] = 2
+                cells[ring] = j
+                ring += 1
+    outer = ring
+    for k in range(n, ring):
+        if _border(cells[k], width, cells.size):
+            continue
+        for d in range(9):
+            j = cells[k] + _offset(d, width)
+            if mark[j] == 0:
+                mark[j] = 4
+                cells[outer] = j
+                outer += 1
+    return n, ring - n, outer - ring
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _border(i: int, width: int, size: int) -> bool:
+    c = i % width
+    return i < width or i >= size - width or c == 0 or c == width - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _push(keys: np.ndarray, items: np.ndarray, size: int, key: float, item: int) -> int:
+    k = size
+    while k > 0:
+        parent = (k - 1) >> 1
+        if keys[parent] <= key:
+            break
+        keys[k], items[k] = keys[parent], items[parent]
+        k = parent
+    keys[k], items[k] = key, item
+    return size + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _pop(keys: np.ndarray, items: np.ndarray, size: int) -> tuple[int, int]:
+    top = items[0]
+    size -= 1
+    key, item = keys[size], items[size]
+    k = 0
+    while True:
+        child = 2 * k + 1
+        if child >= size:
+            break
+        if child + 1 < size and keys[child + 1] < keys[child]:
+            child += 1
+        if keys[child] >= key:
+            break
+        keys[k], items[k] = keys[child], items[child]
+        k = child
+    keys[k], items[k] = key, item
+    return top, size
+
+
+@numba.njit(cache=True, nogil=True)
+def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: int,
+          n_outer: int, eps: float, mark: np.ndarray, idx: np.ndarray) -> int:  # fmt: skip
+    """Fill the basins ``cells[:n_basin]`` of ``w`` (valid there, on the ring
+    ``cells[n_basin:n_basin + n_ring]`` and on the outer ring after it; ``mark`` as
+    ``basins`` left it, cleared here), write the Idx of the basins and the ring, and return
+    how many basin cells the flood did not reach (0: none can be left, every basin borders a
+    free cell or the goal). The ring's Idx can change: a basin cell that had no value yet
+    may now be the lowest neighbour of a ring cell."""
+    total = n_basin + n_ring
+    keys = np.empty(total, dtype=np.float64)
+    items = np.empty(total, dtype=np.int64)
+    queue = np.empty(n_basin, dtype=np.int64)
+    size = 0
+    for k in range(n_basin, total):
+        c = cells[k]
+        if w[c] < BLOCKED_W:  # a free cell, or the goal (the only fixed cell below BLOCKED_W)
+            size = _push(keys, items, size, w[c], c)
+    head = tail = 0
+    while head < tail or size > 0:
+        if head < tail:
+            c = queue[head]
+            head += 1
+        else:
+            c, size = _pop(keys, items, size)
+        v = w[c]
+        for d in range(9):
+            j = c + _offset(d, width)
+            if mark[j] != 1:
+                continue
+            mark[j] = 3
+            if w[j] > v and w[j] < BLOCKED_W:
+                size = _push(keys, items, size, w[j], j)
+                continue
+            # Raised: strictly above v in w's own float type (float32 on the GPU rounds
+            # v + ε back to v once ε is below half a unit in the last place).
+            step = eps
+            w[j] = v + step
+            while w[j] <= v:
+                step *= 2.0
+                w[j] = v + step
+            queue[tail] = j
+            tail += 1
+    left = 0
+    for k in range(n_basin):
+        left += mark[cells[k]] != 3
+    for k in range(total):
+        i = cells[k]
+        if _border(i, width, w.size):
+            continue
+        best, wb = 4, w[i]
+        for d in range(9):
+            v = w[i + _offset(d, width)]
+            if v < wb:
+                best, wb = d, v
+        idx[i] = 4 if wb >= BLOCKED_W else best
+    for k in range(total + n_outer):
+        mark[cells[k]] = 0
+    return left
