@@ -129,6 +129,21 @@ def test_batched_steps_of_every_size_are_exact_in_one_launch(_fresh_loop):
     assert _fresh_loop.active() is loop and loop.launches == launches
 
 
+def test_batched_cut_overs_keep_each_users_field_on_its_own_group(_fresh_loop):
+    """Planners that cut over at every raise (cut_over=0) step as one batch: the cut-over's
+    level and reset (cut_over.cuh) run on each call's own group of blocks and cover its whole
+    map, so every field stays exact."""
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    shapes = [(30, 70), (390, 380), (64, 64), (200, 150)]
+    users = [
+        User(40 + s, shape, planner=CudaPlanner("fast", cut_over=0.0))
+        for s, shape in enumerate(shapes)
+    ]
+    for _ in range(6):
+        batch_step(users)
+
+
 def test_a_batch_of_more_calls_than_blocks_or_than_the_box_holds(_fresh_loop):
     """More calls than the device has blocks (a group serves several, one after another) and
     than one post holds (two batches): every step exact."""
