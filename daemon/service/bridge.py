@@ -39,6 +39,8 @@ QUERIES = (T.HEALTH, T.MAP_SNAPSHOT, T.STATUS_QUERY, T.SETTINGS_QUERY)
 SampleSink = Callable[[Topic, str, bytes, float], None]
 """``(topic, key, payload, arrived)`` on the loop thread; ``arrived``: when zenoh handed the
 sample to the daemon (``time.time()``), however long the loop took to get to it."""
+PoseSink = Callable[[bytes, float], None]
+"""``(payload, arrived)`` on zenoh's thread: a user's own taker of poses (``route_poses``)."""
 QuerySink = Callable[[Topic, zenoh.Query], None]
 """``(topic, query)`` on the loop thread; the sink must reply and ``drop()`` it."""
 
@@ -66,6 +68,9 @@ class Bridge:
         """Pose keys of the users the daemon has a session for: only theirs are timed, so a
         peer inventing names cannot grow ``_pose_heard``."""
         self._pose_heard: dict[str, float] = {}
+        self._pose_sinks: dict[str, PoseSink] = {}
+        """Pose key → the user's runner, which takes its poses on zenoh's thread (replaced
+        whole, like ``_muted``)."""
 
     def start(self) -> None:
         for topic in INPUTS:
@@ -93,6 +98,9 @@ class Bridge:
                 heard[key] = arrived
             if mutable and key in self._muted:
                 return
+            if heard is not None and (take := self._pose_sinks.get(key)) is not None:
+                take(sample.payload.to_bytes(), arrived)  # no hop: see route_poses
+                return
             # RuntimeError: the loop is closed, the daemon is stopping.
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(sink, topic, key, sample.payload.to_bytes(), arrived)
@@ -115,6 +123,20 @@ class Bridge:
         """Time ``user``'s poses as they arrive (``pose_heard_at``)."""
         with self._lock:
             self._watched = self._watched | {T.POSE.key(user)}
+
+    def route_poses(self, user: str, take: PoseSink | None) -> None:
+        """Hand ``user``'s poses to ``take`` on zenoh's thread instead of the loop (None: to
+        the loop again). Poses are two of every three samples at 20 Hz poses and 10 Hz
+        deltas, and the loop hop (a wake-up, a callback, the worker woken to wait again) cost
+        more than the step they feed; the taker only stores the latest under its lock."""
+        key = T.POSE.key(user)
+        with self._lock:
+            sinks = dict(self._pose_sinks)
+            if take is None:
+                sinks.pop(key, None)
+            else:
+                sinks[key] = take
+            self._pose_sinks = sinks
 
     def mute(self, user: str, muted: bool) -> None:
         """Drop (or again pass on) ``user``'s poses and map deltas as they arrive."""
@@ -176,6 +198,7 @@ class Bridge:
                 self._publishers.pop(key).undeclare()
             pose = T.POSE.key(user)
             self._watched = self._watched - {pose}
+            self._pose_sinks = {k: v for k, v in self._pose_sinks.items() if k != pose}
             self._muted = self._muted - {pose, T.MAP_DELTA.key(user)}
         self._pose_heard.pop(pose, None)
 

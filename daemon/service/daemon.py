@@ -205,7 +205,7 @@ class Daemon:
             self._review_load()
             if self.state is not None:
                 self.state.tick(self.runners)
-            now = asyncio.get_running_loop().time()
+            now = time.monotonic()  # runners stamp inputs on any thread with this clock
             for user, runner in list(self.runners.items()):
                 active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
                 if active or runner.shed:
@@ -282,6 +282,7 @@ class Daemon:
             listened=bridge.listened,
         )
         bridge.watch(user)
+        bridge.route_poses(user, runner.take_pose)
         self._set_shed(runner, not self.admission.join(user, time.monotonic()))
         self.runners[user] = runner
         if runner.shed:

@@ -25,9 +25,11 @@ from protocol import topics as T
 from protocol.messages import (
     BeltButton,
     BeltHealth,
+    BeltPattern,
     Goal,
     MapDelta,
     MapSnapshot,
+    PatternKind,
     Pose,
     Proximity,
     StatusCode,
@@ -35,6 +37,13 @@ from protocol.messages import (
 )
 
 log = logging.getLogger("guidebelt.runner")
+
+BELT_REFRESH = 0.5
+"""A GUIDE pattern equal to the last one put (motors, pulse, TTL) is put again only once
+this share of its TTL has passed: the belt driver keeps showing a pattern until ``ttl_ms``
+after it arrived (``drivers/belt/driver.py`` repeats it to the firmware every 100 ms with the
+TTL left), so half the TTL plus one step period still lands well inside it, and a dead daemon
+still goes quiet within one TTL of its last put."""
 
 
 class Pacing:
@@ -99,6 +108,9 @@ class UserRunner:
         self._lock = threading.Lock()
         """The inbox is filled on the loop and taken by the worker when its turn comes."""
         self._wake = asyncio.Event()
+        self._pacing = False
+        """The worker is waiting out its step period (a timer is set): an input that does not
+        step the user at once need not wake it, the timer will (loop thread only)."""
         self._snapshot_pending = False
         self._urgent_at: float | None = None
         """When the inbox's first urgent input arrived (monotonic): the step's lag starts."""
@@ -113,8 +125,15 @@ class UserRunner:
         self._listened = listened
         self._pose_read_at = 0.0
         """When the latest pose the loop read (taken or refused) had reached the daemon."""
+        self._belt_shape: tuple | None = None
+        self._belt_put_at = 0.0
+        """What the belt was last sent and when (monotonic): an unchanged pattern is not put
+        again each step, only as its TTL needs (``BELT_REFRESH``)."""
+        self._idle = False
+        """The worker waits for any input at all (no step period running, inbox empty): a
+        pose taken on zenoh's thread must wake it (under ``_lock``)."""
         self._loop = asyncio.get_running_loop()
-        self.last_input = self._loop.time()
+        self.last_input = time.monotonic()
         self._task = self._loop.create_task(self._run(), name=f"user-{self.user}")
 
     # -- inputs (loop thread) -------------------------------------------------------------
@@ -144,6 +163,36 @@ class UserRunner:
             self._inbox.pose = pose  # the latest pose wins
             self._inbox.pose_received = time.time() if arrived is None else arrived
             self._heard()
+
+    def take_pose(self, payload: bytes, arrived: float) -> None:
+        """On zenoh's thread (``Bridge.route_poses``): decode a pose and leave it in the inbox,
+        as ``put_pose`` does from the loop, without the hop to the loop. The worker is woken
+        only if it waits for any input at all; while it waits out its step period, or steps,
+        the pose is simply there when its turn comes. A pose that does not decode is refused
+        on the loop, as every refused input is (it steps the user at once)."""
+        if self._closed:
+            return
+        if self.shed:  # muted by now on the bridge; this one was on its way
+            self.skipped += 1
+            return
+        try:
+            pose = codec.decode(Pose, payload)
+        except codec.DecodeError as exc:
+            with contextlib.suppress(RuntimeError):  # the loop is closed: stopping
+                self._loop.call_soon_threadsafe(self._refuse_pose, exc.code, exc.reason, arrived)
+            return
+        with self._lock:
+            self._pose_read_at = max(self._pose_read_at, arrived)
+            self._inbox.pose, self._inbox.pose_received = pose, arrived  # the latest wins
+            self.last_input = time.monotonic()
+            wake, self._idle = self._idle, False
+        if wake:
+            with contextlib.suppress(RuntimeError):
+                self._loop.call_soon_threadsafe(self._wake.set)
+
+    def _refuse_pose(self, code: StatusCode, reason: str, arrived: float) -> None:
+        self.read_pose(arrived)
+        self.reject(code, f"{T.POSE.leaf}: {reason}")
 
     def put_goal(self, goal: Goal) -> None:
         with self._lock:
@@ -181,15 +230,19 @@ class UserRunner:
         return self.navigator.controls.state(self.navigator.guidance, now)
 
     def _heard(self, urgent: bool = False) -> None:
-        self.last_input = self._loop.time()
+        self.last_input = time.monotonic()
         if urgent and self._urgent_at is None:
             self._urgent_at = time.monotonic()
-        self._wake.set()
+        # A pose woke the worker only to wait again: 20 poses a second per user, each an
+        # asyncio.wait_for (a task and a timer) on the loop.
+        if urgent or not self._pacing:
+            self._wake.set()
 
     def tick(self) -> None:
         with self._lock:
             self._inbox.tick = True
-        self._wake.set()
+        if not self._pacing:
+            self._wake.set()
 
     # -- the worker -----------------------------------------------------------------------
 
@@ -235,14 +288,23 @@ class UserRunner:
         """Wait for inputs. Urgent ones (map, goal, refusal, button) step at once; a pose
         alone waits for the user's guide period (later poses replace it meanwhile), and a
         shed user steps only once per shed period."""
-        await self._wake.wait()
+        with self._lock:
+            self._idle = idle = not self._inbox
+        if idle:
+            await self._wake.wait()
+            with self._lock:
+                self._idle = False
         loop = asyncio.get_running_loop()
-        while (wait := self._next_step_at - loop.time()) > 0 and (
-            self.shed or not self._inbox.urgent()
-        ):
-            self._wake.clear()
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._wake.wait(), wait)
+        self._pacing = True
+        try:
+            while (wait := self._next_step_at - loop.time()) > 0 and (
+                self.shed or not self._inbox.urgent()
+            ):
+                self._wake.clear()
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._wake.wait(), wait)
+        finally:
+            self._pacing = False
         self._wake.clear()
 
     def _step(self, inbox: Inbox) -> float:
@@ -268,17 +330,22 @@ class UserRunner:
                 log.exception("state not saved", extra={"fields": {"user": self.user}})
         return (time.thread_time() - cpu0) * 1e3
 
-    def _emit(self, out: StepOutput) -> None:
-        """Publish ``out`` (on the worker thread)."""
+    def _emit(self, out: StepOutput, refresh_all: bool = False) -> None:
+        """Publish ``out`` (on the worker thread). ``refresh_all``: put every belt pattern,
+        even one equal to what the belt shows (the last words to a user)."""
         user = self.user
+        # The path (the largest message a step makes) is for viewers and tests: a belt driver
+        # and a phone do not subscribe to it, so most steps need not build it. Whoever does
+        # pairs each step's path with its belt pattern (the simulated walker feels the pattern
+        # stamped like the path), so then every pattern is put.
+        key = T.PATH.key(user)
+        paired = self._listened is None or self._listened(key)
         for pattern in out.belt:
-            self._publish(T.BELT.key(user), codec.encode(pattern))
+            if self._belt_due(pattern, force=refresh_all or paired):
+                self._publish(T.BELT.key(user), codec.encode(pattern))
         for cue in out.voice:
             self._publish(T.VOICE.key(user), codec.encode(cue))
-        # The path (the largest message a step makes) is for viewers and tests: a belt driver
-        # and a phone do not subscribe to it, so most steps need not build it.
-        key = T.PATH.key(user)
-        if out.path_cells is not None and (self._listened is None or self._listened(key)):
+        if out.path_cells is not None and paired:
             self._publish(key, codec.encode(out.path()))
         for status in out.statuses:
             self.last_status = codec.encode(status)
@@ -289,6 +356,24 @@ class UserRunner:
                 self._store_settings(user, out.settings)
         if out.want_snapshot:
             self._loop.call_soon_threadsafe(self._ask_for_snapshot)
+
+    def _belt_due(self, pattern: BeltPattern, force: bool = False) -> bool:
+        """Whether ``pattern`` must be put (``force``, an event, a direction that differs
+        from the last one put, or that one's TTL half gone); what is put is remembered. Most
+        10 Hz steps of a user walking straight on repeat the GUIDE pattern (hysteresis holds
+        the direction), and each put is an encode and a zenoh put. Events (STOP, WAIT, a
+        refusal's pattern, ...) are always put: each one says something happened again."""
+        shape = (pattern.kind, pattern.motors, pattern.period_ms, pattern.ttl_ms)
+        now = time.monotonic()
+        if (
+            not force
+            and pattern.kind == PatternKind.GUIDE
+            and shape == self._belt_shape
+            and now - self._belt_put_at < pattern.ttl_ms / 1e3 * BELT_REFRESH
+        ):
+            return False
+        self._belt_shape, self._belt_put_at = shape, now
+        return True
 
     def _ask_for_snapshot(self) -> None:
         if not self._snapshot_pending and not self._closed:
@@ -345,7 +430,7 @@ class UserRunner:
         try:
             await loop.run_in_executor(
                 self._executor,
-                lambda: self._emit(self.navigator.halt(time.time(), code, reason)),
+                lambda: self._emit(self.navigator.halt(time.time(), code, reason), True),
             )
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)
