@@ -293,7 +293,9 @@ class Daemon:
         return runner
 
     def _set_shed(self, runner: UserRunner, shed: bool) -> None:
-        """A shed user's poses and deltas are dropped as they arrive, before the loop."""
+        """A shed user's poses and deltas are not even sent to the daemon (``Bridge.mute``)."""
+        if runner.shed and not shed:
+            runner.readmitted_at = time.time()
         runner.shed = shed
         if self._bridge is not None:
             self._bridge.mute(runner.user, shed)

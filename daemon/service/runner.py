@@ -25,55 +25,18 @@ from protocol import topics as T
 from protocol.messages import (
     BeltButton,
     BeltHealth,
-    BeltPattern,
     Goal,
     MapDelta,
     MapSnapshot,
-    PatternKind,
     Pose,
     Proximity,
     StatusCode,
     UserSettings,
 )
 
+from .pacing import BeltRefresh, Pacing
+
 log = logging.getLogger("guidebelt.runner")
-
-BELT_REFRESH = 0.5
-"""A GUIDE pattern equal to the last one put (motors, pulse, TTL) is put again only once
-this share of its TTL has passed: the belt driver keeps showing a pattern until ``ttl_ms``
-after it arrived (``drivers/belt/driver.py`` repeats it to the firmware every 100 ms with the
-TTL left), so half the TTL plus one step period still lands well inside it, and a dead daemon
-still goes quiet within one TTL of its last put."""
-
-
-class Pacing:
-    """What the daemon's runners share: the step slots (one per core) and the lag record
-    admission control reads, with each user's step periods."""
-
-    def __init__(
-        self,
-        slots: int = 1,
-        guide_hz: float = 20.0,
-        shed_period_s: float = 0.5,
-        record: Callable[[str, float, float], None] | None = None,
-    ) -> None:
-        self.slots = threading.Semaphore(slots)
-        """Taken by a user's worker thread for its step: held for the step alone, never for
-        the loop's round trip; waiting threads are let in first come, first served."""
-        self.shed_gate = threading.Semaphore(1)
-        """Taken by a shed user's worker before a slot: one shed user at a time queues for
-        the slots, so a guided user's step waits behind one shed step at most (at 100 users,
-        93 shed users' twice-a-second steps queued ahead of the 7 guided ones' and kept
-        their lag over the budget: shed again, and again)."""
-        self.guide_period_s = 1.0 / guide_hz
-        self.shed_period_s = shed_period_s
-        self._record = record
-        self.behind = False
-        """The daemon's loop is late on its inputs: a pose missing now may be ours to blame."""
-
-    def record(self, user: str, lag_ms: float, cpu_ms: float) -> None:
-        if self._record is not None:
-            self._record(user, lag_ms, cpu_ms)
 
 
 class UserRunner:
@@ -119,16 +82,16 @@ class UserRunner:
         """Set by the daemon's admission control: step rarely, guide nobody, say overloaded."""
         self.skipped = 0
         """Poses and deltas not even decoded while shed."""
+        self.readmitted_at = 0.0
+        """When admission control last guided the user again (``time.time()``): their poses
+        were not even sent to the daemon while shed (``Bridge.mute``)."""
         self._closed = False
         self.last_status: bytes | None = None
         self._pose_heard_at = pose_heard_at
         self._listened = listened
         self._pose_read_at = 0.0
         """When the latest pose the loop read (taken or refused) had reached the daemon."""
-        self._belt_shape: tuple | None = None
-        self._belt_put_at = 0.0
-        """What the belt was last sent and when (monotonic): an unchanged pattern is not put
-        again each step, only as its TTL needs (``BELT_REFRESH``)."""
+        self._belt = BeltRefresh()
         self._idle = False
         """The worker waits for any input at all (no step period running, inbox empty): a
         pose taken on zenoh's thread must wake it (under ``_lock``)."""
@@ -280,7 +243,13 @@ class UserRunner:
             inbox.overloaded = self.shed
             inbox.daemon_behind = self.pacing.behind
             heard = self._pose_heard_at() if self._pose_heard_at is not None else None
-            inbox.pose_unread = heard is not None and heard > self._pose_read_at
+            # Until a pose that came after the readmission is read (for at most a pose's
+            # staleness, so a localiser that died meanwhile is still said as stale), a missing
+            # pose of a readmitted user's is the daemon's doing: it did not listen.
+            back = self.readmitted_at > self._pose_read_at and (
+                inbox.taken_at - self.readmitted_at < self.navigator.settings.stale_pose_s
+            )
+            inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
@@ -341,7 +310,7 @@ class UserRunner:
         key = T.PATH.key(user)
         paired = self._listened is None or self._listened(key)
         for pattern in out.belt:
-            if self._belt_due(pattern, force=refresh_all or paired):
+            if self._belt.due(pattern, force=refresh_all or paired):
                 self._publish(T.BELT.key(user), codec.encode(pattern))
         for cue in out.voice:
             self._publish(T.VOICE.key(user), codec.encode(cue))
@@ -356,24 +325,6 @@ class UserRunner:
                 self._store_settings(user, out.settings)
         if out.want_snapshot:
             self._loop.call_soon_threadsafe(self._ask_for_snapshot)
-
-    def _belt_due(self, pattern: BeltPattern, force: bool = False) -> bool:
-        """Whether ``pattern`` must be put (``force``, an event, a direction that differs
-        from the last one put, or that one's TTL half gone); what is put is remembered. Most
-        10 Hz steps of a user walking straight on repeat the GUIDE pattern (hysteresis holds
-        the direction), and each put is an encode and a zenoh put. Events (STOP, WAIT, a
-        refusal's pattern, ...) are always put: each one says something happened again."""
-        shape = (pattern.kind, pattern.motors, pattern.period_ms, pattern.ttl_ms)
-        now = time.monotonic()
-        if (
-            not force
-            and pattern.kind == PatternKind.GUIDE
-            and shape == self._belt_shape
-            and now - self._belt_put_at < pattern.ttl_ms / 1e3 * BELT_REFRESH
-        ):
-            return False
-        self._belt_shape, self._belt_put_at = shape, now
-        return True
 
     def _ask_for_snapshot(self) -> None:
         if not self._snapshot_pending and not self._closed:
