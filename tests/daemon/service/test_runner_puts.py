@@ -147,3 +147,53 @@ def test_an_unchanged_guide_pattern_is_put_again_only_as_its_ttl_needs():
 def test_every_pattern_is_put_while_someone_pairs_it_with_the_path():
     _belts, paths, guides = run_guided(listened=True)
     assert len(guides) == len(paths) >= 20  # one pattern with every path, as the sim walks on
+
+
+def readmitted(readmitted_s_ago: float, then_a_pose: bool) -> list[tuple[str, bytes]]:
+    """A user guided, shed past its pose's staleness (0.4 s), guided again ``readmitted_s_ago``
+    seconds ago with no pose since: what the steps after that publish."""
+    published: list[tuple[str, bytes]] = []
+
+    async def scenario() -> None:
+        settings = DaemonConfig(backend="cpu", stale_pose_s=0.4).navigator_settings()
+        runner = UserRunner(
+            Navigator("u", settings), lambda k, b: published.append((k, b)), lambda *a: None, 1.0
+        )
+        runner.put_delta(walls())
+        runner.put_goal(goal())
+        runner.put_pose(pose())
+        await asyncio.sleep(0.2)  # guided
+        runner.shed = True  # as admission control does; its poses stop coming
+        runner.tick()
+        await asyncio.sleep(0.8)
+        published.clear()
+        runner.readmitted_at, runner.shed = time.time() - readmitted_s_ago, False
+        runner.tick()
+        await asyncio.sleep(0.2)
+        if then_a_pose:
+            runner.put_pose(pose())
+            await asyncio.sleep(0.2)
+        await runner.close()
+
+    asyncio.run(scenario())
+    return published
+
+
+@pytest.mark.timeout(60)
+def test_a_readmitted_user_without_a_pose_yet_hears_overloaded_never_stale():
+    """Shed, a user's poses are not even sent to the daemon: once guided again, a missing pose
+    is the daemon's doing until one is read, for at most a pose's staleness."""
+    published = readmitted(0.0, then_a_pose=True)
+    codes = [codec.decode(NavStatus, b).code for k, b in published if k.endswith("/status")]
+    assert codes[0] == StatusCode.OVERLOADED and StatusCode.STALE_POSE not in codes
+    assert codes[-1] == StatusCode.SHUTDOWN
+    belts = [codec.decode(BeltPattern, b) for k, b in published if k.endswith("/belt")]
+    # The first fresh pose guides again; then close()'s STOP.
+    assert [b.kind for b in belts][-2:] == [PatternKind.GUIDE, PatternKind.STOP]
+
+
+@pytest.mark.timeout(60)
+def test_a_user_readmitted_longer_ago_than_a_poses_staleness_without_one_is_stale():
+    published = readmitted(1.0, then_a_pose=False)
+    codes = [codec.decode(NavStatus, b).code for k, b in published if k.endswith("/status")]
+    assert codes == [StatusCode.STALE_POSE, StatusCode.SHUTDOWN]  # the localiser went quiet
