@@ -82,6 +82,7 @@ class Bridge:
         """``STREAMS``' subscribers for every user, while nobody is shed."""
         self._own: dict[str, list[zenoh.Subscriber]] = {}
         """Each guided user's own ``STREAMS`` subscribers, while somebody is shed."""
+        self._closed = False
         self._last: dict[str, bytes] = {}
         self._once_until = 0.0
         """While subscriptions change over (the new ones are declared before the old ones go,
@@ -177,8 +178,8 @@ class Bridge:
         old ones go. At 100 users with 94 shed, zenoh's threads took 0.22 of a core handing
         the shed users' 2,800 samples a second to a callback only to drop them."""
         wanted = self._users - self._shed if self._shed else set()
-        if (not self._shed) == bool(self._every) and wanted == set(self._own):
-            return
+        if self._closed or ((not self._shed) == bool(self._every) and wanted == set(self._own)):
+            return  # closed: a user forgotten while the daemon stops subscribes to nothing
         self._last.clear()
         self._once_until = time.monotonic() + 1.0
         if self._shed:
@@ -264,6 +265,7 @@ class Bridge:
         self._restream()
 
     def close(self) -> None:
+        self._closed = True
         if self._token is not None:
             self._token.undeclare()
             self._token = None
