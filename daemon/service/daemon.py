@@ -205,7 +205,7 @@ class Daemon:
             self._review_load()
             if self.state is not None:
                 self.state.tick(self.runners)
-            now = asyncio.get_running_loop().time()
+            now = time.monotonic()  # runners stamp inputs on any thread with this clock
             for user, runner in list(self.runners.items()):
                 active = runner.navigator.goal_cell is not None and runner.navigator.state in ACTIVE
                 if active or runner.shed:
@@ -282,6 +282,7 @@ class Daemon:
             listened=bridge.listened,
         )
         bridge.watch(user)
+        bridge.route_poses(user, runner.take_pose)
         self._set_shed(runner, not self.admission.join(user, time.monotonic()))
         self.runners[user] = runner
         if runner.shed:
@@ -292,7 +293,9 @@ class Daemon:
         return runner
 
     def _set_shed(self, runner: UserRunner, shed: bool) -> None:
-        """A shed user's poses and deltas are dropped as they arrive, before the loop."""
+        """A shed user's poses and deltas are not even sent to the daemon (``Bridge.mute``)."""
+        if runner.shed and not shed:
+            runner.readmitted_at = time.time()
         runner.shed = shed
         if self._bridge is not None:
             self._bridge.mute(runner.user, shed)

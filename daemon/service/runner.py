@@ -34,37 +34,9 @@ from protocol.messages import (
     UserSettings,
 )
 
+from .pacing import BeltRefresh, Pacing
+
 log = logging.getLogger("guidebelt.runner")
-
-
-class Pacing:
-    """What the daemon's runners share: the step slots (one per core) and the lag record
-    admission control reads, with each user's step periods."""
-
-    def __init__(
-        self,
-        slots: int = 1,
-        guide_hz: float = 20.0,
-        shed_period_s: float = 0.5,
-        record: Callable[[str, float, float], None] | None = None,
-    ) -> None:
-        self.slots = threading.Semaphore(slots)
-        """Taken by a user's worker thread for its step: held for the step alone, never for
-        the loop's round trip; waiting threads are let in first come, first served."""
-        self.shed_gate = threading.Semaphore(1)
-        """Taken by a shed user's worker before a slot: one shed user at a time queues for
-        the slots, so a guided user's step waits behind one shed step at most (at 100 users,
-        93 shed users' twice-a-second steps queued ahead of the 7 guided ones' and kept
-        their lag over the budget: shed again, and again)."""
-        self.guide_period_s = 1.0 / guide_hz
-        self.shed_period_s = shed_period_s
-        self._record = record
-        self.behind = False
-        """The daemon's loop is late on its inputs: a pose missing now may be ours to blame."""
-
-    def record(self, user: str, lag_ms: float, cpu_ms: float) -> None:
-        if self._record is not None:
-            self._record(user, lag_ms, cpu_ms)
 
 
 class UserRunner:
@@ -99,6 +71,9 @@ class UserRunner:
         self._lock = threading.Lock()
         """The inbox is filled on the loop and taken by the worker when its turn comes."""
         self._wake = asyncio.Event()
+        self._pacing = False
+        """The worker is waiting out its step period (a timer is set): an input that does not
+        step the user at once need not wake it, the timer will (loop thread only)."""
         self._snapshot_pending = False
         self._urgent_at: float | None = None
         """When the inbox's first urgent input arrived (monotonic): the step's lag starts."""
@@ -107,14 +82,21 @@ class UserRunner:
         """Set by the daemon's admission control: step rarely, guide nobody, say overloaded."""
         self.skipped = 0
         """Poses and deltas not even decoded while shed."""
+        self.readmitted_at = 0.0
+        """When admission control last guided the user again (``time.time()``): their poses
+        were not even sent to the daemon while shed (``Bridge.mute``)."""
         self._closed = False
         self.last_status: bytes | None = None
         self._pose_heard_at = pose_heard_at
         self._listened = listened
         self._pose_read_at = 0.0
         """When the latest pose the loop read (taken or refused) had reached the daemon."""
+        self._belt = BeltRefresh()
+        self._idle = False
+        """The worker waits for any input at all (no step period running, inbox empty): a
+        pose taken on zenoh's thread must wake it (under ``_lock``)."""
         self._loop = asyncio.get_running_loop()
-        self.last_input = self._loop.time()
+        self.last_input = time.monotonic()
         self._task = self._loop.create_task(self._run(), name=f"user-{self.user}")
 
     # -- inputs (loop thread) -------------------------------------------------------------
@@ -144,6 +126,36 @@ class UserRunner:
             self._inbox.pose = pose  # the latest pose wins
             self._inbox.pose_received = time.time() if arrived is None else arrived
             self._heard()
+
+    def take_pose(self, payload: bytes, arrived: float) -> None:
+        """On zenoh's thread (``Bridge.route_poses``): decode a pose and leave it in the inbox,
+        as ``put_pose`` does from the loop, without the hop to the loop. The worker is woken
+        only if it waits for any input at all; while it waits out its step period, or steps,
+        the pose is simply there when its turn comes. A pose that does not decode is refused
+        on the loop, as every refused input is (it steps the user at once)."""
+        if self._closed:
+            return
+        if self.shed:  # muted by now on the bridge; this one was on its way
+            self.skipped += 1
+            return
+        try:
+            pose = codec.decode(Pose, payload)
+        except codec.DecodeError as exc:
+            with contextlib.suppress(RuntimeError):  # the loop is closed: stopping
+                self._loop.call_soon_threadsafe(self._refuse_pose, exc.code, exc.reason, arrived)
+            return
+        with self._lock:
+            self._pose_read_at = max(self._pose_read_at, arrived)
+            self._inbox.pose, self._inbox.pose_received = pose, arrived  # the latest wins
+            self.last_input = time.monotonic()
+            wake, self._idle = self._idle, False
+        if wake:
+            with contextlib.suppress(RuntimeError):
+                self._loop.call_soon_threadsafe(self._wake.set)
+
+    def _refuse_pose(self, code: StatusCode, reason: str, arrived: float) -> None:
+        self.read_pose(arrived)
+        self.reject(code, f"{T.POSE.leaf}: {reason}")
 
     def put_goal(self, goal: Goal) -> None:
         with self._lock:
@@ -181,15 +193,19 @@ class UserRunner:
         return self.navigator.controls.state(self.navigator.guidance, now)
 
     def _heard(self, urgent: bool = False) -> None:
-        self.last_input = self._loop.time()
+        self.last_input = time.monotonic()
         if urgent and self._urgent_at is None:
             self._urgent_at = time.monotonic()
-        self._wake.set()
+        # A pose woke the worker only to wait again: 20 poses a second per user, each an
+        # asyncio.wait_for (a task and a timer) on the loop.
+        if urgent or not self._pacing:
+            self._wake.set()
 
     def tick(self) -> None:
         with self._lock:
             self._inbox.tick = True
-        self._wake.set()
+        if not self._pacing:
+            self._wake.set()
 
     # -- the worker -----------------------------------------------------------------------
 
@@ -227,7 +243,13 @@ class UserRunner:
             inbox.overloaded = self.shed
             inbox.daemon_behind = self.pacing.behind
             heard = self._pose_heard_at() if self._pose_heard_at is not None else None
-            inbox.pose_unread = heard is not None and heard > self._pose_read_at
+            # Until a pose that came after the readmission is read (for at most a pose's
+            # staleness, so a localiser that died meanwhile is still said as stale), a missing
+            # pose of a readmitted user's is the daemon's doing: it did not listen.
+            back = self.readmitted_at > self._pose_read_at and (
+                inbox.taken_at - self.readmitted_at < self.navigator.settings.stale_pose_s
+            )
+            inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
@@ -235,14 +257,23 @@ class UserRunner:
         """Wait for inputs. Urgent ones (map, goal, refusal, button) step at once; a pose
         alone waits for the user's guide period (later poses replace it meanwhile), and a
         shed user steps only once per shed period."""
-        await self._wake.wait()
+        with self._lock:
+            self._idle = idle = not self._inbox
+        if idle:
+            await self._wake.wait()
+            with self._lock:
+                self._idle = False
         loop = asyncio.get_running_loop()
-        while (wait := self._next_step_at - loop.time()) > 0 and (
-            self.shed or not self._inbox.urgent()
-        ):
-            self._wake.clear()
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._wake.wait(), wait)
+        self._pacing = True
+        try:
+            while (wait := self._next_step_at - loop.time()) > 0 and (
+                self.shed or not self._inbox.urgent()
+            ):
+                self._wake.clear()
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._wake.wait(), wait)
+        finally:
+            self._pacing = False
         self._wake.clear()
 
     def _step(self, inbox: Inbox) -> float:
@@ -268,17 +299,22 @@ class UserRunner:
                 log.exception("state not saved", extra={"fields": {"user": self.user}})
         return (time.thread_time() - cpu0) * 1e3
 
-    def _emit(self, out: StepOutput) -> None:
-        """Publish ``out`` (on the worker thread)."""
+    def _emit(self, out: StepOutput, refresh_all: bool = False) -> None:
+        """Publish ``out`` (on the worker thread). ``refresh_all``: put every belt pattern,
+        even one equal to what the belt shows (the last words to a user)."""
         user = self.user
+        # The path (the largest message a step makes) is for viewers and tests: a belt driver
+        # and a phone do not subscribe to it, so most steps need not build it. Whoever does
+        # pairs each step's path with its belt pattern (the simulated walker feels the pattern
+        # stamped like the path), so then every pattern is put.
+        key = T.PATH.key(user)
+        paired = self._listened is None or self._listened(key)
         for pattern in out.belt:
-            self._publish(T.BELT.key(user), codec.encode(pattern))
+            if self._belt.due(pattern, force=refresh_all or paired):
+                self._publish(T.BELT.key(user), codec.encode(pattern))
         for cue in out.voice:
             self._publish(T.VOICE.key(user), codec.encode(cue))
-        # The path (the largest message a step makes) is for viewers and tests: a belt driver
-        # and a phone do not subscribe to it, so most steps need not build it.
-        key = T.PATH.key(user)
-        if out.path_cells is not None and (self._listened is None or self._listened(key)):
+        if out.path_cells is not None and paired:
             self._publish(key, codec.encode(out.path()))
         for status in out.statuses:
             self.last_status = codec.encode(status)
@@ -345,7 +381,7 @@ class UserRunner:
         try:
             await loop.run_in_executor(
                 self._executor,
-                lambda: self._emit(self.navigator.halt(time.time(), code, reason)),
+                lambda: self._emit(self.navigator.halt(time.time(), code, reason), True),
             )
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)

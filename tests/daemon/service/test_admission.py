@@ -156,7 +156,10 @@ CELL_M = 0.1
 def test_a_daemon_over_its_budget_tells_the_last_users_overloaded_and_guides_the_first():
     users = ["first", "second", "third", "fourth"]
     heard: dict[str, list] = {u: [] for u in users}
-    # A CPU budget no step can fit: everyone but the first admitted is shed.
+    # A CPU budget no two users' steps fit: everyone but the first admitted is shed. The map
+    # is large enough that a user's ten steps a second take more than half the budget even
+    # with an unchanged belt pattern not put again each step.
+    shape = (120, 120)
     with DaemonThread(backend="cpu", step_cpu_budget_ms=10, tick_s=0.1) as d:
         peer = d.peer()
         try:
@@ -173,10 +176,11 @@ def test_a_daemon_over_its_budget_tells_the_last_users_overloaded_and_guides_the
                 for u in users
                 for topic in (T.STATUS, T.BELT)
             ]
-            walls = np.flatnonzero(np.pad(np.zeros((38, 38), bool), 1, constant_values=True))
+            inner = np.zeros((shape[0] - 2, shape[1] - 2), bool)
+            walls = np.flatnonzero(np.pad(inner, 1, constant_values=True))
             for u in users:
                 now = time.time()
-                delta = MapDelta.from_arrays(0, SHAPE, walls, np.ones(walls.size), now)
+                delta = MapDelta.from_arrays(0, shape, walls, np.ones(walls.size), now)
                 wire.put(peer, T.MAP_DELTA, u, codec.encode(delta))
                 goal = Goal(target=GoalCell(row=4, col=20), stamp=now)
                 wire.put(peer, T.GOAL, u, codec.encode(goal))

@@ -1,6 +1,7 @@
 """The bridge settles on zenoh's thread what the loop need not see: a shed user's poses and
-deltas are dropped there, every watched user's latest pose is timed as it arrives, and a
-message nobody subscribes to is known as such (zenoh's matching status)."""
+deltas are not even sent to the daemon (only the guided users' streams are subscribed to
+while anyone is shed), every watched user's latest pose is timed as it arrives, and a message
+nobody subscribes to is known as such (zenoh's matching status)."""
 
 from __future__ import annotations
 
@@ -26,9 +27,12 @@ async def until(check, timeout_s: float = 5.0) -> bool:
 
 
 @pytest.mark.timeout(60)
-def test_shed_users_inputs_stop_on_zenohs_thread_and_arrivals_are_timed():
+def test_shed_users_streams_are_not_sent_to_the_daemon_and_arrivals_are_timed():
     port = free_port()
     heard: list[tuple[Topic, str, float]] = []
+
+    def keys() -> list[tuple[str, str]]:
+        return sorted((t.name, k) for t, k, _ in heard)
 
     async def scenario() -> None:
         session = open_session(loopback(listen_port=port))
@@ -39,38 +43,42 @@ def test_shed_users_inputs_stop_on_zenohs_thread_and_arrivals_are_timed():
             lambda topic, key, payload, arrived: heard.append((topic, key, arrived)),
             lambda topic, query: query.drop(),
         )
+        bob_pose = peer.declare_publisher(T.POSE.key("bob"))
         try:
             bridge.start()
             bridge.watch("ann")
             bridge.watch("bob")
-            bridge.mute("bob", True)
             path_key = T.PATH.key("ann")
             assert not bridge.listened(path_key)  # nobody subscribes to ann's path yet
             sub = peer.declare_subscriber(path_key, lambda sample: None)
             assert await until(lambda: bridge.listened(path_key))
             sub.undeclare()
+            # Nobody shed: every user's stream is heard, a new one's (eve) too, not timed.
+            peer.put(T.POSE.key("eve"), b"{}")
+            assert await until(lambda: len(heard) == 1)
+            assert bridge.pose_heard_at("eve") is None
+            bridge.mute("bob", True)  # bob shed: only ann's streams are subscribed to now
+            assert await until(lambda: not bob_pose.matching_status.matching)
+            heard.clear()
             sent = time.time()
-            for user in ("ann", "bob"):
+            for user in ("ann", "bob", "eve"):
                 peer.put(T.POSE.key(user), b"{}")
                 peer.put(T.MAP_DELTA.key(user), b"GBMD")
-            peer.put(T.POSE.key("eve"), b"{}")  # no session: passed on, not timed
-            assert await until(lambda: len(heard) == 3)
-            assert await until(lambda: bridge.pose_heard_at("bob") is not None)
-            await asyncio.sleep(0.2)  # nothing more comes for bob
-            assert sorted((t.name, k) for t, k, _ in heard) == [
-                ("map_delta", T.MAP_DELTA.key("ann")),
-                ("pose", T.POSE.key("ann")),
-                ("pose", T.POSE.key("eve")),
-            ]
-            # bob's pose reached the daemon although the loop never saw it: a missing pose of
-            # bob's is the daemon's doing (overloaded), not bob's localiser's.
-            bob_at = bridge.pose_heard_at("bob")
-            assert bob_at is not None and sent - 1.0 < bob_at <= time.time()
-            assert bridge.pose_heard_at("ann") == next(a for t, _, a in heard if t is T.POSE)
-            assert bridge.pose_heard_at("eve") is None
-            bridge.mute("bob", False)  # guided again: bob's inputs reach the loop
-            peer.put(T.POSE.key("bob"), b"{}")
-            assert await until(lambda: any(k == T.POSE.key("bob") for _, k, _ in heard))
+            assert await until(lambda: len(heard) == 2)
+            await asyncio.sleep(0.2)  # nothing more comes: bob's and eve's were not sent
+            assert keys() == [("map_delta", T.MAP_DELTA.key("ann")), ("pose", T.POSE.key("ann"))]
+            ann_at = bridge.pose_heard_at("ann")
+            assert ann_at == next(a for t, _, a in heard if t is T.POSE)
+            assert sent - 1.0 < ann_at <= time.time()
+            assert bridge.pose_heard_at("bob") is None
+            bridge.mute("bob", False)  # guided again: every stream heard, each sample once
+            assert await until(lambda: bob_pose.matching_status.matching)
+            heard.clear()
+            for user in ("ann", "bob"):
+                peer.put(T.POSE.key(user), f'{{"u": "{user}"}}'.encode())
+            await asyncio.sleep(0.3)
+            assert keys() == [("pose", T.POSE.key("ann")), ("pose", T.POSE.key("bob"))]
+            assert bridge.pose_heard_at("bob") is not None
             bridge.forget_user("bob")
             assert bridge.pose_heard_at("bob") is None
         finally:
