@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
-from drivers.rfid.map_match import contact_likelihood, obstacle_likelihood
+from drivers.rfid.map_match import contact_likelihood, free_space_likelihood, obstacle_likelihood
 from drivers.rfid.pose_filter import PoseFilter
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import TagMap
@@ -133,12 +133,18 @@ class FilteredRfidPoses:
             self.filter.bump(self.t)
             if self.match != "none":  # and it says where: an obstacle within a step ahead
                 heading = self.filter.heading
-                like = contact_likelihood(world.known, world.cell_m, heading, w.params.step_m)
+                like = contact_likelihood(world.known, world.cell_m, heading, _reach(w))
                 self.filter.constrain(self.t, like)
         if self.at is None:
             self._listen(here, here, WARM_UP_S, stepped=False)
         else:
             self._listen(self.at, here, now + WARM_UP_S - self.t, stepped=True)
+        if self.match != "none" and self.at is not None and here[:2] != self.at[:2]:
+            # After each step: the user stands on free floor. Applied only when the mean
+            # itself fell on an obstacle it changed nothing (40 %, seeds 0-24: 23 of 25
+            # arrived, as without it); after every step 25 of 25 (22 against 24 once the
+            # bump's reach followed the pulse).
+            self.filter.constrain(self.t, free_space_likelihood(world.known, world.cell_m))
         self.at = here
         pose = self.filter.pose(self.t)
         if pose is None:
@@ -185,6 +191,30 @@ class FilteredRfidPoses:
             self.filter.step(self.t, self.imu.step(moved), self.imu.compass(way))
         else:
             self.filter.compass(self.t, self.imu.compass(b[2]))
+
+
+def _reach(walker) -> float:
+    """How far the bumped step would have gone: the belt's pulse shortens the user's steps
+    near an obstacle (``BeltWalker``'s rule: down to a quarter at the fastest pulse), and
+    the belt's driver knows the pattern it played. With the full step as the reach, a user
+    pulsed to quarter steps against a blob 0.3 m from the estimate learnt nothing from 48
+    bumps (40 %, seed 7): the estimate already had the blob within a step."""
+    p = walker.params
+    period = getattr(walker, "last_period_ms", 0)
+    factor = max(p.slow_factor, min(1.0, period / 800.0)) if period > 0 else 1.0
+    return (p.step_m + 2.0 * p.step_sd_m) * factor
+
+
+class PulseAwareWalker(BeltWalker):
+    """The belt walker, with the pulse period of the last pattern it stepped on kept (what
+    the belt's own driver knows it played)."""
+
+    last_period_ms: int = 0
+
+    def react(self, pattern, occupancy: np.ndarray) -> str:
+        if str(pattern.kind) == "guide":
+            self.last_period_ms = int(pattern.period_ms)
+        return super().react(pattern, occupancy)
 
 
 CORRIDOR_M = 0.2
@@ -246,7 +276,7 @@ def rfid_belt_walk(
     navigator = Navigator("rfid-walker", settings)
     x, y = cell_to_xy(scenario.shape, scenario.start, scenario.cell_m)
     params = WalkerParams()
-    walker = BeltWalker(x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m, params=params,
+    walker = PulseAwareWalker(x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m, params=params,
                         rng=np.random.default_rng(seed))  # fmt: skip
     poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m, match=match)
     limit = max_actions or int(8 * optimal_m(scenario) / params.step_m) + 150
