@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from cli import rfid as rfid_cli
 from sim.belt_walker import BeltWalker
 from sim.courtyard import make_courtyard
-from sim.rfid_belt_walk import FilteredRfidPoses, rfid_belt_walk
+from sim.rfid_belt_walk import FilteredRfidPoses, PulseAwareWalker, _reach, rfid_belt_walk
 from sim.rfid_eval import PAPER, tags_for
 from sim.world import World
 
@@ -68,3 +68,27 @@ def test_the_walks_command_writes_its_rows_and_refuses_an_unknown_match(tmp_path
     assert row["collisions"] == 0
     bad = CliRunner().invoke(app, ["rfid-walks", "--runs", "1", "--match", "lidar"])
     assert bad.exit_code == 2 and "choose one of camera, contact, none" in bad.output
+
+
+def test_a_bumps_reach_is_the_step_the_belts_pulse_allowed() -> None:
+    w = PulseAwareWalker(x=1.0, y=1.0, heading=0.0, cell_m=0.1)
+    full = _reach(w)
+    assert full == pytest.approx(w.params.step_m + 2 * w.params.step_sd_m)
+
+    class Pattern:
+        kind, motors, period_ms, stamp, ttl_ms = "guide", (255, 0, 0, 0), 200, 0.0, 1000
+
+    w.react(Pattern(), np.zeros((20, 20), np.uint8))
+    assert w.last_period_ms == 200
+    assert _reach(w) == pytest.approx(full * w.params.slow_factor)  # the fastest pulse
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("unknown", "seed"), [(0.4, 16), (0.4, 19)])
+def test_walks_by_tags_steps_compass_and_bumps_alone_arrive(unknown, seed) -> None:
+    """``match="contact"``: no camera in the pose. Both failed in round 2 (seed 16 bumped
+    44 times and stood in WAIT; seed 19 bumped 34 times: the contact match drew it off the
+    map's edge); both arrive now without touching anything."""
+    walk = rfid_belt_walk(make_courtyard(100, unknown, seed), seed=seed, match="contact")
+    assert walk.arrived, walk.reason
+    assert walk.collisions == 0
