@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from daemon.planning.grid import OCCUPIED, cell_to_xy, xy_to_cell
+from daemon.planning.grid import OCCUPIED, UNKNOWN, cell_to_xy, xy_to_cell
 from drivers.rfid.map_match import contact_likelihood, free_space_likelihood, obstacle_likelihood
 from drivers.rfid.pose_filter import PoseFilter
 from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tag_payload import ObstacleBook
 from drivers.rfid.tags import TagMap
 from protocol.messages import Pose, Proximity
 
@@ -93,6 +94,29 @@ class EstimatedFrameWorld(World):
         return self._deltas(cells[keep], values[keep], stamp)
 
 
+class TagMapWorld(World):
+    """The world whose daemon is given no survey: the map is what the tags carry (the
+    obstacle book of the UHF tags read so far) and what the camera sees. The outer walls
+    are the building's and stay known."""
+
+    def __init__(self, scenario: Scenario, walker, book: ObstacleBook) -> None:
+        super().__init__(scenario, walker)
+        self.book = book
+        walls = np.zeros(self.shape, dtype=bool)
+        walls[[0, -1], :] = walls[:, [0, -1]] = True
+        self.known = np.where(walls, self.known, UNKNOWN).astype(self.known.dtype)
+
+    def sense(self, stamp: float) -> list:
+        got = self.book.delta(0, stamp)
+        out = []
+        if got is not None:
+            cells = np.frombuffer(got.cells, "<u4").astype(np.int64)
+            values = np.frombuffer(got.values, np.uint8)
+            new = self.known.reshape(-1)[cells] != values
+            out += self._deltas(cells[new], values[new], stamp)
+        return out + super().sense(stamp)
+
+
 class FilteredRfidPoses:
     """The ``PoseSource``: reader rounds and IMU reports along the walker's true movement
     since the last call, then the filter's pose (with its ``sigma_m``)."""
@@ -108,7 +132,13 @@ class FilteredRfidPoses:
         uhf_every: int = 5,
         pose_every: int = 5,
         match: str = "camera",
+        memories: dict[str, bytes] | None = None,
+        book: ObstacleBook | None = None,
     ) -> None:
+        """``memories``/``book``: the UHF tags' user memory, read once per tag the first
+        time it answers, into the obstacle book the walk's map is built from."""
+        self.memories = memories or {}
+        self.book = book
         self.model = ReadModel.for_tags(tag_map, seed=seed, uhf_range_m=uhf_range_m)
         self.imu = Imu(seed=seed + 7919)
         self.filter = PoseFilter(tag_map, start=start, pedometer=True)
@@ -190,6 +220,9 @@ class FilteredRfidPoses:
             uhf = self.rounds % self.uhf_every == 0
             for read in self.model.round(x, y, self.t, int(self.t * 1000), uhf=uhf):
                 self.filter.add(read)
+                memory = self.memories.pop(read.tag_id, None)
+                if memory is not None and self.book is not None:
+                    self.book.read(memory)
             self.rounds += 1
             if self.rounds % self.pose_every == 0 and i < n:
                 # The compass follows the body as it turns; the filter folds its reads.
@@ -270,10 +303,12 @@ def rfid_belt_walk(
 
     ``register``: where the mapper puts what the sensor sees — ``true`` (its own
     registration, as a camera-based mapper has: the project's walks all assume it) or
-    ``estimate`` (at the RFID pose: ``EstimatedFrameWorld``).
+    ``estimate`` (at the RFID pose: ``EstimatedFrameWorld``), or ``tags``: no survey, the
+    daemon's map is built from the UHF tags' memory as they are read (``TagMapWorld``,
+    ``ObstacleBook``) and from what the camera sees, registered where it truly is.
     """
-    if register not in ("true", "estimate"):
-        raise ValueError(f"register {register!r}: choose true or estimate")
+    if register not in ("true", "estimate", "tags"):
+        raise ValueError(f"register {register!r}: choose true, estimate or tags")
     if match not in MATCHES:
         raise ValueError(f"match {match!r}: choose one of {MATCHES}")
     from daemon.navigation import Navigator
@@ -288,9 +323,19 @@ def rfid_belt_walk(
     params = WalkerParams()
     walker = PulseAwareWalker(x=x, y=y, heading=math.pi / 2, cell_m=scenario.cell_m, params=params,
                         rng=np.random.default_rng(seed))  # fmt: skip
-    poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m, match=match)
+    book = memories = None
+    if register == "tags":
+        from .tag_payloads import tag_memories
+
+        book = ObstacleBook(scenario.shape, scenario.cell_m)
+        memories = tag_memories(tag_map, scenario.known, scenario.cell_m)
+    poses = FilteredRfidPoses(tag_map, (x, y), seed=seed, uhf_range_m=uhf_range_m, match=match,
+                              memories=memories, book=book)  # fmt: skip
     limit = max_actions or int(8 * optimal_m(scenario) / params.step_m) + 150
-    world = (EstimatedFrameWorld if register == "estimate" else World)(scenario, walker)
+    if book is not None:
+        world: World = TagMapWorld(scenario, walker, book)
+    else:
+        world = (EstimatedFrameWorld if register == "estimate" else World)(scenario, walker)
     done = run_walk(world, navigator, max_actions=limit, step_s=STEP_S, pose_source=poses,
                     stop_on_no_path=False,
                     proximity_source=camera_proximity if proximity else None)  # fmt: skip
