@@ -77,6 +77,9 @@ def test_the_walks_command_writes_its_rows_and_refuses_an_unknown_match(tmp_path
     assert row["collisions"] == 0
     bad = CliRunner().invoke(app, ["rfid-walks", "--runs", "1", "--match", "lidar"])
     assert bad.exit_code == 2 and "choose one of camera, contact, none" in bad.output
+    assert row["map"] == "true"
+    bad = CliRunner().invoke(app, ["rfid-walks", "--runs", "1", "--map", "lidar"])
+    assert bad.exit_code == 2 and "choose one of true, estimate, tags" in bad.output
 
 
 def test_a_bumps_reach_is_the_step_the_belts_pulse_allowed() -> None:
