@@ -172,6 +172,15 @@ def rfid(
             mock_reader.stop()
 
 
+REGISTERS = ("true", "estimate", "tags")
+
+
+def _one_of_registers(value: str) -> str:
+    if value not in REGISTERS:
+        raise typer.BadParameter(f"{value!r}: choose one of {', '.join(REGISTERS)}")
+    return value
+
+
 def _one_of_matches(value: str) -> str:
     from sim.rfid_belt_walk import MATCHES
 
@@ -192,6 +201,15 @@ def rfid_walks(
         ),
     ] = "camera",
     proximity: Annotated[bool, typer.Option(help="The camera's STOP before contact.")] = False,
+    map_from: Annotated[
+        str,
+        typer.Option(
+            "--map",
+            help="The daemon's map: true (survey + camera), estimate (camera at the RFID "
+            "pose) or tags (no survey: the UHF tags' memory + camera).",
+            callback=_one_of_registers,
+        ),
+    ] = "true",
 ) -> None:
     """Closed-loop belt walks of the 100² courtyard guided by the RFID pose filter (tags,
     steps and compass, and with ``--match`` the bumps and the camera's nearest obstacle
@@ -204,7 +222,13 @@ def rfid_walks(
     rows = []
     for level in unknown or [0.2, 0.4, 0.6]:
         res = [
-            rfid_belt_walk(make_courtyard(100, level, s), seed=s, match=match, proximity=proximity)
+            rfid_belt_walk(
+                make_courtyard(100, level, s),
+                seed=s,
+                match=match,
+                proximity=proximity,
+                register=map_from,
+            )
             for s in range(runs)
         ]
         errors = np.concatenate([r.pose_errors for r in res])
@@ -214,6 +238,7 @@ def rfid_walks(
             "runs": runs,
             "match": match,
             "proximity": proximity,
+            "map": map_from,
             "success": round(sum(r.arrived for r in res) / runs, 4),
             "collisions": int(sum(r.collisions for r in res)),
             "walks_with_collision": int(sum(r.collisions > 0 for r in res)),

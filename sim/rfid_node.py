@@ -20,7 +20,7 @@ import numpy as np
 
 from daemon.planning.grid import cell_to_xy
 from drivers.rfid.localiser import DEFAULT_METHOD, Estimate, Localiser
-from drivers.rfid.protocol import ReadFilter, format_read
+from drivers.rfid.protocol import Read, ReadFilter, format_read
 from drivers.rfid.rssi import ReadModel
 from drivers.rfid.tags import TagMap
 from protocol import codec
@@ -99,11 +99,12 @@ class RfidSimNode(SimNode):
             self.sim_t += dt / n
             uhf = self._rounds % self.uhf_every == 0
             self._rounds += 1
-            reads = self.model.round(x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, self.sim_t,
-                                     int(self.sim_t * 1000), uhf=uhf)
+            reads = self.model.round(
+                x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, self.sim_t, int(self.sim_t * 1000), uhf=uhf
+            )
             for r in reads:
                 read = self.filter.feed(format_read(r.tag_id, r.rssi, r.reader_ms), self.sim_t)
-                if read is not None:
+                if isinstance(read, Read):
                     self.localiser.add(read)
         self._last_xy = (x1, y1)
 

@@ -5,6 +5,9 @@ path into the margin; the planner has no path from a blocked cell. The way out l
 straight line to the *nearest* free cell that has a path (ties: the lowest total cost) and
 whose line crosses no occupied cell, then follows the planner's path from there. No such
 cell within reach means no path: the user is told so rather than led through an obstacle.
+A pose on an occupied cell (the estimate pinned onto a blob the sensor saw beside the user) is
+led out of that obstacle the shortest way; before, every lead began on an occupied cell, no
+exit was usable, and the user stood at NO_PATH for good.
 An exit from which the planner gives no path (extended A*, which ranks exits by the exact
 field but may miss a path) is passed over; the cost is the lead's plus the path's own.
 
@@ -57,7 +60,12 @@ def escape_path(
     for k in np.flatnonzero(usable.ravel())[np.argsort(key.ravel()[usable.ravel()], kind="stable")]:
         exit_cell = (rs + int(k) // (ce - cs), cs + int(k) % (ce - cs))
         lead = _line(cell, exit_cell)
-        if np.any(occupancy[lead[:, 0], lead[:, 1]] == OCCUPIED):
+        hit = occupancy[lead[:, 0], lead[:, 1]] == OCCUPIED
+        # An estimate on an occupied cell (an uncertain pose pinned beside a blob the sensor
+        # has just seen) is no user inside the obstacle: the way out may leave the occupied
+        # run it starts in, but never enter another.
+        leave = int(np.argmin(hit)) if not hit.all() else len(hit)
+        if hit[leave:].any():
             continue  # the straight way there runs through an obstacle
         tail = planner.path(exit_cell)
         if len(tail) == 0:

@@ -2,8 +2,10 @@
 
 It writes the same lines a real reader sends (``protocol.format_read``), one inventory
 round every ``1/round_hz`` s, drawn from the RSSI model at the position ``position(t)``
-returns. ``unplug()``/``plug()`` close and reopen the pty as a USB unplug would; ``link``
-is a stable path (like a udev symlink) that follows the current pty.
+returns. A tag with user memory (``memories``: the obstacle it carries, ``tag_payload``)
+has it sent once per connection, after its first read, as a reader reads a tag's memory
+when the tag first answers. ``unplug()``/``plug()`` close and reopen the pty as a USB
+unplug would; ``link`` is a stable path (like a udev symlink) that follows the current pty.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import time
 import tty
 from collections.abc import Callable
 
-from .protocol import format_read
+from .protocol import format_memory, format_read
 from .rssi import ReadModel
 
 Position = Callable[[float], "tuple[float, float] | None"]
@@ -31,8 +33,11 @@ class MockReader:
         round_hz: float = 50.0,
         uhf_every: int = 5,
         clock: Callable[[], float] = time.time,
+        memories: dict[str, bytes] | None = None,
     ) -> None:
         self.model = model
+        self.memories = dict(memories or {})
+        self._memory_sent: set[str] = set()
         self.position = position
         self.link = link
         self.period = 1.0 / round_hz
@@ -63,6 +68,7 @@ class MockReader:
             tty.setraw(slave)  # no echo, no line editing before the driver opens it
             os.set_blocking(master, False)  # nobody listening must not stall the mock
             self._master, self._slave = master, slave
+            self._memory_sent = set()  # a new connection: the host has read no memory yet
             self.slave_name = os.ttyname(slave)
             if self.link:
                 tmp = f"{self.link}.tmp{os.getpid()}"
@@ -104,9 +110,12 @@ class MockReader:
         uhf = self.rounds % self.uhf_every == 0
         reads = self.model.round(pos[0], pos[1], now, ms, uhf=uhf)
         payload = b"".join(format_read(r.tag_id, r.rssi, r.reader_ms) for r in reads)
+        fresh = {r.tag_id for r in reads if r.tag_id in self.memories} - self._memory_sent
+        payload += b"".join(format_memory(t, self.memories[t]) for t in sorted(fresh))
         self.rounds += 1
         if payload and self.write(payload):
-            self.lines += len(reads)
+            self.lines += len(reads) + len(fresh)
+            self._memory_sent |= fresh
         return len(reads)
 
     def _run(self) -> None:

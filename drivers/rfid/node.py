@@ -24,6 +24,7 @@ from protocol.messages import Pose, RfidStats
 from .localiser import DEFAULT_METHOD, Estimate, Localiser
 from .pose_filter import PoseFilter
 from .reader import RfidReader
+from .tag_payload import ObstacleBook
 from .tags import TagMap
 
 log = logging.getLogger("guidebelt.rfid")
@@ -40,7 +41,10 @@ class RfidNode:
         method: str = DEFAULT_METHOD,
         rate_hz: float = 20.0,
         clock: Callable[[], float] = time.time,
+        book: ObstacleBook | None = None,
     ) -> None:
+        """``book``: where the obstacles the UHF tags carry go as their memory is read
+        (``tag_payload``); its ``delta`` is the map they make."""
         if rate_hz < 10.0:
             raise ValueError("the daemon expects poses at 10 Hz or more")
         self.user = T.check_user(user)
@@ -51,7 +55,9 @@ class RfidNode:
         self.filter = PoseFilter(tag_map) if method == "filter" else None
         self.localiser = Localiser(tag_map, method="lsq" if self.filter else method)
         sink = self.filter.add if self.filter is not None else self.localiser.add
-        self.reader = RfidReader(port, tag_map.ids, sink, clock=clock)
+        self.book = book
+        on_memory = (lambda m: book.read(m.data)) if book is not None else None
+        self.reader = RfidReader(port, tag_map.ids, sink, clock=clock, on_memory=on_memory)
         self._pose_pub = wire.declare_publisher(session, T.POSE, user)
         self._stats_pub = wire.declare_publisher(session, T.RFID_STATS, user)
         self.published = 0

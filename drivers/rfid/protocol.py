@@ -15,11 +15,20 @@ RSSI_MIN_DBM = -100.0
 """Below the reader's sensitivity: a line claiming this could not have been decoded."""
 RSSI_MAX_DBM = 0.0
 """A passive tag's backscatter never arrives stronger than this."""
-MAX_LINE_BYTES = 96
+MAX_LINE_BYTES = 112
+"""A memory line at its longest: a 32-digit id and a tag's 32 bytes of user memory in hex."""
+MAX_MEMORY_BYTES = 32
+"""A UHF tag's user memory as the reader reports it (``tag_payload``'s 256 bits)."""
 
 _LINE_RE = re.compile(
     r"^TAG,(?P<id>[0-9A-F]{4,32}),(?P<rssi>-?[0-9]{1,3}(?:\.[0-9])?),(?P<t>[0-9]{1,10})"
     r"\*(?P<cs>[0-9A-F]{2})$"
+)
+
+_MEM_RE = re.compile(
+    r"^MEM,(?P<id>[0-9A-F]{4,32}),(?P<data>(?:[0-9A-F]{2}){1,"
+    + str(MAX_MEMORY_BYTES)
+    + r"})\*(?P<cs>[0-9A-F]{2})$"
 )
 
 REJECT_REASONS = ("garbage", "checksum", "impossible_rssi", "unknown_tag")
@@ -33,6 +42,15 @@ class Read:
     rssi: float
     t: float
     reader_ms: int = 0
+
+
+@dataclass(frozen=True)
+class Memory:
+    """A tag's user memory, which the reader reads once when a tag first answers."""
+
+    tag_id: str
+    data: bytes
+    t: float
 
 
 class BadLine(ValueError):
@@ -57,7 +75,13 @@ def format_read(tag_id: str, rssi: float, reader_ms: int) -> bytes:
     return f"{body}*{checksum(body)}\n".encode("ascii")
 
 
-def parse_line(raw: bytes, t: float) -> Read | None:
+def format_memory(tag_id: str, data: bytes) -> bytes:
+    """The line a reader sends for a tag's user memory."""
+    body = f"MEM,{tag_id},{data.hex().upper()}"
+    return f"{body}*{checksum(body)}\n".encode("ascii")
+
+
+def parse_line(raw: bytes, t: float) -> Read | Memory | None:
     """Parse one line (without or with its ``\\n``); ``None`` for info and empty lines.
 
     Raises BadLine for anything else that is not a well-formed read. Unknown tag ids are
@@ -71,6 +95,12 @@ def parse_line(raw: bytes, t: float) -> Read | None:
         raise BadLine("garbage", "not ASCII") from None
     if not line or line.startswith("#"):
         return None
+    mem = _MEM_RE.match(line)
+    if mem is not None:
+        body = line[: line.index("*")]
+        if checksum(body) != mem["cs"]:
+            raise BadLine("checksum", f"{mem['cs']} != {checksum(body)}")
+        return Memory(tag_id=mem["id"], data=bytes.fromhex(mem["data"]), t=t)
     m = _LINE_RE.match(line)
     if m is None:
         raise BadLine("garbage", repr(line[:40]))
@@ -94,8 +124,10 @@ class ReadFilter:
         self.accepted = 0
         self.rejected: Counter[str] = Counter({r: 0 for r in REJECT_REASONS})
         self.info_lines = 0
+        self.memories = 0
+        """Memory lines of known tags passed on (not reads: not in ``accepted``)."""
 
-    def feed(self, raw: bytes, t: float) -> Read | None:
+    def feed(self, raw: bytes, t: float) -> Read | Memory | None:
         try:
             read = parse_line(raw, t)
         except BadLine as exc:
@@ -108,6 +140,9 @@ class ReadFilter:
         if read.tag_id not in self.known_ids:
             self.rejected["unknown_tag"] += 1
             return None
+        if isinstance(read, Memory):
+            self.memories += 1
+            return read
         self.accepted += 1
         return read
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import serial
 
-from .protocol import MAX_LINE_BYTES, Read, ReadFilter
+from .protocol import MAX_LINE_BYTES, Memory, Read, ReadFilter
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +31,7 @@ class RfidReader:
         known_ids: frozenset[str] | set[str],
         on_read: Callable[[Read], None],
         *,
+        on_memory: Callable[[Memory], None] | None = None,
         baudrate: int = 115200,
         backoff_min_s: float = 0.05,
         backoff_max_s: float = 2.0,
@@ -39,6 +40,8 @@ class RfidReader:
         self.port = port
         self.baudrate = baudrate
         self.on_read = on_read
+        self.on_memory = on_memory
+        """A tag's user memory (the obstacle it carries), when the reader reports one."""
         self.filter = ReadFilter(known_ids)
         self.backoff_min_s = backoff_min_s
         self.backoff_max_s = backoff_max_s
@@ -122,10 +125,13 @@ class RfidReader:
             del self._buf[: nl + 1]
             if self._discarding:
                 self._discarding = False
-                if not line.startswith((b"TAG,", b"#")):
+                if not line.startswith((b"TAG,", b"MEM,", b"#")):
                     continue  # the tail of a line cut by the (re)connection
             read = self.filter.feed(line, now)
-            if read is not None:
+            if isinstance(read, Memory):
+                if self.on_memory is not None:
+                    self.on_memory(read)
+            elif read is not None:
                 self.on_read(read)
         if len(self._buf) > MAX_LINE_BYTES + 2:
             # No line end in sight: count it once, drop through to the next newline.

@@ -91,6 +91,10 @@ def wiener(x: np.ndarray) -> np.ndarray:
     return (out / np.maximum(norm, 1e-9))[FRAME : FRAME + x.size]
 
 
-def front_end(x: np.ndarray) -> np.ndarray:
-    """What the recogniser hears: the Wiener-filtered samples when the input is noisy."""
-    return wiener(x) if estimate_snr_db(x) < DENOISE_BELOW_DB else np.asarray(x, np.float64)
+def front_end(x: np.ndarray) -> tuple[np.ndarray, bool]:
+    """What the recogniser hears, and whether it was filtered: the Wiener-filtered samples
+    when the input is noisy (the recogniser then listens for the filtered pronunciations
+    too, ``goal_listener.filtered_variants``)."""
+    if estimate_snr_db(x) < DENOISE_BELOW_DB:
+        return wiener(x), True
+    return np.asarray(x, np.float64), False

@@ -11,10 +11,19 @@ import typer
 from typer.testing import CliRunner
 
 from cli import rfid as rfid_cli
+from daemon.planning.grid import OCCUPIED
+from drivers.rfid.tag_payload import ObstacleBook, decode, polygon_cells
 from sim.belt_walker import BeltWalker
 from sim.courtyard import make_courtyard
-from sim.rfid_belt_walk import FilteredRfidPoses, rfid_belt_walk
+from sim.rfid_belt_walk import (
+    FilteredRfidPoses,
+    PulseAwareWalker,
+    TagMapWorld,
+    _reach,
+    rfid_belt_walk,
+)
 from sim.rfid_eval import PAPER, tags_for
+from sim.tag_payloads import tag_memories
 from sim.world import World
 
 
@@ -68,3 +77,69 @@ def test_the_walks_command_writes_its_rows_and_refuses_an_unknown_match(tmp_path
     assert row["collisions"] == 0
     bad = CliRunner().invoke(app, ["rfid-walks", "--runs", "1", "--match", "lidar"])
     assert bad.exit_code == 2 and "choose one of camera, contact, none" in bad.output
+    assert row["map"] == "true"
+    bad = CliRunner().invoke(app, ["rfid-walks", "--runs", "1", "--map", "lidar"])
+    assert bad.exit_code == 2 and "choose one of true, estimate, tags" in bad.output
+
+
+def test_a_bumps_reach_is_the_step_the_belts_pulse_allowed() -> None:
+    w = PulseAwareWalker(x=1.0, y=1.0, heading=0.0, cell_m=0.1)
+    full = _reach(w)
+    assert full == pytest.approx(w.params.step_m + 2 * w.params.step_sd_m)
+
+    class Pattern:
+        kind, motors, period_ms, stamp, ttl_ms = "guide", (255, 0, 0, 0), 200, 0.0, 1000
+
+    w.react(Pattern(), np.zeros((20, 20), np.uint8))
+    assert w.last_period_ms == 200
+    assert _reach(w) == pytest.approx(full * w.params.slow_factor)  # the fastest pulse
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("unknown", "seed"), [(0.4, 16), (0.4, 19)])
+def test_walks_by_tags_steps_compass_and_bumps_alone_arrive(unknown, seed) -> None:
+    """``match="contact"``: no camera in the pose. Both failed in round 2 (seed 16 bumped
+    44 times and stood in WAIT; seed 19 bumped 34 times: the contact match drew it off the
+    map's edge); both arrive now without touching anything."""
+    walk = rfid_belt_walk(make_courtyard(100, unknown, seed), seed=seed, match="contact")
+    assert walk.arrived, walk.reason
+    assert walk.collisions == 0
+
+
+def test_each_uhf_tag_carries_the_obstacle_it_is_fixed_to() -> None:
+    scenario = make_courtyard(100, 0.2, 0)
+    tag_map = tags_for(scenario, PAPER.lf_layouts[0], 0, edge_spacing_m=PAPER.edge_spacing_m)
+    memories = tag_memories(tag_map, scenario.known, scenario.cell_m)
+    assert set(memories) <= set(tag_map.uhf_ids) and len(memories) == len(tag_map.uhf_ids)
+    book = ObstacleBook(scenario.shape, scenario.cell_m)
+    for tag_id, raw in memories.items():
+        payload = decode(raw)
+        i = tag_map.uhf_index[tag_id]
+        assert (payload.x, payload.y) == pytest.approx(tuple(tag_map.uhf_xy[i]), abs=0.01)
+        book.read(raw)
+    cells = np.frombuffer(book.delta(0, 0.0).cells, "<u4")
+    assert cells.size > 0 and np.all(scenario.known.reshape(-1)[cells] == OCCUPIED)
+
+
+@pytest.mark.timeout(60)
+def test_a_walk_builds_its_map_from_the_tags_it_reads() -> None:
+    """No survey given to the daemon: the UHF tags' memory, read as each tag first answers,
+    goes through the obstacle book into the map the navigator plans on."""
+    seen: dict[str, TagMapWorld] = {}
+    original = TagMapWorld.sense
+
+    def spy(self, stamp):
+        seen["world"] = self
+        return original(self, stamp)
+
+    TagMapWorld.sense = spy
+    try:
+        walk = rfid_belt_walk(make_courtyard(100, 0.2, 0), seed=0, register="tags")
+    finally:
+        TagMapWorld.sense = original
+    assert walk.arrived and walk.collisions == 0
+    world = seen["world"]
+    assert len(world.book.polygons) >= 2  # obstacles read from tags along the way
+    for verts in world.book.polygons.values():
+        cells = polygon_cells(np.asarray(verts), world.shape, world.cell_m)
+        assert np.all(world.known.reshape(-1)[cells] == OCCUPIED)

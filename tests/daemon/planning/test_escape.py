@@ -47,3 +47,29 @@ def test_no_free_cell_within_reach_gives_no_path():
     m, planner = wall_map(gap=True)
     path, cost = escape_path(planner, m.blocked, m.occupancy, USER, reach=1)
     assert path.shape == (0, 2) and cost == int(INF)
+
+
+def test_an_estimate_on_an_occupied_cell_is_led_out_of_that_obstacle_only():
+    # 60 %, seed 43 with RFID alone: an LF patch pinned the estimate onto a blob seen beside
+    # the user; every lead began on an occupied cell, and the user stood at NO_PATH for good.
+    occ = np.zeros((30, 40), np.uint8)
+    occ[14:17, 14:17] = OCCUPIED  # the blob under the estimate
+    occ[10, :] = OCCUPIED  # a wall above it, the goal beyond a gap on the right
+    occ[10, 30:] = 0
+    m = InflatedMap(occ, 3)
+    planner = make_planner("eds", "cpu")
+    planner.plan(m.blocked, GOAL)
+    user = (15, 15)
+    path, cost = escape_path(planner, m.blocked, m.occupancy, user, reach=12)
+    assert tuple(path[0]) == user and tuple(path[-1]) == GOAL and cost < int(INF)
+    hit = [m.occupancy[tuple(c)] == OCCUPIED for c in path]
+    out = hit.index(False)
+    assert not any(hit[out:])  # once out of the blob, never into an obstacle again
+    assert out <= 2  # straight out of the blob's nearest side
+    # A way that would cross the wall to leave is still refused.
+    walled = occ.copy()
+    walled[10, 30:] = OCCUPIED
+    m2 = InflatedMap(walled, 3)
+    planner.plan(m2.blocked, GOAL)
+    path, cost = escape_path(planner, m2.blocked, m2.occupancy, user, reach=12)
+    assert path.shape == (0, 2) and cost == int(INF)

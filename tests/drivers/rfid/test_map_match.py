@@ -9,7 +9,9 @@ import pytest
 
 from drivers.rfid.map_match import (
     MIN_SIGMA_M,
+    Z_OFF_FREE,
     contact_likelihood,
+    free_space_likelihood,
     grid_measurement,
     obstacle_likelihood,
 )
@@ -81,3 +83,26 @@ def test_standing_on_a_signpost_does_not_make_the_filter_surer_and_surer() -> No
     # One tag's 10 cm: about 5 cm however often it is read (it was 3 mm before).
     assert f.sigma_m > 0.035
     assert math.isfinite(f.sigma_m)
+
+
+def test_the_user_stands_on_free_floor_and_the_maps_edge_is_no_wall() -> None:
+    stand = free_space_likelihood(wall_map(), CELL)
+    pts = np.array([[3.0, 3.0], [4.1, 3.0], [-0.2, 3.0], [3.0, 6.3]])  # free, wall, off, off
+    assert stand(pts).tolist() == [1.0, Z_OFF_FREE, Z_OFF_FREE, Z_OFF_FREE]
+    # An estimate drifted into a block (east of x = 4 m) is put back out of it, across
+    # the block's face only. (Inside a thin wall the posterior has two humps and a mean
+    # in the wall: no Gaussian says that, and nothing is constrained.)
+    block = np.zeros((60, 60), dtype=np.uint8)
+    block[:, 40:] = 1
+    f = PoseFilter(tags(), start=(4.1, 3.0), start_sigma_m=0.2, pedometer=True)
+    assert f.constrain(0.1, free_space_likelihood(block, CELL))
+    pose = f.pose(0.1)
+    assert pose is not None and pose.x < 4.0
+    assert pose.y == pytest.approx(3.0, abs=0.05)
+    assert f.P[0, 0] < 0.2**2 / 2 and f.P[1, 1] == pytest.approx(0.2**2, rel=0.05)
+    # Facing south from near the south edge, a step meets nothing: the map's edge beyond
+    # is not a hit (it drew an estimate by a wall out through it), and off the map is no
+    # place to stand.
+    like = contact_likelihood(wall_map(), CELL, heading=-math.pi / 2, reach_m=0.5)
+    near_edge = like(np.array([[1.0, 0.3], [1.0, -0.3]]))
+    assert near_edge.tolist() == pytest.approx([0.01, 0.01 * Z_OFF_FREE])

@@ -15,12 +15,14 @@ import pytest
 from drivers.rfid.mock_reader import MockReader
 from drivers.rfid.node import RfidNode
 from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tag_payload import ObstacleBook
 from drivers.rfid.tags import generate
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
 from protocol.messages import Pose, RfidStats
 from protocol.session import loopback, open_session
+from sim.tag_payloads import tag_memories
 
 
 def free_port() -> int:
@@ -135,3 +137,36 @@ def test_node_with_the_filter_sends_its_uncertainty(tmp_path) -> None:
     last = got[-1]
     assert math.dist((last.x, last.y), truth) < 0.3
     assert 0 < last.sigma_m < 0.5 and last.quality > 0.3
+
+
+@pytest.mark.timeout(30)
+def test_node_reads_the_obstacles_its_tags_carry_into_its_book(tmp_path) -> None:
+    occ = np.zeros((50, 50), dtype=np.uint8)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1
+    occ[10:20, 10:30] = 1
+    tag_map = generate(occ, 0.1, lf_layout="none", seed=5)
+    model = ReadModel.for_tags(tag_map, seed=6)
+    memories = tag_memories(tag_map, occ, 0.1)
+    session = open_session(loopback(listen_port=free_port()))
+    book = ObstacleBook(occ.shape, 0.1)
+    try:
+        with MockReader(model, lambda t: (1.0, 3.0), link=str(tmp_path / "ttyRFID"),
+                        memories=memories) as mock:  # fmt: skip
+            node = RfidNode(session, "alice", tag_map, mock.path, method="filter", book=book)
+
+            async def main() -> None:
+                task = asyncio.create_task(node.run())
+                async with asyncio.timeout(10):
+                    while not book._pending:
+                        await asyncio.sleep(0.05)
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+
+            asyncio.run(main())
+            node.close()
+    finally:
+        session.close()
+    delta = book.delta(0, 0.0)
+    assert delta is not None and len(book.polygons) >= 1 and not book.rejected
+    assert np.all(occ.reshape(-1)[np.frombuffer(delta.cells, "<u4")] == 1)

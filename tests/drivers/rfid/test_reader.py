@@ -12,10 +12,21 @@ import pytest
 
 from drivers.rfid.localiser import Localiser
 from drivers.rfid.mock_reader import MockReader
-from drivers.rfid.protocol import checksum, format_read
+from drivers.rfid.protocol import (
+    MAX_LINE_BYTES,
+    BadLine,
+    Memory,
+    ReadFilter,
+    checksum,
+    format_memory,
+    format_read,
+    parse_line,
+)
 from drivers.rfid.reader import RfidReader
 from drivers.rfid.rssi import ReadModel
+from drivers.rfid.tag_payload import ObstacleBook
 from drivers.rfid.tags import generate
+from sim.tag_payloads import tag_memories
 
 EPC = "E2801160600002080A7C8F31"
 
@@ -160,3 +171,62 @@ def test_mock_reader_end_to_end(tmp_path) -> None:
         asyncio.run(main(mock))
     assert mock.lines > 100
     assert float(np.median(errors)) < 0.6
+
+
+@pytest.mark.timeout(30)
+def test_the_reader_reads_the_obstacles_the_tags_carry(tmp_path) -> None:
+    """The mock reader gets the tags' memory from the world and sends each tag's once per
+    connection, after its first read; the driver hands it to the book, not the localiser."""
+    occ = np.zeros((60, 60), dtype=np.uint8)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1
+    occ[20:30, 10:25] = 1
+    tag_map = generate(occ, 0.1, lf_layout="none", seed=1)
+    memories = tag_memories(tag_map, occ, 0.1)
+    assert memories
+    model = ReadModel.for_tags(tag_map, seed=2)
+    book = ObstacleBook(occ.shape, 0.1)
+    seen: list[str] = []
+    loc = Localiser(tag_map)
+
+    def on_memory(m) -> None:
+        seen.append(m.tag_id)
+        book.read(m.data)
+
+    async def main(mock: MockReader) -> None:
+        reader = RfidReader(mock.path, tag_map.ids, loc.add, on_memory=on_memory)
+        async with running(reader):
+            await wait_for(lambda: len(book._pending) >= 1)
+            await asyncio.sleep(0.5)
+            assert reader.filter.memories == len(seen)
+            assert reader.stats()["garbage"] == reader.stats()["checksum"] == 0
+
+    # Standing by the block's north-west corner (x 1.0, y 3.0 m): its tags answer.
+    with MockReader(model, lambda t: (1.0, 3.05), link=str(tmp_path / "ttyRFID"),
+                    memories=memories) as mock:  # fmt: skip
+        asyncio.run(main(mock))
+    assert len(seen) == len(set(seen))  # each tag's memory once
+    delta = book.delta(0, 0.0)
+    assert delta is not None
+    cells = np.frombuffer(delta.cells, "<u4")
+    assert np.all(occ.reshape(-1)[cells] == 1)
+
+
+def test_memory_lines_parse_and_bad_ones_are_rejected() -> None:
+    data = bytes(range(32))
+    line = format_memory(EPC, data)
+    got = parse_line(line, 2.0)
+    assert isinstance(got, Memory) and got.data == data and got.tag_id == EPC
+    assert len(line) <= MAX_LINE_BYTES + 1
+    with pytest.raises(BadLine) as err:
+        parse_line(line.replace(b"*", b"0*", 1), 0.0)  # odd number of hex digits
+    assert err.value.reason == "garbage"
+    with pytest.raises(BadLine) as err:
+        parse_line(format_memory(EPC, bytes(33)), 0.0)  # more than a tag's 32 bytes
+    assert err.value.reason == "garbage"
+    with pytest.raises(BadLine) as err:
+        parse_line(line[:-3] + (b"01" if line[-3:-1] == b"00" else b"00") + b"\n", 0.0)
+    assert err.value.reason == "checksum"
+    filt = ReadFilter({EPC})
+    assert filt.feed(format_memory("ABCD", data), 0.0) is None  # not in the tag map
+    assert isinstance(filt.feed(line, 0.0), Memory)
+    assert filt.memories == 1 and filt.accepted == 0 and filt.rejected["unknown_tag"] == 1

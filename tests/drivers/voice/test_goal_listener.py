@@ -20,6 +20,7 @@ from drivers.voice.goal_listener import (
     GoalDialog,
     GoalRecogniser,
     VoiceGoalError,
+    filtered_variants,
     grammar,
     normalise,
     read_wav,
@@ -80,6 +81,31 @@ def test_the_names_are_heard_in_noise_at_10_db(recogniser) -> None:
                 noisy = with_noise(speech, 10.0, np.random.default_rng(100 + seed))
                 heard += recogniser.landmark(noisy) == name
     assert heard >= 15
+
+
+def test_the_noisy_search_also_hears_a_name_without_the_fricative_the_filter_takes() -> None:
+    assert filtered_variants("EH G Z IH T") == ["EH G IH T"]  # exit
+    assert filtered_variants("T AE K S IY K S") == ["T AE K IY K S", "T AE K S IY K",
+                                                    "T AE K IY K"]  # fmt: skip
+    assert filtered_variants("F AW N T AH N") == []  # fountain: nothing to drop
+    rec = GoalRecogniser(["exit", "fountain"])
+    assert rec._filtered_phrases() == ["( exit | exit_wf )", "fountain"]  # twice: no error
+    assert rec.decoder.lookup_word("exit_wf") is not None
+
+
+@pytest.mark.timeout(90)
+def test_exit_is_heard_at_10_db() -> None:
+    """Round 2's misses at 10 dB were "exit" (heard as entrance, fountain or lift). Among the
+    eight names, these 20 noisy draws: 17 heard with the filtered variant, 14 without."""
+    rec = GoalRecogniser(["the door", "exit", "toilet", "entrance", "fountain", "kitchen",
+                          "stairs", "lift"])  # fmt: skip
+    heard = 0
+    for wpm in (130, 175):
+        speech = synthesise("exit", wpm)
+        for seed in range(10):
+            noisy = with_noise(speech, 10.0, np.random.default_rng(200 + seed))
+            heard += rec.landmark(noisy) == "exit"
+    assert heard >= 16
 
 
 @pytest.mark.timeout(60)
