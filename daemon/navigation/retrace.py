@@ -16,8 +16,8 @@ patterns along the track (guidance's own checks against the known map, and the n
 STOP before contact, still apply), and the status says ``pose_uncertain`` with
 ``BACK_REASON``. It keeps leading back until σ is down to ``resume_sigma_m`` (so it does not
 flip between the goal and the track at the WAIT limit), then the route to the goal resumes.
-A sure crumb reached while still unsure is passed, on to the one before; no sure crumb left,
-or none reached for ``patience_s`` (the user is not getting back), means WAIT, as before.
+A sure crumb reached while still unsure is passed, on to the one before; no sure crumb left
+means WAIT, as before.
 """
 
 from __future__ import annotations
