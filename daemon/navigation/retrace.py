@@ -50,11 +50,6 @@ class RetracePolicy:
     """The track kept: dead reckoning is trusted over a few metres, not further."""
     reached_m: float = 0.4
     """A crumb this near is reached (above guidance's 0.3 m arrival, which must not fire)."""
-    patience_s: float = 8.0
-    """No crumb reached for this long: the user is not getting back — pressed against an
-    obstacle that the estimate, moved by the bumps' matches, puts elsewhere (the camera
-    match, 60 %, seed 44: 376 bumps against the south wall while led back without this). Then
-    WAIT, as before, until a pose is sure enough to guide on again."""
 
 
 class Retrace:
@@ -64,19 +59,15 @@ class Retrace:
         """(x, y, sure) of the poses guided on, oldest first."""
         self.active = False
         """Leading back now."""
-        self.stuck = False
-        """Given up (``patience_s``) until the next pose guided on."""
-        self._progress_at = 0.0
 
     def reset(self) -> None:
         self.crumbs.clear()
-        self.active = self.stuck = False
+        self.active = False
 
     def record(self, pose: Pose) -> None:
         """A pose the user is guided on: a crumb when it is ``spacing_m`` from the last."""
         p = self.policy
         sure = pose_sigma_m(pose.quality, pose.sigma_m) <= p.fix_sigma_m
-        self.stuck = False
         if self.crumbs:
             x, y, was_sure = self.crumbs[-1]
             if math.hypot(pose.x - x, pose.y - y) < p.spacing_m:
@@ -96,9 +87,6 @@ class Retrace:
         if not unsure and not (self.active and sigma > self.policy.resume_sigma_m):
             self.active = False
             return None
-        if self.stuck:
-            return None
-        n = len(self.crumbs)
         # Crumbs reached are done with, the sure one too: its tag did not answer again.
         while (
             self.crumbs
@@ -106,11 +94,6 @@ class Retrace:
             < self.policy.reached_m
         ):
             self.crumbs.pop()
-        if len(self.crumbs) < n or not self.active:
-            self._progress_at = pose.stamp
-        elif pose.stamp - self._progress_at > self.policy.patience_s:
-            self.active, self.stuck = False, True
-            return None
         last_sure = next(
             (i for i in range(len(self.crumbs) - 1, -1, -1) if self.crumbs[i][2]), None
         )

@@ -77,19 +77,3 @@ def test_the_navigator_leads_back_then_resumes_the_route() -> None:
     out = nav.step(Inbox(pose=pose((31, 20), 0.15, now + 7, heading=-1.57)), now + 7)
     assert not nav.retrace.active and nav.state == NavState.GUIDING
     assert out.belt[-1].kind in (PatternKind.GUIDE, PatternKind.TURN_AROUND)
-
-
-def test_a_user_not_getting_back_is_told_to_wait_not_bumped_on() -> None:
-    # Pressed against an obstacle the estimate puts elsewhere, the user reaches no crumb:
-    # after patience_s, WAIT (None) until a pose is sure enough to guide on again.
-    track = Retrace()
-    for r in (36, 33, 30, 27):
-        track.record(pose((r, 20), 0.1, stamp=100.0))
-    t0 = 200.0
-    assert track.way_back(pose((24, 20), 1.2, stamp=t0), True, SHAPE, 0.1, (24, 20)) is not None
-    late = t0 + track.policy.patience_s + 0.5
-    assert track.way_back(pose((24, 21), 1.3, stamp=late), True, SHAPE, 0.1, (24, 21)) is None
-    assert track.stuck and not track.active
-    assert track.way_back(pose((24, 21), 1.3, stamp=late + 1), True, SHAPE, 0.1, (24, 21)) is None
-    track.record(pose((24, 21), 0.2, stamp=late + 2))
-    assert not track.stuck
