@@ -35,7 +35,6 @@ from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .pose_margin import PoseMargin
 from .proximity import ProximityGuard, ProximitySettings
-from .retrace import BACK_REASON, Retrace, lead_back
 from .route import PlannerFactory, PlanReport, Route
 from .session_state import SessionState
 
@@ -103,7 +102,6 @@ class Navigator:
         self.radius_cells = radius_in_cells(settings.user_radius_m, settings.cell_m)
         self.maps = MapKeeper(self.radius_cells)
         self.margin = PoseMargin(settings.cell_m, self.radius_cells)
-        self.retrace = Retrace()
         self.route = Route(
             planner_factory
             or (lambda backend: make_planner(settings.planner, backend, settings.variant)),
@@ -281,25 +279,12 @@ class Navigator:
         out.belt.append(g.pattern)
 
     def _pose_unsure(self, now: float, out: StepOutput) -> bool:
-        """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; past a limit the way
-        back to where it was last sure, else WAIT."""
-        grid, cell, going = self.maps.map, self.pose_cell, self.retrace.active
-        assert self.pose is not None and grid is not None and cell is not None
-        unsure = self.margin.too_unsure(self.pose)
-        back = self.retrace.way_back(self.pose, unsure, grid.shape, self.settings.cell_m, cell)
-        if going != self.retrace.active:
-            self.guidance.reset()  # the track back, or the route again: a new way to follow
-        if back is not None:  # led back along the user's steps (retrace.py), not a WAIT
-            g = lead_back(self.guidance, back, self.pose, grid, now)
-            out.belt.append(g.pattern)
-            out.voice.extend([g.cue] if g.cue is not None else [])
-            self._set_state(NavState.STALE, StatusCode.POSE_UNCERTAIN, BACK_REASON, now, out)
-            return True
-        if unsure:
+        """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; WAIT past a limit."""
+        assert self.pose is not None
+        if self.margin.too_unsure(self.pose):
             why = f"pose quality {self.pose.quality:.2f} (sigma {self.pose.sigma_m} m)"
             self._reject(Rejection(StatusCode.POSE_UNCERTAIN, why, counted=False), now, out)
             return True
-        self.retrace.record(self.pose)
         no_way = self.state == NavState.NO_PATH
         self.last.changed += self.margin.adjust(self.maps, self.route, self.goal_cell, now, no_way)
         return False
