@@ -15,9 +15,6 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
@@ -27,7 +24,7 @@ from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
 from protocol.messages import Goal, NavState, NavStatus, PatternKind, Pose, StatusCode
 
-from .controls import BatteryPolicy, UserControls, Whereabouts
+from .controls import UserControls, Whereabouts
 from .goals import goal_cell
 from .inbox import Inbox, StepOutput
 from .log_limit import LogLimiter
@@ -35,8 +32,9 @@ from .map_keeper import MapKeeper, MapUpdate
 from .outcomes import OUTCOMES, Rejection
 from .pose_margin import PoseMargin
 from .proximity import ProximityGuard, ProximitySettings
-from .route import PlannerFactory, PlanReport, Route
+from .route import PlannerFactory, Route
 from .session_state import SessionState
+from .settings import NavigatorSettings, StepReport
 
 log = logging.getLogger("guidebelt.navigation")
 
@@ -47,44 +45,6 @@ FUTURE_SKEW_S = 0.5
 off is no clock, and such a pose would never go stale."""
 ESCAPE_MARGIN_CELLS = 2
 """How far beyond the inflation radius a way out of the margin is looked for."""
-
-
-@dataclass(frozen=True)
-class NavigatorSettings:
-    """What one user's navigation needs to know; the daemon's config supplies it."""
-
-    planner: str = "eds"
-    backend: str = "auto"
-    variant: str = "fast"
-    cell_m: float = 0.10
-    user_radius_m: float = 0.3
-    lang: str = "en"
-    stale_pose_s: float = 1.0
-    arrive_m: float = 0.3
-    voice: Literal["companion", "sole"] = "companion"
-    """``sole``: the voice guides alone (no belt); it speaks more and stops before contact."""
-    wording: Literal["clock", "sides"] = "clock"
-    units: Literal["metric", "imperial"] = "metric"
-    reassure_s: float = 15.0
-    landmarks: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-    intensity: int = 100
-    battery: BatteryPolicy = field(default_factory=BatteryPolicy)
-    stop_m: float = 0.6
-    """An obstacle nearer than this ahead in the camera's latest frame: STOP (``proximity``)."""
-
-
-@dataclass(slots=True)
-class StepReport:
-    """How long the last step took, by part, and what the planner did in it."""
-
-    changed: int = 0
-    """Cells whose blocked state flipped."""
-    inflate_ms: float = 0.0
-    """Applying the step's deltas to the map and inflating them."""
-    plan: PlanReport = field(default_factory=PlanReport)
-    guide_ms: float = 0.0
-    step_ms: float = 0.0
-    """The whole step, inputs to outputs."""
 
 
 class Navigator:
@@ -195,6 +155,8 @@ class Navigator:
                 self._wait_for_map(now, out)
             elif self.session.may_guide() and not self._pose_unsure(now, out):
                 self._guide(now, out)
+        elif self.pose is None and self.pose_received and self.goal_cell is not None:
+            self._pose_missing(now, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
             self._set_state(self.state, OK, why, now, out, force=True)
@@ -288,6 +250,17 @@ class Navigator:
         no_way = self.state == NavState.NO_PATH
         self.last.changed += self.margin.adjust(self.maps, self.route, self.goal_cell, now, no_way)
         return False
+
+    def _pose_missing(self, now: float, out: StepOutput) -> None:
+        """No pose since one was dropped (stale, or unread while the daemon was behind): past
+        ``stale_pose_s`` the cause is said as it is now, once, so a localiser that died is
+        never reported as the daemon's backlog."""
+        age = self._taken_at - self.pose_received
+        if age <= self.settings.stale_pose_s or self._shed:
+            return
+        code = StatusCode.OVERLOADED if self._behind else StatusCode.STALE_POSE
+        if self._last_status is None or self._last_status[1] != code:
+            self._reject(Rejection(code, f"no pose for {age:.2f} s", counted=False), now, out)
 
     def _guide(self, now: float, out: StepOutput) -> None:
         grid = self.maps.map

@@ -135,3 +135,20 @@ def test_a_pose_the_daemon_has_not_read_makes_a_missing_pose_overload_not_stale(
     # Readmitted and a fresh pose read: guided again.
     out = s.step(Inbox(pose=pose((25, 15), stamp=t + 2.1), pose_received=t + 2.1), t + 2.1)
     assert kinds(out) == [PatternKind.GUIDE]
+
+
+def test_a_pose_that_never_comes_back_is_said_stale_once_the_daemon_has_caught_up():
+    s = guiding()
+    t = time.time()
+    s.step(Inbox(pose=pose((25, 15), stamp=t), pose_received=t, taken_at=t), t)
+    out = s.step(Inbox(tick=True, taken_at=t + 2.0, pose_unread=True), t + 2.0)
+    assert [st.code for st in out.statuses] == [StatusCode.OVERLOADED]
+    # The daemon caught up and no pose came: the localiser is silent, and says so.
+    out = s.step(Inbox(tick=True, taken_at=t + 2.5), t + 2.5)
+    assert kinds(out) == [PatternKind.STOP] and out.path_cells is None
+    assert [st.code for st in out.statuses] == [StatusCode.STALE_POSE]
+    # Still none: said once, and nothing guides.
+    out = s.step(Inbox(tick=True, taken_at=t + 3.0), t + 3.0)
+    assert not out.belt and not out.statuses and not out.voice and out.path_cells is None
+    out = s.step(Inbox(pose=pose((25, 15), stamp=t + 3.1), pose_received=t + 3.1), t + 3.1)
+    assert kinds(out) == [PatternKind.GUIDE]
