@@ -107,6 +107,7 @@ class Navigator:
             or (lambda backend: make_planner(settings.planner, backend, settings.variant)),
             settings.backend,
             self.radius_cells + ESCAPE_MARGIN_CELLS,
+            self.radius_cells,
         )
         # Guidance may shave the inflation margin; it must know the real radius.
         self.guidance = guidance or Guidance(
@@ -179,6 +180,7 @@ class Navigator:
         if inbox.goal is not None:
             self.goal, self.goal_cell = inbox.goal, None
             self.route.invalidate()
+            self.route.forget_dead_ends()
             self.guidance.reset()
             self._set_state(NavState.PLANNING, OK, "goal received", now, out, force=True)
         if self.goal is not None and self.goal_cell is None and self.maps.map is not None:
@@ -344,7 +346,8 @@ class Navigator:
         elif g.pattern.kind == PatternKind.REROUTE:
             self._set_state(NavState.REROUTING, OK, "new path around an obstacle", now, out)
         else:
-            self._set_state(NavState.GUIDING, OK, "", now, out)
+            why = "dead end: back along your track" if self.last.plan.back_along_track else ""
+            self._set_state(NavState.GUIDING, OK, why, now, out)
 
     # -- reporting ------------------------------------------------------------------------
 

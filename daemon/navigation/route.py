@@ -23,6 +23,8 @@ from daemon.planning.escape import escape_path
 from daemon.planning.grid import INF, Cell, path_cost
 from daemon.planning.interface import GlobalPlanner, UpdateStats
 
+from .pocket import Track, dead_end_of, track_out
+
 log = logging.getLogger("guidebelt.navigation")
 
 PlannerFactory = Callable[[str], GlobalPlanner]
@@ -41,11 +43,22 @@ class PlanReport:
     """The step planned from scratch (a new map or goal, or a move to the CPU)."""
     max_open: int | None = None
     """The largest open list of the step's search, from a planner that searches (A*)."""
+    back_along_track: bool = False
+    """No plan and no escape from where the user stands (a pocket): the path leads back
+    along the user's own track (``pocket``)."""
 
 
 class Route:
-    def __init__(self, factory: PlannerFactory, backend: str, escape_reach: int) -> None:
+    def __init__(
+        self, factory: PlannerFactory, backend: str, escape_reach: int, radius_cells: int = 3
+    ) -> None:
         self._factory = factory
+        self._radius = radius_cells
+        self.track = Track()
+        self.dead: np.ndarray | None = None
+        """Cells kept blocked for the planner: dead ends the user was led out of (this goal)."""
+        self._leaving: np.ndarray | None = None
+        """The dead end of the way out of a pocket, kept once the user stands clear of it."""
         self.planner = factory(backend)
         self._escape_reach = escape_reach
         self._errors = device_errors()
@@ -63,10 +76,19 @@ class Route:
         self._planned = False
         self._pending = None
 
+    def forget_dead_ends(self) -> None:
+        """A new goal: a pocket is a dead end only on the way to the goal it was met for."""
+        self._leaving = None
+        if self.dead is not None:
+            self.dead = None
+            self.invalidate()
+
     def change(self, flipped: np.ndarray, blocked_now: np.ndarray) -> None:
         """Cells whose blocked state flipped; given to the planner with the next path read."""
         if not self._planned:
             return  # the next plan reads the whole map
+        if self.dead is not None:  # a dead end stays blocked whatever the map says of it
+            blocked_now = blocked_now | self.dead.reshape(-1)[flipped]
         if self._pending is not None:  # a second batch in one step (rare): hand over the first
             self.settle()
         self._pending = (flipped, blocked_now)
@@ -87,7 +109,15 @@ class Route:
         """
         t0 = time.perf_counter()
         self.report = PlanReport()
+        self.track.add(cell)
+        if self.dead is not None and self.dead.shape != blocked.shape:
+            self.dead, self._leaving = None, None  # a map of another shape: start over
         result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), retry=True)
+        if len(result[0]) == 0 and self.dead is not None:
+            # The remembered dead ends leave no way at all: the map decides, not the memory.
+            self.dead, self._leaving = None, None
+            self.invalidate()
+            result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), True)
         self.report.plan_ms = (time.perf_counter() - t0) * 1e3
         return result
 
@@ -101,9 +131,13 @@ class Route:
         goal: Cell,
         cell: Cell,
     ) -> tuple[np.ndarray, int]:
+        if self.dead is not None:
+            blocked = blocked | self.dead
         if not self._planned:
             self._record(planner.plan(blocked, goal))
             self._planned, self._pending, self.report.planned = True, None, True
+        if self._leaving is not None:
+            blocked = self._left_pocket(planner, blocked, goal, cell)
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
@@ -135,7 +169,34 @@ class Route:
         path, cost = escape_path(planner, blocked, occupancy, cell, self._escape_reach)
         if len(path) == 0:
             path, cost = escape_path(planner, blocked, occupancy, cell, 3 * self._escape_reach)
+        if len(path) == 0:  # a pocket: back the way the user came
+            path, cost, lead = track_out(planner, blocked, occupancy, self.track)
+            if len(path):
+                self.report.back_along_track = True
+                # Every lead of the way out: the first may be short (the pocket found late).
+                band = dead_end_of(lead, occupancy, self._radius)
+                self._leaving = band if self._leaving is None else self._leaving | band
         return path, cost
+
+    def _left_pocket(
+        self, planner: GlobalPlanner, blocked: np.ndarray, goal: Cell, cell: Cell
+    ) -> np.ndarray:
+        """Once the user stands clear of the way they were led out of a pocket, that way is
+        a dead end: blocked for the planner from now on (this goal). Returns the blocked
+        map the planner now holds."""
+        band = self._leaving
+        assert band is not None
+        if band[cell]:
+            return blocked  # still on the way out
+        self._leaving = None
+        band[goal] = False
+        new = np.flatnonzero((band & ~blocked).reshape(-1))
+        self.dead = band if self.dead is None else self.dead | band
+        if new.size:
+            if self._pending is not None:
+                self._record(planner.update(*self._take()))
+            self._record(planner.update(new, np.ones(new.size, bool)))
+        return blocked | band
 
     def _take(self) -> tuple[np.ndarray, np.ndarray]:
         pending, self._pending = self._pending, None
