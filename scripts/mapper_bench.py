@@ -1,10 +1,11 @@
 """Mapper speed: a 640 x 480 depth frame to a published ``MapDelta``, per frame.
 
 Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
-       [--floor-async] [--fps 30] [--split] [--frames 200] [--json out/mapper_bench.json]
+       [--floor-async] [--fps 0 30] [--split F.json] [--frames 200] [--json out/mapper_bench.json]
 Each backend x floor-refit interval (x floor fit on / off the frame's path, with
-``--floor-async`` both) is one row, on the same rendered frames. ``--fps`` feeds the frames
-at a camera's rate (the time between frames is not counted; 0: back to back); ``--split``
+``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
+feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
+back); ``--split``
 adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
 noise and missing pixels), then each is timed from the call that takes it to the delta
@@ -58,8 +59,8 @@ def main() -> None:
     ap.add_argument("--floor-every", type=int, nargs="+", default=[1])
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--floor-async", action="store_true", help="Fit off the path too.")
-    ap.add_argument("--fps", type=float, default=0.0, help="Feed at this rate (0: back to back).")
-    ap.add_argument("--split", action="store_true", help="cuda: the pass's GPU vs host time.")
+    ap.add_argument("--fps", type=float, nargs="+", default=[0.0], help="0: back to back.")
+    ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -72,10 +73,13 @@ def main() -> None:
     except ImportError:
         session = None
     modes = (False, True) if args.floor_async else (False,)
-    rows = [bench(session, frames, b, k, a, args.fps)
-            for b in args.backend for k in args.floor_every for a in modes]  # fmt: skip
-    if args.split and "cuda" in args.backend:
-        rows.append(split(frames[len(frames) // 2]))
+    rows = [bench(session, frames, b, k, a, fps) for b in args.backend
+            for k in args.floor_every for a in modes for fps in args.fps]  # fmt: skip
+    if args.split is not None and "cuda" in args.backend:
+        parts = split(frames[len(frames) // 2])
+        print(json.dumps(parts))
+        args.split.parent.mkdir(parents=True, exist_ok=True)
+        args.split.write_text(json.dumps(parts, indent=1) + "\n")
     for row in rows:
         row["render_s"] = round(render_s, 1)
         print(json.dumps(row))
