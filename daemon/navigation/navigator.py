@@ -346,7 +346,7 @@ class Navigator:
         elif g.pattern.kind == PatternKind.REROUTE:
             self._set_state(NavState.REROUTING, OK, "new path around an obstacle", now, out)
         else:
-            why = "dead end: back along your track" if self.last.plan.back_along_track else ""
+            why = self.last.plan.way_out(self.settings.cell_m)  # "" on the plain path
             self._set_state(NavState.GUIDING, OK, why, now, out)
 
     # -- reporting ------------------------------------------------------------------------

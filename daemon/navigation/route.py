@@ -21,6 +21,7 @@ import numpy as np
 from daemon.planning import device_errors
 from daemon.planning.escape import escape_path
 from daemon.planning.grid import INF, Cell, path_cost
+from daemon.planning.inflation import InflatedMap
 from daemon.planning.interface import GlobalPlanner, UpdateStats
 
 from .pocket import Track, dead_end_of, track_out
@@ -46,6 +47,17 @@ class PlanReport:
     back_along_track: bool = False
     """No plan and no escape from where the user stands (a pocket): the path leads back
     along the user's own track (``pocket``)."""
+    narrower_cells: int | None = None
+    """Neither: the path keeps this smaller clearance (cells) instead of the user's radius."""
+
+    def way_out(self, cell_m: float) -> str:
+        """What the status says of a path that is not the plain one (the belt guides along
+        it as along any path)."""
+        if self.back_along_track:
+            return "dead end: back along your track"
+        if self.narrower_cells is not None:
+            return f"narrow way: clearance {self.narrower_cells * cell_m:.1f} m"
+        return ""
 
 
 class Route:
@@ -141,7 +153,7 @@ class Route:
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
-            return self._escape(planner, blocked, occupancy, cell)
+            return self._escape(planner, blocked, occupancy, cell, goal)
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -155,13 +167,18 @@ class Route:
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the
             # sensor saw late): the way out is the same as from inside the margin.
-            return self._escape(planner, blocked, occupancy, cell)
+            return self._escape(planner, blocked, occupancy, cell, goal)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, (path_cost(path) if len(path) else int(INF))
 
     def _escape(
-        self, planner: GlobalPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell
+        self,
+        planner: GlobalPlanner,
+        blocked: np.ndarray,
+        occupancy: np.ndarray,
+        cell: Cell,
+        goal: Cell,
     ) -> tuple[np.ndarray, int]:
         """The way out to the nearest usable cell within the margin's reach, else within
         three times it: a user who wandered between obstacles (or a pocket as wide as the
@@ -176,7 +193,33 @@ class Route:
                 # Every lead of the way out: the first may be short (the pocket found late).
                 band = dead_end_of(lead, occupancy, self._radius)
                 self._leaving = band if self._leaving is None else self._leaving | band
+        if len(path) == 0:
+            path, cost = self._narrower(occupancy, goal, cell)
         return path, cost
+
+    def _narrower(self, occupancy: np.ndarray, goal: Cell, cell: Cell) -> tuple[np.ndarray, int]:
+        """The last resort before NO_PATH: the map inflated by one cell less, down to one.
+        A camera's obstacles bleed a cell into the free space beside their faces (range
+        noise), so the full margin can close a passage the user fits through; a smaller
+        one still never enters a known obstacle or the cells next to it, and the STOP
+        before contact stays. Planned afresh on the CPU each step it is needed."""
+        for radius in range(self._radius - 1, 0, -1):
+            narrow = InflatedMap(occupancy, radius).blocked
+            if self.dead is not None:
+                narrow = narrow | self.dead
+            if narrow[goal]:
+                continue
+            planner = self._factory("cpu")
+            planner.plan(narrow, goal)
+            if narrow[cell]:
+                path, cost = escape_path(planner, narrow, occupancy, cell, self._escape_reach)
+            else:
+                path = planner.path(cell)
+                cost = path_cost(path) if len(path) else int(INF)
+            if len(path):
+                self.report.narrower_cells = radius
+                return path, cost
+        return np.empty((0, 2), np.int32), int(INF)
 
     def _left_pocket(
         self, planner: GlobalPlanner, blocked: np.ndarray, goal: Cell, cell: Cell
