@@ -306,9 +306,9 @@ class Navigator:
                 rej = Rejection(StatusCode.OVERLOADED, f"{why}, the daemon behind", counted=False)
                 return self._reject(rej, now, out)
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
-        path, cost = self.route.path_from(
-            grid.blocked, grid.occupancy, self.goal_cell, self.pose_cell
-        )
+        # Less clearance than the user's radius only when the pose adds no margin of its own.
+        path, cost = self.route.path_from(grid.blocked, grid.occupancy, self.goal_cell,
+                                          self.pose_cell, self.margin.extra_cells == 0)  # fmt: skip
         self.last.plan = self.route.report
         self._last_path_flat = path[:, 0].astype(np.int64) * grid.shape[1] + path[:, 1]
         if len(path) == 0:

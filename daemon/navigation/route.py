@@ -69,6 +69,7 @@ class Route:
         self.track = Track()
         self.dead: np.ndarray | None = None
         """Cells kept blocked for the planner: dead ends the user was led out of (this goal)."""
+        self._may_narrow = True
         self._leaving: np.ndarray | None = None
         """The dead end of the way out of a pocket, kept once the user stands clear of it."""
         self.planner = factory(backend)
@@ -111,16 +112,24 @@ class Route:
             self._guarded(lambda p: self._record(p.update(*self._take())), retry=False)
 
     def path_from(
-        self, blocked: np.ndarray, occupancy: np.ndarray, goal: Cell, cell: Cell
+        self,
+        blocked: np.ndarray,
+        occupancy: np.ndarray,
+        goal: Cell,
+        cell: Cell,
+        narrower: bool = True,
     ) -> tuple[np.ndarray, int]:
         """The path from ``cell`` to ``goal`` and its cost (empty and INF if none).
 
         From inside the inflation margin (a newly seen obstacle grew over the user, or the user
         drifted into it), or from a free pocket the margin encloses, the path first leads
-        straight out to the nearest usable free cell.
+        straight out to the nearest usable free cell; failing that, back along the user's
+        track (``pocket``); failing that, and where ``narrower`` allows (the map is inflated
+        by the user's radius alone), with less clearance.
         """
         t0 = time.perf_counter()
         self.report = PlanReport()
+        self._may_narrow = narrower
         self.track.add(cell)
         if self.dead is not None and self.dead.shape != blocked.shape:
             self.dead, self._leaving = None, None  # a map of another shape: start over
@@ -193,7 +202,7 @@ class Route:
                 # Every lead of the way out: the first may be short (the pocket found late).
                 band = dead_end_of(lead, occupancy, self._radius)
                 self._leaving = band if self._leaving is None else self._leaving | band
-        if len(path) == 0:
+        if len(path) == 0 and self._may_narrow:
             path, cost = self._narrower(occupancy, goal, cell)
         return path, cost
 

@@ -138,3 +138,27 @@ def test_a_short_track_gives_no_way_out():
     track.add(DEEP)
     path, _, lead = track_out(planner, m.blocked, m.occupancy, track)
     assert len(path) == 0 and len(lead) == 0
+
+
+def test_a_passage_the_full_margin_closes_is_planned_with_less_clearance():
+    """A wall across the map with one gap three cells wide: the user's radius of two cells
+    closes it, one cell leaves its middle open. The way through keeps off every obstacle
+    and the cells beside it, and the report says the clearance it kept."""
+    occ = np.full((30, 30), FREE, np.uint8)
+    occ[15, :] = OCCUPIED
+    occ[15, 14:17] = FREE
+    m = InflatedMap(occ, 2)
+    route = Route(lambda backend: make_planner("eds", backend), "cpu", 4, 2)
+    path, _ = route.path_from(m.blocked, m.occupancy, (3, 15), (27, 15))
+    assert tuple(path[-1]) == (3, 15) and route.report.narrower_cells == 1
+    assert route.report.way_out(0.1) == "narrow way: clearance 0.1 m"
+    near = InflatedMap(occ, 1).blocked
+    assert not any(near[tuple(c)] for c in path)
+    # A gap one cell wide is no way at any clearance: NO_PATH, not a way past a wall's edge.
+    occ[15, 14:17] = OCCUPIED
+    occ[15, 15] = FREE
+    m = InflatedMap(occ, 2)
+    path, _ = Route(lambda b: make_planner("eds", b), "cpu", 4, 2).path_from(
+        m.blocked, m.occupancy, (3, 15), (27, 15)
+    )
+    assert len(path) == 0
