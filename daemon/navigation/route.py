@@ -28,6 +28,11 @@ from .pocket import Track, dead_end_of, track_out
 
 log = logging.getLogger("guidebelt.navigation")
 
+NARROWER_CELLS = 1
+"""How many cells less than the user's radius the last resort may keep: one, the cell a
+camera's obstacle bleeds beside its face. (Down to one cell, seed 1 of the camera walks
+arrived with 7 collisions; which of its paths bumped was not traced.)"""
+
 PlannerFactory = Callable[[str], GlobalPlanner]
 """``factory(backend) -> planner``; the navigator asks for ``"cpu"`` after a device failure."""
 
@@ -207,12 +212,12 @@ class Route:
         return path, cost
 
     def _narrower(self, occupancy: np.ndarray, goal: Cell, cell: Cell) -> tuple[np.ndarray, int]:
-        """The last resort before NO_PATH: the map inflated by one cell less, down to one.
+        """The last resort before NO_PATH: the map inflated by one cell less (``NARROWER_CELLS``).
         A camera's obstacles bleed a cell into the free space beside their faces (range
         noise), so the full margin can close a passage the user fits through; a smaller
         one still never enters a known obstacle or the cells next to it, and the STOP
         before contact stays. Planned afresh on the CPU each step it is needed."""
-        for radius in range(self._radius - 1, 0, -1):
+        for radius in range(self._radius - 1, max(0, self._radius - 1 - NARROWER_CELLS), -1):
             narrow = InflatedMap(occupancy, radius).blocked
             if self.dead is not None:
                 narrow = narrow | self.dead
