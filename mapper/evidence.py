@@ -7,8 +7,9 @@ therefore leaves a share Φ(−δ/σ) of its points in the free cell in front of
 the same: fusing frames cannot tell that tail from an obstacle, because the tail is there
 in every frame. What tells it is its neighbour: the cell the same rays go on into holds the
 face itself, with the bulk of the points. A cell whose obstacle points are fewer than
-``tail_share`` of those of the cell just beyond it along the ray is that face's tail: its
-rays went through it, and where its floor is seen it counts as a pass. With
+``tail_share`` of those of the cell just beyond it along the ray is that face's tail, and
+no hit. It is no pass either: a true corner cell seen at a grazing angle in front of a
+bigger face looks the same, and must not be freed. With
 ``tail_share`` = 0.25 a face nearer the boundary than 0.84 σ (Φ(−δ/σ) / (1 − Φ(−δ/σ)) ≥ 0.25)
 still marks the cell in front, which is then within a centimetre of it.
 """

@@ -6,8 +6,8 @@ along the rays, and fuses the frame into the global map by per-cell log-odds (th
 occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, ch. 9:
 l_t = l_{t-1} + log-odds of the inverse sensor model − l_0, with l_0 = 0): a cell with at
 least ``min_points`` obstacle points in this frame is a hit, unless they are the range-noise
-tail of the face beyond it (``evidence.range_tail``); a cell some ray passed before its hit,
-or such a tail over a seen floor, is a pass. Hits add ``l_hit``, passes add ``l_pass``
+tail of the face beyond it (``evidence.range_tail``), which is neither; a cell some ray
+passed before its hit is a pass. Hits add ``l_hit``, passes add ``l_pass``
 (negative), clamped. A cell is published OCCUPIED at or above ``l_occupied``, FREE at or
 below ``l_free``, and keeps what it had between them, so a single noisy frame cannot close
 a passage the camera has seen through. Only the cells that changed come out, ready for a
@@ -94,8 +94,9 @@ class MapperSettings:
     its passes."""
     l_free: float = -0.35
     """At or below: published FREE. One pass frees a cell never seen, as before."""
-    l_min: float = -2.0
-    """Clamp below: a cell seen free many times needs 4 hits in a row to be an obstacle."""
+    l_min: float = -1.0
+    """Clamp below: a cell seen free needs 2 hits in a row to be an obstacle (one noisy
+    frame does not close it; a person stepping in is mapped on the second frame)."""
     l_max: float = 3.5
     """Clamp above: an obstacle seen many times is freed after 10 passes (a person who
     walked away leaves no ghost for more than 10 frames)."""
@@ -209,11 +210,12 @@ class OccupancyMapper:
         # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
         # in front of a face, where range noise scatters some of the face's points, is not.
         occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
+        # The tail of a face's range noise is no hit. Nor is it a pass: seen at a grazing
+        # angle, a true corner cell in front of a bigger face looks the same, and a pass
+        # would free it (walks bumped into such corners).
         tail = range_tail(obst, win, cam[0], cam[1], s.tail_share)
         floor_seen = floor >= s.min_points
-        # The tail of a face's range noise is no hit, and where its floor is seen, the rays
-        # that made it went on through: a pass.
-        cleared = (free.astype(bool) & (obst == 0)) | (tail & floor_seen)
+        cleared = free.astype(bool) & (obst == 0)
         cells, values, seen, odds = self._changes(win, occupied & ~tail, cleared, floor_seen)
         cells, values = self._forget(cells, values, seen, frame.stamp)
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,

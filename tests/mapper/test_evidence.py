@@ -44,10 +44,6 @@ def test_one_frame_does_not_close_a_passage_seen_free_but_stop_still_comes():
     r = m.process(frame(person_scene(29), 1.5, rng=9))
     assert (m.occupancy[cells] == FREE).all()  # the map waits for more evidence ...
     assert r.proximity.ahead_m is not None and r.proximity.ahead_m < 1.4  # ... STOP does not
-    # Someone who stays is mapped once the hits outweigh what was seen free: 4 frames.
-    n = 1
-    while not (m.occupancy[cells] == OCCUPIED).all():
-        m.process(frame(person_scene(29), 1.6 + 0.1 * n, rng=10 + n))
-        n += 1
-        assert n <= 4
-    assert n == 4
+    # Someone who stays is mapped on the second frame.
+    m.process(frame(person_scene(29), 1.6, rng=10))
+    assert (m.occupancy[cells] == OCCUPIED).all()
