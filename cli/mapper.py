@@ -19,6 +19,9 @@ def mapper(
     floor_every: Annotated[
         int, typer.Option(min=1, help="Refit the floor every N frames (4 keeps cuda under 1 ms).")
     ] = 1,
+    floor_async: Annotated[
+        bool, typer.Option(help="Fit a due floor on a worker thread, after the frame is out.")
+    ] = False,
     birdseye: Annotated[
         bool,
         typer.Option(
@@ -52,7 +55,8 @@ def mapper(
     except ValueError as exc:
         raise typer.BadParameter(f"--size must be HEIGHT,WIDTH, not {size!r}") from exc
     console = Console()
-    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend, floor_every=floor_every)
+    settings = MapperSettings(shape=(h, w), cell_m=cell_m, backend=backend,
+                              floor_every=floor_every, floor_async=floor_async)  # fmt: skip
     view = None
     if birdseye:
         from mapper.birdseye.node import BirdsEyeMapper, BirdsEyeSettings

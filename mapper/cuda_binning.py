@@ -10,6 +10,7 @@ counts and the per-bin arrays (a few kB) come back in one copy.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import cupy as cp
@@ -19,21 +20,24 @@ from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
-_MODULES: dict[str, cp.RawModule] = {}
+_MODULES: dict[str, tuple] = {}
 _BUFFERS: dict[tuple, tuple] = {}
 
 
-def _module(dtype: np.dtype) -> cp.RawModule:
+def _functions(dtype: np.dtype) -> tuple[cp.RawKernel, cp.RawKernel]:
+    """The two kernels for ``dtype``'s depth, compiled once and looked up once."""
     name = "uint16" if dtype == np.uint16 else "float"
     if name not in _MODULES:
         options = ("-std=c++17",) + (("-DDEPTH_FLOAT",) if name == "float" else ())
-        _MODULES[name] = cp.RawModule(code=KERNEL.read_text(), options=options)
+        mod = cp.RawModule(code=KERNEL.read_text(), options=options)
+        _MODULES[name] = (mod.get_function("bin_pixels"), mod.get_function("read_bins"))
     return _MODULES[name]
 
 
-def _buffers(side: int, bins: int) -> tuple:
-    """Device buffers reused from frame to frame (one allocation per window and bin count)."""
-    key = (side, bins)
+def _buffers(side: int, bins: int, h: int, w: int, dtype: np.dtype) -> tuple:
+    """Device buffers reused from frame to frame (one allocation per window, bin count and
+    image): no allocation on the frame's path."""
+    key = (side, bins, h, w, np.dtype(dtype).str)
     if key not in _BUFFERS:
         n = 2 * side * side
         # counts | valid, pad | hit, far (doubles). The pad keeps the doubles 8-byte aligned:
@@ -44,22 +48,26 @@ def _buffers(side: int, bins: int) -> tuple:
             cp.empty(bins, cp.uint64),
             cp.empty(bins, cp.uint64),
             cp.empty(24, cp.float64),
+            cp.empty((h, w), dtype),
         )
     return _BUFFERS[key]
 
 
-def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
-                   floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
-                   cols_per_bin: int, stride: int,
-                   min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
+def launcher(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
+             floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
+             cols_per_bin: int, stride: int,
+             min_depth: float = MIN_DEPTH_M) -> Callable[[], tuple]:  # fmt: skip
+    """Upload the frame and its parameters; returns the call that resets the outputs and
+    runs the two kernels on them (what ``bin_frame_cuda`` then reads back). Apart, so the
+    kernels' own time can be told from the call's (``scripts/mapper_bench.py --split``)."""
     if stride != 1:
-        depth = np.ascontiguousarray(depth[::stride, ::stride])
+        depth = depth[::stride, ::stride]
         intr = intr.scaled(1.0 / stride)
     if depth.dtype == np.float64:
         depth = depth.astype(np.float32)
     h, w = depth.shape
     bins = (w + cols_per_bin - 1) // cols_per_bin
-    out, hit_key, far_key, params = _buffers(win.side, bins)
+    out, hit_key, far_key, params, d = _buffers(win.side, bins, h, w, depth.dtype)
     n = 2 * win.side * win.side
     p = np.empty(24, np.float64)
     p[:4] = (intr.fx, intr.fy, intr.cx, intr.cy)
@@ -67,25 +75,38 @@ def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np
     p[13:16] = t
     p[16:24] = (floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale)
     params.set(p)
-    d = cp.asarray(np.ascontiguousarray(depth))
-    out[: n + 1].fill(0)
-    hit_key.fill(np.iinfo(np.uint64).max)
-    far_key.fill(0)
-    mod = _module(depth.dtype)
+    d.set(np.ascontiguousarray(depth))
+    bin_pixels, read_bins = _functions(depth.dtype)
     counts, valid = out[:n], out[n : n + 1]
     hit = out[n + 2 : n + 2 + 6 * bins].view(cp.float64)
     far = out[n + 2 + 6 * bins :].view(cp.float64)
     grid = ((h * w + THREADS - 1) // THREADS,)
-    mod.get_function("bin_pixels")(
-        grid, (THREADS,),
-        (d, np.int32(h), np.int32(w), params, np.int32(win.r0), np.int32(win.c0),
-         np.int32(win.side), np.int32(win.map_rows), np.int32(cols_per_bin), counts, hit_key,
-         far_key, valid),
-    )  # fmt: skip
-    mod.get_function("read_bins")(
-        ((bins + 63) // 64,), (64,),
-        (d, np.int32(w), params, np.int32(bins), hit_key, far_key, hit, far),
-    )  # fmt: skip
+
+    def launch() -> tuple[cp.ndarray, int, int]:
+        out[: n + 1].fill(0)
+        hit_key.fill(np.iinfo(np.uint64).max)
+        far_key.fill(0)
+        bin_pixels(
+            grid, (THREADS,),
+            (d, np.int32(h), np.int32(w), params, np.int32(win.r0), np.int32(win.c0),
+             np.int32(win.side), np.int32(win.map_rows), np.int32(cols_per_bin), counts,
+             hit_key, far_key, valid),
+        )  # fmt: skip
+        read_bins(
+            ((bins + 63) // 64,), (64,),
+            (d, np.int32(w), params, np.int32(bins), hit_key, far_key, hit, far),
+        )  # fmt: skip
+        return out, n, bins
+
+    return launch
+
+
+def bin_frame_cuda(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
+                   floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
+                   cols_per_bin: int, stride: int,
+                   min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
+    out, n, bins = launcher(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range,
+                            cols_per_bin, stride, min_depth)()  # fmt: skip
     host = out.get()  # the one copy back
     return Binned(
         host[:n].reshape(2, win.side, win.side).copy(),

@@ -38,8 +38,15 @@ SCORE_POINTS = 600
 def sample_points(depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray,
                   t: np.ndarray, step: int) -> np.ndarray:  # fmt: skip
     """World points (nominal pose) of every ``step``-th pixel with a usable depth."""
-    d = depth[::step, ::step].astype(np.float64) * scale
-    v, u = np.mgrid[0 : depth.shape[0] : step, 0 : depth.shape[1] : step]
+    return points_of(depth[::step, ::step], step, scale, intr, rot, t)
+
+
+def points_of(sub: np.ndarray, step: int, scale: float, intr: Intrinsics, rot: np.ndarray,
+              t: np.ndarray) -> np.ndarray:  # fmt: skip
+    """``sample_points`` of an image already cut to every ``step``-th pixel (``sub``): the
+    few kB a fit off the frame's path keeps of the frame."""
+    d = sub.astype(np.float64) * scale
+    v, u = np.mgrid[0 : sub.shape[0] * step : step, 0 : sub.shape[1] * step : step]
     ok = np.isfinite(d) & (d > 0) & (d < 1e4)
     d, u, v = d[ok], u[ok], v[ok]
     q = np.stack(((u - intr.cx) / intr.fx * d, (v - intr.cy) / intr.fy * d, d))

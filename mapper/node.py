@@ -78,6 +78,8 @@ class MapperNode:
                         frame_stamp=frame.stamp, stamp=time.time())  # fmt: skip
         self._prox.put(codec.encode(msg))
         self.last = result
+        # The frame is out: a floor fit it left due runs now, off its path (floor_async).
+        self.mapper.fit_pending_floor()
         return result
 
     def _map_and_publish(self, frame: DepthFrame) -> Any:  # the mapper's own result type
@@ -124,3 +126,5 @@ class MapperNode:
     def close(self) -> None:
         for ent in (self._delta, self._prox, self._source):
             ent.undeclare()
+        if isinstance(self.mapper, OccupancyMapper):  # a bird's-eye mapper has no floor fit
+            self.mapper.close()

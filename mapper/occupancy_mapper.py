@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,7 +22,7 @@ import numpy as np
 from .backends import make_binner
 from .binning import Window, clear_rays
 from .camera_model import Intrinsics
-from .floor import NOMINAL, FloorFit, fit_floor, sample_points
+from .floor import NOMINAL, FloorFit, fit_floor, points_of
 from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
 from .proximity import Proximity, nearest_obstacles
 
@@ -59,6 +60,12 @@ class MapperSettings:
     last fit, or a relocalisation, refits at once. The fit is most of the CPU time a frame
     costs beside the GPU pass (0.8 ms of ~1 ms)."""
     floor_refit_m: float = 0.5
+    floor_async: bool = False
+    """Fit a due floor off the frame's path: the frame keeps the last fit, and the fit runs
+    on a worker thread once the frame's delta is out (``fit_pending_floor``, which the node
+    calls after publishing), to be taken by the first frame after it is done. Only the
+    first fit, and the one after a relocalisation, are made on the frame's path. At a
+    camera's 30 fps the fit (~1 ms) is done long before the next frame comes."""
     max_tilt_deg: float = 25.0
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
@@ -69,6 +76,18 @@ class MapperSettings:
     corridor_m: float = 0.2
     """Half-width of the walking corridor in which an obstacle counts as ahead: half a
     walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
+
+
+@dataclass(frozen=True)
+class Sample:
+    """What a floor fit needs of a frame: every ``floor_sample_step``-th pixel's depth
+    (a copy: the frame may be reused) and the camera's pose."""
+
+    sub: np.ndarray
+    scale: float
+    intr: Intrinsics
+    rot: np.ndarray
+    cam: np.ndarray
 
 
 @dataclass
@@ -108,6 +127,10 @@ class OccupancyMapper:
         self._floor: tuple[FloorFit, np.ndarray, np.ndarray] | None = None
         """The last fit, its correction in the camera's frame, and where the camera was."""
         self._floor_age = 0
+        self._floor_due: tuple | None = None
+        """The sample of a fit due, waiting for ``fit_pending_floor`` (``floor_async``)."""
+        self._floor_job: Future | None = None
+        self._fitter: ThreadPoolExecutor | None = None
         reach = math.ceil(s.max_range_m / s.cell_m) + 2
         self._side = 2 * reach + 1
         self._reach = reach
@@ -166,7 +189,9 @@ class OccupancyMapper:
         self.occupancy.reshape(-1)[cells] = values
         self.seen_at.reshape(-1)[seen] = frame.stamp
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
-        if refit is not None:
+        if isinstance(refit, Sample):
+            self._floor_due, self._floor_age = refit, 0
+        elif refit is not None:
             self._floor, self._floor_age = refit, 0
         self._floor_age += 1
         self.frames += 1
@@ -178,27 +203,62 @@ class OccupancyMapper:
 
     def _floor_for(
         self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray
-    ) -> tuple[FloorFit, np.ndarray, float, tuple | None]:
+    ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None]:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
-        in the camera's frame. Returns the new fit to keep, or None, applied by the caller
-        only once the frame is merged (a refused frame changes nothing)."""
+        in the camera's frame. Returns the new fit to keep (or, ``floor_async``, the sample
+        to fit once the frame is out), or None, applied by the caller only once the frame is
+        merged (a refused frame changes nothing)."""
         s = self.settings
         if not s.floor_ransac:
             return NOMINAL, rot, 0.0, None
+        if self._floor_job is not None and self._floor_job.done():
+            self._floor, self._floor_job = self._floor_job.result(), None  # applied on arrival
         last = self._floor
         due = (last is None or self._floor_age >= s.floor_every
                or float(np.hypot(*(cam[:2] - last[2][:2]))) > s.floor_refit_m)  # fmt: skip
-        if due:
-            pts = sample_points(depth, scale, intr, rot, cam, s.floor_sample_step)
-            fit = fit_floor(pts, cam, max_tilt_deg=s.max_tilt_deg)
-            # world = fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that last factor
-            # is the camera's own tilt, valid whichever way the camera turns next.
-            keep = (fit, rot.T @ fit.rotation @ rot, cam.copy())
-            return fit, fit.rotation @ rot, fit.floor_z, keep
+        sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
+                        scale, intr, rot, cam.copy()) if due else None  # fmt: skip
+        if sample is not None and (last is None or not s.floor_async):
+            keep = self._fit(sample)
+            return keep[0], keep[0].rotation @ rot, keep[0].floor_z, keep
         # The floor itself does not move: its height is kept as it was fitted.
+        assert last is not None
         fit, in_cam, _ = last
-        return fit, rot @ in_cam, fit.floor_z, None
+        return fit, rot @ in_cam, fit.floor_z, sample
+
+    def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, np.ndarray]:
+        """The fit of one frame's sample, to keep: the fit, the camera's own tilt and where
+        the camera stood. World = fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that
+        last factor is the camera's own tilt, valid whichever way the camera turns next."""
+        s, rot = self.settings, sample.rot
+        pts = points_of(sample.sub, s.floor_sample_step, sample.scale, sample.intr, rot,
+                        sample.cam)  # fmt: skip
+        fit = fit_floor(pts, sample.cam, max_tilt_deg=s.max_tilt_deg)
+        return fit, rot.T @ fit.rotation @ rot, sample.cam
+
+    def fit_pending_floor(self) -> bool:
+        """Start the floor fit a frame left due (``floor_async``) on the worker thread; the
+        node calls this once the frame's delta is out. False when none is due, or one is
+        still running (the due one then waits for the next call)."""
+        if self._floor_due is None or self._floor_job is not None:
+            return False
+        if self._fitter is None:
+            self._fitter = ThreadPoolExecutor(max_workers=1, thread_name_prefix="floor-fit")
+        sample, self._floor_due = self._floor_due, None
+        self._floor_job = self._fitter.submit(self._fit, sample)
+        return True
+
+    def wait_for_floor(self, timeout_s: float = 10.0) -> None:
+        """Until the fit running on the worker thread is done (tests, and a clean close)."""
+        if self._floor_job is not None:
+            self._floor_job.result(timeout=timeout_s)
+
+    def close(self) -> None:
+        """Stop the floor fit's worker thread, if one was started."""
+        if self._fitter is not None:
+            self._fitter.shutdown(wait=True, cancel_futures=True)
+            self._fitter, self._floor_job = None, None
 
     def _forget(self, cells: np.ndarray, values: np.ndarray, seen: np.ndarray,
                 stamp: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The mapper's GPU machine check in one device call (run with the wheels carried: .whl):
 #   1. pytest -m gpu tests/mapper: the CUDA kernel against the numba pass (cells, rays, map);
-#   2. scripts/mapper_bench.py: a 640x480 frame → published delta, 300 frames, on cuda and
-#      on the host's cpu (for reference), with the floor refitted every frame and every 4th;
-#      a table of the rows;
+#   2. scripts/mapper_bench.py: a 640x480 frame → published delta, 300 frames, on cuda, the
+#      floor refitted every 4th frame on the frame's path or off it (--floor-async), the
+#      frames back to back and at a camera's 30 fps; the pass's GPU vs host time (--split);
+#      a table of the rows (the CPU's figures are the dev VM's);
 #   3. only if PARTS names it: the camera-in-the-loop table, 20 seeds, WALKS_PARALLEL at a
 #      time (minutes; their outcome is what counts, not their timing).
 # Usage, from the repository root: bash scripts/gpu_mapper_check.sh; output in $OUT_DIR
-# (default out/gpu_mapper): device.txt, pytest.log, bench.json, walks.jsonl.
+# (default out/gpu_mapper): device.txt, pytest.log, bench.json, split.json, walks.jsonl.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT_DIR=${OUT_DIR:-out/gpu_mapper}
@@ -26,17 +27,20 @@ if has tests; then
         | tee "$OUT_DIR/pytest.log" | tail -n 40
 fi
 if has bench; then
-    timeout 240 python3 scripts/mapper_bench.py --backend cuda cpu --floor-every 1 4 \
-        --frames "$FRAMES" --json "$OUT_DIR/bench.json" >/dev/null
+    timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 4 --floor-async \
+        --fps 0 30 --split "$OUT_DIR/split.json" --frames "$FRAMES" --json "$OUT_DIR/bench.json" \
+        >/dev/null
     python3 - "$OUT_DIR/bench.json" <<'PY'
 import json, sys
-print("| backend | floor refit | frames | median ms | mean ms | p99 ms | max ms | floor | bin | merge |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| backend | floor refit | off path | fps | frames | median ms | mean ms | p99 ms | max ms | floor | bin | merge |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 for r in json.load(open(sys.argv[1])):
     p = r["parts_median_ms"]
-    print(f"| {r['backend']} | every {r['floor_every']} | {r['frames']} | {r['median_ms']} | "
-          f"{r['mean_ms']} | {r['p99_ms']} | {r['max_ms']} | {p['floor']} | {p['bin']} | {p['merge']} |")
+    print(f"| {r['backend']} | every {r['floor_every']} | {r['floor_async']} | {r['fps']} | "
+          f"{r['frames']} | {r['median_ms']} | {r['mean_ms']} | {r['p99_ms']} | {r['max_ms']} | "
+          f"{p['floor']} | {p['bin']} | {p['merge']} |")
 PY
+    cat "$OUT_DIR/split.json"
 fi
 if has walks; then
     rm -f "$OUT_DIR/walks.jsonl"

@@ -1,8 +1,12 @@
 """Mapper speed: a 640 x 480 depth frame to a published ``MapDelta``, per frame.
 
 Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
-       [--frames 200] [--json out/mapper_bench.json]
-Each backend x floor-refit interval is one row, on the same rendered frames.
+       [--floor-async] [--fps 0 30] [--split F.json] [--frames 200] [--json out/mapper_bench.json]
+Each backend x floor-refit interval (x floor fit on / off the frame's path, with
+``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
+feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
+back); ``--split``
+adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
 noise and missing pixels), then each is timed from the call that takes it to the delta
 encoded and put on a zenoh publisher (loopback session): floor fit, the per-pixel pass,
@@ -54,6 +58,9 @@ def main() -> None:
     ap.add_argument("--backend", nargs="+", default=["cpu"])
     ap.add_argument("--floor-every", type=int, nargs="+", default=[1])
     ap.add_argument("--frames", type=int, default=200)
+    ap.add_argument("--floor-async", action="store_true", help="Fit off the path too.")
+    ap.add_argument("--fps", type=float, nargs="+", default=[0.0], help="0: back to back.")
+    ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -65,7 +72,14 @@ def main() -> None:
         session = open_session(ZenohSettings(connect=[], multicast_scouting=False))
     except ImportError:
         session = None
-    rows = [bench(session, frames, b, k) for b in args.backend for k in args.floor_every]
+    modes = (False, True) if args.floor_async else (False,)
+    rows = [bench(session, frames, b, k, a, fps) for b in args.backend
+            for k in args.floor_every for a in modes for fps in args.fps]  # fmt: skip
+    if args.split is not None and "cuda" in args.backend:
+        parts = split(frames[len(frames) // 2])
+        print(json.dumps(parts))
+        args.split.parent.mkdir(parents=True, exist_ok=True)
+        args.split.write_text(json.dumps(parts, indent=1) + "\n")
     for row in rows:
         row["render_s"] = round(render_s, 1)
         print(json.dumps(row))
@@ -76,8 +90,9 @@ def main() -> None:
         session.close()
 
 
-def bench(session, frames: list, backend: str, floor_every: int) -> dict:
-    settings = MapperSettings(backend=backend, floor_every=floor_every)
+def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = False,
+          fps: float = 0.0) -> dict:  # fmt: skip
+    settings = MapperSettings(backend=backend, floor_every=floor_every, floor_async=floor_async)
     mapper = OccupancyMapper(settings)
     node = None
     if session is not None:
@@ -87,30 +102,71 @@ def bench(session, frames: list, backend: str, floor_every: int) -> dict:
     feed = node.feed if node is not None else mapper.process
     for f in frames[:3]:  # compile / warm the device, then start over
         feed(f)
+    mapper.close()
     mapper = OccupancyMapper(settings)
     if node is not None:
         node.mapper = mapper
     feed = node.feed if node is not None else mapper.process
     ms, parts = [], {}
+    period = 1.0 / fps if fps > 0 else 0.0
+    due = time.perf_counter()
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
+        while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
+            time.sleep(min(due - t, 0.002))
         t = time.perf_counter()
         r = feed(f)
         ms.append((time.perf_counter() - t) * 1e3)
+        if node is None:
+            mapper.fit_pending_floor()  # as the node does once the frame is out
+        due = t + period
         if r is not None:
             for k, v in r.ms.items():
                 parts.setdefault(k, []).append(v)
     if node is not None:
         node.close()
+    mapper.close()
     ms = np.array(ms)
     return {
-        "backend": mapper.backend, "floor_every": floor_every, "frames": len(ms),
+        "backend": mapper.backend, "floor_every": floor_every, "floor_async": floor_async,
+        "fps": fps, "frames": len(ms),
         "size": "640x480", "published": node is not None,
         "median_ms": round(float(np.median(ms)), 3), "mean_ms": round(float(ms.mean()), 3),
         "p99_ms": round(float(np.percentile(ms, 99)), 3), "max_ms": round(float(ms.max()), 3),
         "fps_median": round(1e3 / float(np.median(ms)), 1),
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
+    }  # fmt: skip
+
+
+def split(frame) -> dict:
+    """The cuda per-pixel pass of one frame, 200 times: host time of the whole call (upload,
+    launches, read-back) against the GPU time between events around it, and the two kernels
+    alone on the uploaded frame (``cupyx.profiler.benchmark``)."""
+    from cupyx.profiler import benchmark
+
+    from mapper import cuda_binning
+
+    s = MapperSettings(backend="cuda")
+    m = OccupancyMapper(s)
+    intr, pose = frame.intrinsics, frame.pose
+    rot, cam = pose.world_from_optical(), np.asarray(pose.position, np.float64)
+    win = m.window(cam[0], cam[1])
+    args = (frame.depth, intr.depth_scale, intr, rot, cam, 0.0, win, s.min_height_m,
+            s.max_height_m, s.max_range_m, s.cols_per_bin, s.stride)  # fmt: skip
+    whole = benchmark(cuda_binning.bin_frame_cuda, args, n_repeat=200, n_warmup=20)
+    launch = cuda_binning.launcher(*args)
+    kernels = benchmark(launch, (), n_repeat=200, n_warmup=20)
+
+    def us(x) -> dict:
+        x = np.asarray(x).ravel() * 1e6
+        med, p99 = float(np.median(x)), float(np.percentile(x, 99))
+        return {"median_us": round(med, 1), "p99_us": round(p99, 1)}
+
+    return {
+        "split": "cuda per-pixel pass, one 640x480 frame, 200 calls",
+        "call_host": us(whole.cpu_times), "call_gpu": us(whole.gpu_times),
+        "kernels_host": us(kernels.cpu_times), "kernels_gpu": us(kernels.gpu_times),
     }  # fmt: skip
 
 

@@ -67,6 +67,7 @@ class Navigator:
             or (lambda backend: make_planner(settings.planner, backend, settings.variant)),
             settings.backend,
             self.radius_cells + ESCAPE_MARGIN_CELLS,
+            self.radius_cells,
         )
         # Guidance may shave the inflation margin; it must know the real radius.
         self.guidance = guidance or Guidance(
@@ -139,6 +140,7 @@ class Navigator:
         if inbox.goal is not None:
             self.goal, self.goal_cell = inbox.goal, None
             self.route.invalidate()
+            self.route.forget_dead_ends()
             self.guidance.reset()
             self._set_state(NavState.PLANNING, OK, "goal received", now, out, force=True)
         if self.goal is not None and self.goal_cell is None and self.maps.map is not None:
@@ -277,9 +279,9 @@ class Navigator:
                 rej = Rejection(StatusCode.OVERLOADED, f"{why}, the daemon behind", counted=False)
                 return self._reject(rej, now, out)
             return self._reject(Rejection(StatusCode.STALE_POSE, why), now, out)
-        path, cost = self.route.path_from(
-            grid.blocked, grid.occupancy, self.goal_cell, self.pose_cell
-        )
+        # Less clearance than the user's radius only when the pose adds no margin of its own.
+        path, cost = self.route.path_from(grid.blocked, grid.occupancy, self.goal_cell,
+                                          self.pose_cell, self.margin.extra_cells == 0)  # fmt: skip
         self.last.plan = self.route.report
         self._last_path_flat = path[:, 0].astype(np.int64) * grid.shape[1] + path[:, 1]
         if len(path) == 0:
@@ -317,7 +319,8 @@ class Navigator:
         elif g.pattern.kind == PatternKind.REROUTE:
             self._set_state(NavState.REROUTING, OK, "new path around an obstacle", now, out)
         else:
-            self._set_state(NavState.GUIDING, OK, "", now, out)
+            why = self.last.plan.way_out(self.settings.cell_m)  # "" on the plain path
+            self._set_state(NavState.GUIDING, OK, why, now, out)
 
     # -- reporting ------------------------------------------------------------------------
 

@@ -21,9 +21,17 @@ import numpy as np
 from daemon.planning import device_errors
 from daemon.planning.escape import escape_path
 from daemon.planning.grid import INF, Cell, path_cost
+from daemon.planning.inflation import InflatedMap
 from daemon.planning.interface import GlobalPlanner, UpdateStats
 
+from .pocket import Track, dead_end_of, track_out
+
 log = logging.getLogger("guidebelt.navigation")
+
+NARROWER_CELLS = 1
+"""How many cells less than the user's radius the last resort may keep: one, the cell a
+camera's obstacle bleeds beside its face. (Down to one cell, seed 1 of the camera walks
+arrived with 7 collisions; which of its paths bumped was not traced.)"""
 
 PlannerFactory = Callable[[str], GlobalPlanner]
 """``factory(backend) -> planner``; the navigator asks for ``"cpu"`` after a device failure."""
@@ -41,11 +49,34 @@ class PlanReport:
     """The step planned from scratch (a new map or goal, or a move to the CPU)."""
     max_open: int | None = None
     """The largest open list of the step's search, from a planner that searches (A*)."""
+    back_along_track: bool = False
+    """No plan and no escape from where the user stands (a pocket): the path leads back
+    along the user's own track (``pocket``)."""
+    narrower_cells: int | None = None
+    """Neither: the path keeps this smaller clearance (cells) instead of the user's radius."""
+
+    def way_out(self, cell_m: float) -> str:
+        """What the status says of a path that is not the plain one (the belt guides along
+        it as along any path)."""
+        if self.back_along_track:
+            return "dead end: back along your track"
+        if self.narrower_cells is not None:
+            return f"narrow way: clearance {self.narrower_cells * cell_m:.1f} m"
+        return ""
 
 
 class Route:
-    def __init__(self, factory: PlannerFactory, backend: str, escape_reach: int) -> None:
+    def __init__(
+        self, factory: PlannerFactory, backend: str, escape_reach: int, radius_cells: int = 3
+    ) -> None:
         self._factory = factory
+        self._radius = radius_cells
+        self.track = Track()
+        self.dead: np.ndarray | None = None
+        """Cells kept blocked for the planner: dead ends the user was led out of (this goal)."""
+        self._may_narrow = True
+        self._leaving: np.ndarray | None = None
+        """The dead end of the way out of a pocket, kept once the user stands clear of it."""
         self.planner = factory(backend)
         self._escape_reach = escape_reach
         self._errors = device_errors()
@@ -63,10 +94,19 @@ class Route:
         self._planned = False
         self._pending = None
 
+    def forget_dead_ends(self) -> None:
+        """A new goal: a pocket is a dead end only on the way to the goal it was met for."""
+        self._leaving = None
+        if self.dead is not None:
+            self.dead = None
+            self.invalidate()
+
     def change(self, flipped: np.ndarray, blocked_now: np.ndarray) -> None:
         """Cells whose blocked state flipped; given to the planner with the next path read."""
         if not self._planned:
             return  # the next plan reads the whole map
+        if self.dead is not None:  # a dead end stays blocked whatever the map says of it
+            blocked_now = blocked_now | self.dead.reshape(-1)[flipped]
         if self._pending is not None:  # a second batch in one step (rare): hand over the first
             self.settle()
         self._pending = (flipped, blocked_now)
@@ -77,17 +117,33 @@ class Route:
             self._guarded(lambda p: self._record(p.update(*self._take())), retry=False)
 
     def path_from(
-        self, blocked: np.ndarray, occupancy: np.ndarray, goal: Cell, cell: Cell
+        self,
+        blocked: np.ndarray,
+        occupancy: np.ndarray,
+        goal: Cell,
+        cell: Cell,
+        narrower: bool = True,
     ) -> tuple[np.ndarray, int]:
         """The path from ``cell`` to ``goal`` and its cost (empty and INF if none).
 
         From inside the inflation margin (a newly seen obstacle grew over the user, or the user
         drifted into it), or from a free pocket the margin encloses, the path first leads
-        straight out to the nearest usable free cell.
+        straight out to the nearest usable free cell; failing that, back along the user's
+        track (``pocket``); failing that, and where ``narrower`` allows (the map is inflated
+        by the user's radius alone), with less clearance.
         """
         t0 = time.perf_counter()
         self.report = PlanReport()
+        self._may_narrow = narrower
+        self.track.add(cell)
+        if self.dead is not None and self.dead.shape != blocked.shape:
+            self.dead, self._leaving = None, None  # a map of another shape: start over
         result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), retry=True)
+        if len(result[0]) == 0 and self.dead is not None:
+            # The remembered dead ends leave no way at all: the map decides, not the memory.
+            self.dead, self._leaving = None, None
+            self.invalidate()
+            result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), True)
         self.report.plan_ms = (time.perf_counter() - t0) * 1e3
         return result
 
@@ -101,13 +157,17 @@ class Route:
         goal: Cell,
         cell: Cell,
     ) -> tuple[np.ndarray, int]:
+        if self.dead is not None:
+            blocked = blocked | self.dead
         if not self._planned:
             self._record(planner.plan(blocked, goal))
             self._planned, self._pending, self.report.planned = True, None, True
+        if self._leaving is not None:
+            blocked = self._left_pocket(planner, blocked, goal, cell)
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
-            return self._escape(planner, blocked, occupancy, cell)
+            return self._escape(planner, blocked, occupancy, cell, goal)
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -121,13 +181,18 @@ class Route:
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the
             # sensor saw late): the way out is the same as from inside the margin.
-            return self._escape(planner, blocked, occupancy, cell)
+            return self._escape(planner, blocked, occupancy, cell, goal)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, (path_cost(path) if len(path) else int(INF))
 
     def _escape(
-        self, planner: GlobalPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell
+        self,
+        planner: GlobalPlanner,
+        blocked: np.ndarray,
+        occupancy: np.ndarray,
+        cell: Cell,
+        goal: Cell,
     ) -> tuple[np.ndarray, int]:
         """The way out to the nearest usable cell within the margin's reach, else within
         three times it: a user who wandered between obstacles (or a pocket as wide as the
@@ -135,7 +200,60 @@ class Route:
         path, cost = escape_path(planner, blocked, occupancy, cell, self._escape_reach)
         if len(path) == 0:
             path, cost = escape_path(planner, blocked, occupancy, cell, 3 * self._escape_reach)
+        if len(path) == 0:  # a pocket: back the way the user came
+            path, cost, lead = track_out(planner, blocked, occupancy, self.track)
+            if len(path):
+                self.report.back_along_track = True
+                # Every lead of the way out: the first may be short (the pocket found late).
+                band = dead_end_of(lead, occupancy, self._radius)
+                self._leaving = band if self._leaving is None else self._leaving | band
+        if len(path) == 0 and self._may_narrow:
+            path, cost = self._narrower(occupancy, goal, cell)
         return path, cost
+
+    def _narrower(self, occupancy: np.ndarray, goal: Cell, cell: Cell) -> tuple[np.ndarray, int]:
+        """The last resort before NO_PATH: the map inflated by one cell less (``NARROWER_CELLS``).
+        A camera's obstacles bleed a cell into the free space beside their faces (range
+        noise), so the full margin can close a passage the user fits through; a smaller
+        one still never enters a known obstacle or the cells next to it, and the STOP
+        before contact stays. Planned afresh on the CPU each step it is needed."""
+        for radius in range(self._radius - 1, max(0, self._radius - 1 - NARROWER_CELLS), -1):
+            narrow = InflatedMap(occupancy, radius).blocked
+            if self.dead is not None:
+                narrow = narrow | self.dead
+            if narrow[goal]:
+                continue
+            planner = self._factory("cpu")
+            planner.plan(narrow, goal)
+            if narrow[cell]:
+                path, cost = escape_path(planner, narrow, occupancy, cell, self._escape_reach)
+            else:
+                path = planner.path(cell)
+                cost = path_cost(path) if len(path) else int(INF)
+            if len(path):
+                self.report.narrower_cells = radius
+                return path, cost
+        return np.empty((0, 2), np.int32), int(INF)
+
+    def _left_pocket(
+        self, planner: GlobalPlanner, blocked: np.ndarray, goal: Cell, cell: Cell
+    ) -> np.ndarray:
+        """Once the user stands clear of the way they were led out of a pocket, that way is
+        a dead end: blocked for the planner from now on (this goal). Returns the blocked
+        map the planner now holds."""
+        band = self._leaving
+        assert band is not None
+        if band[cell]:
+            return blocked  # still on the way out
+        self._leaving = None
+        band[goal] = False
+        new = np.flatnonzero((band & ~blocked).reshape(-1))
+        self.dead = band if self.dead is None else self.dead | band
+        if new.size:
+            if self._pending is not None:
+                self._record(planner.update(*self._take()))
+            self._record(planner.update(new, np.ones(new.size, bool)))
+        return blocked | band
 
     def _take(self) -> tuple[np.ndarray, np.ndarray]:
         pending, self._pending = self._pending, None

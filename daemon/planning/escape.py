@@ -33,6 +33,24 @@ def _line(a: Cell, b: Cell) -> np.ndarray:
     ).astype(np.int32)
 
 
+def field_at(planner: GlobalPlanner, cells: np.ndarray) -> np.ndarray:
+    """The planner's field (cost to the goal) at ``(k, 2)`` cells, read in one go where the
+    planner can give it (a searching planner's window, an EDS/DSS planner's whole field),
+    else cell by cell."""
+    if len(cells) == 0:
+        return np.empty(0, np.int64)
+    within = getattr(planner, "costs_within", None)
+    if within is not None:  # a searching planner: the window the cells span
+        rs, cs = cells.min(axis=0)
+        re, ce = cells.max(axis=0) + 1
+        g = within(int(rs), int(re), int(cs), int(ce))
+        return g[cells[:, 0] - rs, cells[:, 1] - cs].astype(np.int64)
+    costs = getattr(planner, "costs", None)
+    if costs is not None:
+        return costs()[cells[:, 0], cells[:, 1]].astype(np.int64)
+    return np.array([planner.cost_at((int(r), int(c))) for r, c in cells], np.int64)
+
+
 def escape_path(
     planner: GlobalPlanner, blocked: np.ndarray, occupancy: np.ndarray, cell: Cell, reach: int
 ) -> tuple[np.ndarray, int]:

@@ -72,7 +72,7 @@ def test_mapper_command_feeds_the_daemon_and_the_belt_stops(daemon, peer, tmp_pa
         run = subprocess.run(
             [sys.executable, "-m", "cli.app", "mapper", "--frames", str(tmp_path), "--user",
              user, "--size", "60,60", "--backend", "cpu", "--rate", "10", "--connect",
-             f"tcp/127.0.0.1:{daemon.port}"],
+             f"tcp/127.0.0.1:{daemon.port}", "--floor-every", "2", "--floor-async"],
             cwd=ROOT, capture_output=True, text=True, timeout=90,
         )  # fmt: skip
         assert run.returncode == 0, run.stderr

@@ -90,3 +90,30 @@ def test_proximity_reports_the_box_ahead():
     # The face (row 38's south edge, y = 2.1 m) is 1.05 m straight ahead of the camera.
     assert r.proximity.ahead_m is not None and 0.95 <= r.proximity.ahead_m <= 1.1
     assert abs(r.proximity.bearing) < 0.3
+
+
+def test_a_floor_fit_off_the_frame_path_is_taken_on_arrival():
+    """``floor_async``: the first fit is made on the frame's path; a refit due later runs on
+    the worker thread once the frame is out, and the first frame after it is done takes it.
+    With each fit done before the next frame (a camera's 30 fps), the map is the one that
+    fits on the frame's path make, cell for cell."""
+    import threading
+
+    headings = [NORTH + a for a in (0.0, 0.25, -0.25, 0.15, 0.1, -0.1)]
+    frames = [frame(box_scene(), 1.0 + i, heading=h, pitch=42.0, reported_pitch=30.0)
+              for i, h in enumerate(headings)]  # fmt: skip
+    inline, off = mapper(floor_every=2), mapper(floor_every=2, floor_async=True)
+    started, fits = [], []
+    for f in frames:
+        inline.process(f)
+        fits.append(off.process(f).floor)
+        started.append(off.fit_pending_floor())
+        off.wait_for_floor()
+    # Frame 0 fits on its path (nothing to keep yet); frames 2 and 4 leave a fit due, run off
+    # the path and taken by frames 3 and 5.
+    assert started == [False, False, True, False, True, False]
+    assert fits[0] is fits[1] is fits[2] and fits[3] is not fits[2] and fits[0].fitted
+    assert np.array_equal(off.occupancy, inline.occupancy)
+    assert any(t.name.startswith("floor-fit") for t in threading.enumerate())
+    off.close()
+    assert not any(t.name.startswith("floor-fit") for t in threading.enumerate())
