@@ -46,6 +46,18 @@ def _offset(d: int, width: int) -> int:
     return (d // 3 - 1) * width + d % 3 - 1
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _steepest(w: np.ndarray, i: int, width: int) -> int:
+    """Cell i's Idx: its first neighbour of lowest ``w`` strictly below its own, 4 when none is
+    or that lowest is ``BLOCKED_W``."""
+    best, wb = 4, w[i]
+    for d in range(9):
+        v = w[i + _offset(d, width)]
+        if v < wb:
+            best, wb = d, v
+    return 4 if wb >= BLOCKED_W else best
+
+
 @numba.njit(cache=True, nogil=True)
 def lowest_each(w: np.ndarray, fixed: np.ndarray, width: int, idx: np.ndarray,
                 pits: np.ndarray) -> int:  # fmt: skip
@@ -60,13 +72,7 @@ def lowest_each(w: np.ndarray, fixed: np.ndarray, width: int, idx: np.ndarray,
         c = i % width
         if c == 0 or c == width - 1:
             continue
-        best, wb = 4, w[i]
-        for d in range(9):
-            v = w[i + _offset(d, width)]
-            if v < wb:
-                best, wb = d, v
-        if wb >= BLOCKED_W:
-            best = 4
+        best = _steepest(w, i, width)
         idx[i] = best
         if (best == 4 or w[i] >= BLOCKED_W) and not fixed[i]:
             pits[count] = i
@@ -207,12 +213,7 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
         i = cells[k]
         if _border(i, width, w.size):
             continue
-        best, wb = 4, w[i]
-        for d in range(9):
-            v = w[i + _offset(d, width)]
-            if v < wb:
-                best, wb = d, v
-        idx[i] = 4 if wb >= BLOCKED_W else best
+        idx[i] = _steepest(w, i, width)
     for k in range(total + n_outer):
         mark[cells[k]] = 0
     return left
