@@ -23,6 +23,11 @@ import numpy as np
 from .grid import DIAGONAL, INF, OCCUPIED, STRAIGHT, Cell, path_cost
 from .interface import GlobalPlanner
 
+LEAVE_CELLS = 3
+"""The most occupied cells a way out may begin with (0.3 m at 10 cm cells): an estimate deeper
+in an obstacle than that is no user pinned beside it, and a longer lead would walk them through
+it; then no way out is given (NO_PATH), as for any lead through an obstacle."""
+
 
 def _line(a: Cell, b: Cell) -> np.ndarray:
     """Cells from ``a`` towards ``b`` (``b`` excluded), one per step of the longer axis."""
@@ -83,7 +88,7 @@ def escape_path(
         # has just seen) is no user inside the obstacle: the way out may leave the occupied
         # run it starts in, but never enter another.
         leave = int(np.argmin(hit)) if not hit.all() else len(hit)
-        if hit[leave:].any():
+        if leave > LEAVE_CELLS or hit[leave:].any():
             continue  # the straight way there runs through an obstacle
         tail = planner.path(exit_cell)
         if len(tail) == 0:

@@ -73,3 +73,20 @@ def test_an_estimate_on_an_occupied_cell_is_led_out_of_that_obstacle_only():
     planner.plan(m2.blocked, GOAL)
     path, cost = escape_path(planner, m2.blocked, m2.occupancy, user, reach=12)
     assert path.shape == (0, 2) and cost == int(INF)
+
+
+def test_an_estimate_deep_in_a_thick_obstacle_is_not_led_through_it():
+    # Four cells in from every side of a 9 x 9 block: no user stands there, and any way out
+    # would cross more of the obstacle than an estimate pinned beside it can explain.
+    occ = np.zeros((30, 40), np.uint8)
+    occ[11:20, 11:20] = OCCUPIED
+    m = InflatedMap(occ, 3)
+    planner = make_planner("eds", "cpu")
+    planner.plan(m.blocked, GOAL)
+    path, cost = escape_path(planner, m.blocked, m.occupancy, (15, 15), reach=12)
+    assert path.shape == (0, 2) and cost == int(INF)
+    # Three cells in from its nearest side: led out that way, never through the rest.
+    path, cost = escape_path(planner, m.blocked, m.occupancy, (13, 15), reach=12)
+    assert tuple(path[-1]) == GOAL and cost < int(INF)
+    hit = [m.occupancy[tuple(c)] == OCCUPIED for c in path]
+    assert hit.index(False) <= 3 and not any(hit[hit.index(False) :])
