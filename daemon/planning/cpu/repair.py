@@ -42,17 +42,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..grid import DIAGONAL, STRAIGHT
+from ..grid import DIAGONAL
 from .dial import INF, OVERFLOW, path_of
 from .repair_queue import (
     CELL,
     CUT_OVER,
-    OCTILE,
     ROOM,
     SHIFT,
     apply_changes,
     heap_push,
     heap_room,
+    look_ahead,
+    octile,
     pool_take,
     sift_down,
 )
@@ -113,7 +114,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                 continue  # stale
             r = v // width
             dr, dc = abs(r - sr), abs(v - r * width - sc)
-            key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+            key = min(g[v], rhs[v]) + octile(dr, dc) + km
             if key > level:  # keyed before the user moved: a lower bound; queue it truly
                 qkey[v] = key
                 heap_push(heap, hs, (np.int64(key) << SHIFT) | v)
@@ -185,12 +186,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                     else:
                         if rhs[n] != gold + nb[k, 1]:
                             continue
-                        best = INF
-                        for j in range(8):
-                            m = n + nb[j, 0]
-                            if not blk[m] and g[m] + nb[j, 1] < best:
-                                best = g[m] + nb[j, 1]
-                        rhs[n] = best
+                        rhs[n] = look_ahead(g, blk, nb, n)
                     touched += 1
                     if g[n] == rhs[n]:
                         qkey[n] = -1
@@ -201,7 +197,7 @@ def settle(blk, g, rhs, qkey, nb, goal, focus, bound, budget, heap, hs, pool, ti
                     if lowering or rhs[v] >= INF:
                         break
                     dr, dc = abs(r - sr), abs(c - sc)
-                key = min(g[n], rhs[n]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+                key = min(g[n], rhs[n]) + octile(dr, dc) + km
                 if qkey[n] == key:
                     continue
                 qkey[n] = key

@@ -26,6 +26,23 @@ GOAL_BLOCKED = -4
 OCTILE = DIAGONAL - STRAIGHT
 
 
+@njit(cache=True, nogil=True, inline="always")
+def octile(dr, dc):
+    """The user-focused key's heuristic h: the octile distance of a (dr, dc) offset in steps."""
+    return STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def look_ahead(g, blk, nb, v):
+    """rhs of a cell other than the goal: its best free neighbour's g plus the step there."""
+    best = INF
+    for k in range(8):
+        n = v + nb[k, 0]
+        if not blk[n] and g[n] + nb[k, 1] < best:
+            best = g[n] + nb[k, 1]
+    return best
+
+
 # -- the heap ------------------------------------------------------------------------------
 
 
@@ -173,7 +190,7 @@ def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values,
             pool[dropped, 0] = n
             r = n // width
             dr, dc = abs(r - sr), abs(n - r * width - sc)
-            if g[n] + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km <= bound:
+            if g[n] + octile(dr, dc) + km <= bound:
                 pool[dropped, 1] = g[n]
                 g[n] = INF
             else:  # keyed past the focus: it waits to be raised in key order, if ever
@@ -190,19 +207,14 @@ def apply_changes(blk, g, rhs, qkey, nb, goal, focus, w, n_cells, cells, values,
             v = _to_padded(cells[i - dropped], w)
             if blk[v] or not was[i - dropped]:
                 continue  # not newly freed (a freed cell's g is INF: no neighbour read it)
-        best = 0 if v == goal else INF
-        for k in range(8):
-            n = v + nb[k, 0]
-            if not blk[n] and g[n] + nb[k, 1] < best:
-                best = g[n] + nb[k, 1]
-        rhs[v] = best
+        rhs[v] = 0 if v == goal else look_ahead(g, blk, nb, v)
         looks += 1
         if g[v] == rhs[v]:
             qkey[v] = -1
             continue
         r = v // width
         dr, dc = abs(r - sr), abs(v - r * width - sc)
-        key = min(g[v], rhs[v]) + STRAIGHT * max(dr, dc) + OCTILE * min(dr, dc) + km
+        key = min(g[v], rhs[v]) + octile(dr, dc) + km
         if qkey[v] != key:
             if hs[0] + 1 > heap.size and not heap_room(heap, hs, qkey, 1):
                 return OVERFLOW, 0

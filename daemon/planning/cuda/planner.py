@@ -63,19 +63,12 @@ PATH_THREADS = 128
 """Threads of a path_tiles block (its __launch_bounds__)."""
 CUT_OVER = 0.5
 """How many cells an EDS repair (``fast``) may raise per row and column of the map before the
-call gives the repair up (the cut-over, cut_over.cuh): the limit is ``CUT_OVER * (h + w)`` cells, or
-``CUT_OVER_AREA`` of the cells where that is more. f8e1984 measured the side rule (a plan from
-scratch costs about as many tile visits in a row as the map is tiles across, a raise about as
-many as the cells it raises) at 1.0, before the repair was focused. With the focused repair
-both sides of the trade shrink (a repair relaxes only the ellipse between user and goal, and
-so does the plan from scratch it gives up for), and the planner's own time per call, measured
-with scripts/profile_cuda_phases.py on one H100, put the best limit lower
-at 400² and 1000² but not at 2000²: 0.5 cut p99 by 3-13 % at 400² and 1000² in every scenario
-(courtyard, explore, building, streets) with median and walk time within noise, while at 2000²
-it made half the steps plans from scratch (median 0.28 -> 0.70 ms, walk +16 %). Since the
-cut-over keeps the field below the change (cut_over.cuh) it costs less, and 0.25 cut the 400²
-p99 by another 9-12 % but raised the 1000² median and walk (H100, one run each); 0.5 stays.
-Read when a planner is made, so a benchmark can try another."""
+call gives the repair up (the cut-over, cut_over.cuh): the limit is ``CUT_OVER * (h + w)``
+cells, or ``CUT_OVER_AREA`` of the cells where that is more. A plan from scratch costs about as
+many tile visits in a row as the map is tiles across, a raise about as many as the cells it
+raises; measured on the H100 with scripts/profile_cuda_phases.py, 0.5 gave the lowest p99 at
+400² and 1000² without raising the 2000² median. Read when a planner is made, so a benchmark
+can try another."""
 CUT_OVER_AREA = 0.001
 """The least limit of an EDS repair's raise, as a share of the map's cells (see ``CUT_OVER``):
 4,000 cells at 2000², the limit measured best there; below ``CUT_OVER * (h + w)`` up to 1000²."""
@@ -83,13 +76,9 @@ DELTA_ROOM = 1 / 16
 """The share of a new map's cells that its stage (the mailbox) and params buffer have room
 for, at least ``DELTA_ROOM_MIN`` cells and at most all of them. A delta beyond the room moves
 the stage, which stops the resident loop, allocates page-locked memory and launches the loop
-again. With room for 1,024 cells, the steps whose delta passed a doubling (a wall seen whole:
-1,000-9,000 cells at 400²) were a walk's slowest: the calls at or above the p99 of a 400²
-courtyard walk spent 155 µs before the post, against 17 over all calls, and the bench's
-worst step was 0.59-0.77 ms; with this room 18.5 µs and 0.26-0.46 ms (H100, three runs,
-scripts/profile_cuda_phases.py and guidebelt bench, 2026-11-26; the p99, a cut-over's device
-work, did not move beyond the runs' spread). The benchmark's largest deltas stay inside it:
-~9,000 cells at 400² (room 10,000), 30,000 at 2000² (room 250,000: 2.3 MB page-locked)."""
+again: with room for only 1,024 cells, a wall seen whole (1,000-9,000 cells at 400²) made
+those steps a walk's slowest. The benchmark's largest deltas stay inside it (~9,000 cells at
+400², room 10,000; 30,000 at 2000², room 250,000: 2.3 MB page-locked)."""
 DELTA_ROOM_MIN = 4096
 FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
