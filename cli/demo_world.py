@@ -52,12 +52,14 @@ def _camera_summary(console, node, belt) -> None:
 def run_with_daemon(
     grid: int, unknown: float, seed: int, backend: str, follow: str, out: Path,
     belt_kind: str = "none", pace_s: float = 0.0, planner: str = "eds", sensor: str = "map",
-    people: int = 3,
+    people: int = 3, guide_hz: float | None = None,
 ) -> bool:
     """One user guided across the courtyard by the real daemon; True when they arrived.
 
     ``pace_s`` is the time the walker takes per step (0: as fast as the daemon answers).
     Paced like a person, the voice cues' rate limit and the hold timer see real time.
+    ``guide_hz`` overrides the daemon's pose re-guide rate (None: the config's): at the
+    default 10 Hz an unpaced walk waits 0.1 s a step for it.
     """
     import threading
     import time
@@ -84,8 +86,10 @@ def run_with_daemon(
         f"obstacles, seed {seed}; daemon on zenoh, backend {backend}, walker follows {follow}"
     )
     user = "demo"
+    rate = {} if guide_hz is None else {"guide_hz": guide_hz}
     with DaemonThread(
-        planner=planner, backend=backend, cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M
+        planner=planner, backend=backend, cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M,
+        **rate,
     ) as daemon:
         drivers, world, client = daemon.peer(), daemon.peer(), daemon.peer()
         belt, voice = BeltRecorder(drivers, user), VoiceRecorder(drivers, user)

@@ -26,7 +26,7 @@ from sim.rfid_node import RfidSimNode
 def test_daemon_guides_the_user_to_the_goal_from_rfid_poses() -> None:
     scenario = make_courtyard(100, 0.4, seed=0)
     tag_map = tags_for(scenario, "floor", seed=0)
-    with DaemonThread(backend="cpu") as daemon:
+    with DaemonThread(backend="cpu", guide_hz=100) as daemon:  # not paced to 10 Hz
         world_session, client = daemon.peer(), daemon.peer()
         try:
             node = RfidSimNode(world_session, "rfid-user", scenario, tag_map, seed=0,

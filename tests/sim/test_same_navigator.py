@@ -37,7 +37,7 @@ def felt(pattern) -> tuple:
 def test_the_in_process_walk_and_the_daemon_walk_the_same_cells_with_the_same_belt():
     scenario = make_courtyard(grid=100, unknown=0.3, seed=3)
     config = DaemonConfig(backend="cpu", cell_m=scenario.cell_m, user_radius_m=USER_RADIUS_M,
-                          tick_s=60.0, stale_pose_s=5.0)  # fmt: skip
+                          tick_s=60.0, stale_pose_s=5.0, guide_hz=100)  # fmt: skip
 
     nav = Navigator("same", config.navigator_settings())
     here = run_walk(World(scenario, "path"), nav, max_actions=600, step_s=0.05, map_first=True)
