@@ -75,31 +75,6 @@ __device__ __forceinline__ int kept_level(const unsigned* ctrl) {
     return INF - (int)__ldcg(ctrl + C_KEEP);
 }
 
-// Every block of the call's group, after round 0's barrier: whether at most `limit` cells lie
-// between the level and the focus's g ("When"; no focus: every cell at or above level). The
-// same answer in every block (g does not change before the barrier, if any, that ends it);
-// a focus below the level needs no count: its path keeps its cost, and the band is empty.
-__device__ bool cut_before_raise(const Grid& G, const int* g, int focus, unsigned limit,
-                                 unsigned* ctrl, unsigned* bar) {
-    __shared__ unsigned s_between;
-    const int level = kept_level(ctrl);
-    const int g_focus = focus >= 0 ? __ldcg(g + focus) : INF;
-    if (g_focus < level) return true;
-    if (threadIdx.x == 0) s_between = 0;
-    __syncthreads();
-    unsigned between = 0;
-    for (int i = GBLOCK * THREADS + threadIdx.x; i < G.h * G.w; i += GSIZE * THREADS) {
-        int v = __ldcg(g + i);
-        between += v >= level && v <= g_focus && v < INF;
-    }
-    between = __reduce_add_sync(FULL, between);
-    if ((threadIdx.x & 31) == 0 && between) atomicAdd(&s_between, between);
-    __syncthreads();  // one atomic a block: a warp's each, all on one word, took microseconds
-    if (threadIdx.x == 0 && s_between) atomicAdd(ctrl + C_BETWEEN, s_between);
-    grid_barrier(ctrl, bar);
-    return *((volatile unsigned*)(ctrl + C_BETWEEN)) <= limit;
-}
-
 // Every block of the call's group, after round 0 (whatever raise rounds followed). left: the
 // flags the last round left; dirty, cnt: the flags the relaxation takes and their count
 // (zero); seeds: the tiles of the changed cells; stale, deferred, lb: the path exits' and the

@@ -273,11 +273,21 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     unsigned pending = *((volatile unsigned*)cnt1);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
-    // Before any raise: a cut-over that leaves at most `limit` cells to the relaxation is taken
-    // at once (cut_over.cuh, "When"). A limit of the whole map means never.
-    if (mode == MODE_EDS && pending && !(pending & CUT_PENDING) && limit < (unsigned)(h * w) &&
-        cut_before_raise(G, g, focus, limit, ctrl, &bar))
-        pending |= CUT_PENDING;
+    if (mode == MODE_EDS && pending && !(pending & CUT_PENDING)) {
+        // Before any raise: a cut-over that leaves at most `limit` cells to the relaxation (those
+        // between level and the focus's g) is taken at once (cut_over.cuh, "When").
+        const int level = kept_level(ctrl);
+        const int g_focus = focus >= 0 ? __ldcg(g + focus) : INF;
+        unsigned between = 0;
+        for (int i = tid; i < h * w; i += stride) {
+            int v = __ldcg(g + i);
+            between += v >= level && v <= g_focus && v < INF;
+        }
+        between = __reduce_add_sync(FULL, between);
+        if ((threadIdx.x & 31) == 0 && between) atomicAdd(ctrl + C_BETWEEN, between);
+        grid_barrier(ctrl, &bar);
+        if (*((volatile unsigned*)(ctrl + C_BETWEEN)) <= limit) pending |= CUT_PENDING;
+    }
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
