@@ -97,9 +97,6 @@ C_LONGEST = 13
 """The relaxation's longest chain of tile visits."""
 C_BASE = 14
 """The barrier count the last loop ended with (the next one starts there)."""
-C_BETWEEN = 15
-"""EDS, before any raise: the cells whose g lies between the cut-over's level and the focus's
-g (``cut_over.cuh``, "When"). Zeroed by the call's last block."""
 C_STAMP = 16
 """Nine words: the global timer (ns, low 32 bits) at the call's phase boundaries, written by
 block 0 (``STAMP_PHASES`` in ``scripts/profile_cuda_phases.py``), then when the loop saw the
@@ -153,8 +150,7 @@ _WORDS = (
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_BETWEEN", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS",
-    "C_GO",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
     "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",
     "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",

@@ -20,10 +20,9 @@ superset); then raised and newly freed cells are re-seeded from their neighbours
 everything is relaxed until nothing changes. Every value is an integer path cost, so the
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
 As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` cells (a
-wall across the route raises the whole shadow behind it), or before any raise when at most
-``cut_over`` cells lie between the change's level and the user's g: the device decides, with
-no host round trip (``fast.cu``), and the same call keeps every cell whose old g lies below
-the least g the change can reach and relaxes the rest from there
+wall across the route raises the whole shadow behind it): the device decides at the end of a
+raise round, with no host round trip (``fast.cu``), and the same call keeps every cell whose
+old g lies below the least g the change can reach and relaxes the rest from there
 (``kernels/cut_over.cuh``, LPA*'s rule), instead of from the goal; ``cut_cells`` tells
 whether the last call gave up.
 

@@ -34,7 +34,6 @@
 #define C_CHANGED 12
 #define C_LONGEST 13
 #define C_BASE 14
-#define C_BETWEEN 15
 #define C_STAMP 16
 #define C_RELEASE 32
 #define P_SEG 40

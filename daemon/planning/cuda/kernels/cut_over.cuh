@@ -1,6 +1,6 @@
 // The EDS cut-over that keeps what the change cannot touch (included by fast.cu).
 //
-// When the raise passes its limit the repair is given up (fast.cu; or before it: "When"). Planning from the goal
+// When the raise passes its limit the repair is given up (fast.cu). Planning from the goal
 // again would recompute the whole field; but every cell whose old g lies below the least g the
 // change can give or take away keeps its g, so the relaxation starts from that level instead:
 // LPA*'s rule (Koenig and Likhachev 2002: a cell whose g is below the least key of the
@@ -33,13 +33,6 @@
 // reset). Flagging only the border of the kept region, not every tile that was reset, spares
 // the relaxation a visit of every tile beyond the change (half the map, for a change between
 // the goal and the user), most of which the focused wave never needs.
-//
-// When. Every raised cell has g >= level (it lies below a newly blocked cell in the old
-// field), and the work a cut-over leaves to the relaxation is about the cells whose g lies
-// between level and the focus's g (the wave starts at level and the focus is reached when the
-// band between is settled). The call counts them before any raise (fast.cu, round 0 gives
-// level): at most `limit` of them, the call cuts over at once and spends nothing on a raise
-// it would throw away; more, it raises as before and cuts over only past `limit` raised cells.
 
 #pragma once
 #include "rounds.cuh"

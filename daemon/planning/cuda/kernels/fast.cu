@@ -23,8 +23,6 @@
 // they are raised, into ctrl[C_RAISED]; the visit that passes the limit sets CUT_PENDING in
 // the round's flag count, which every block reads after the round's barrier anyway, so the
 // decision is the same in every block and costs no extra barrier or host round trip.
-// Before the first raise round the call also counts the cells the cut-over would leave to the
-// relaxation (cut_over.cuh, "When"); at most `limit` of them, it cuts over at once.
 //
 // Focused repair (focus >= 0, the user's cell; LPA*'s and D* Lite's keys, Koenig and Likhachev
 // 2002, per tile). A visit that lowers cells on edge/corner k of its tile bounds every value the
@@ -153,8 +151,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 //   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
 //   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
-//   Past `limit` raised cells, or before any raise when at most `limit` cells lie between the
-//   change's level and the focus's g: the cells the change cannot reach keep their g, the others
+//   Past `limit` raised cells: the cells the change cannot reach keep their g, the others
 //   take INF, and the relaxation goes on from there (keep_below_change, cut_over.cuh).
 //   focus >= 0 (EDS): the relaxation is focused on that cell (see the header).
 //   start >= 0: then the path from start into io + IO_PATH (path_exits.cuh).
@@ -273,21 +270,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     unsigned pending = *((volatile unsigned*)cnt1);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
-    if (mode == MODE_EDS && pending && !(pending & CUT_PENDING)) {
-        // Before any raise: a cut-over that leaves at most `limit` cells to the relaxation (those
-        // between level and the focus's g) is taken at once (cut_over.cuh, "When").
-        const int level = kept_level(ctrl);
-        const int g_focus = focus >= 0 ? __ldcg(g + focus) : INF;
-        unsigned between = 0;
-        for (int i = tid; i < h * w; i += stride) {
-            int v = __ldcg(g + i);
-            between += v >= level && v <= g_focus && v < INF;
-        }
-        between = __reduce_add_sync(FULL, between);
-        if ((threadIdx.x & 31) == 0 && between) atomicAdd(ctrl + C_BETWEEN, between);
-        grid_barrier(ctrl, &bar);
-        if (*((volatile unsigned*)(ctrl + C_BETWEEN)) <= limit) pending |= CUT_PENDING;
-    }
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
@@ -361,7 +343,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             ctrl[C_EXITS] = 0;
             ctrl[C_CUT] = 0;
             ctrl[C_KEEP] = 0;
-            ctrl[C_BETWEEN] = 0;
             for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
             ctrl[C_BASE] = bar;
         }

@@ -97,39 +97,3 @@ def test_a_cut_over_keeps_the_field_between_the_goal_and_the_change():
     assert full.cells_touched >= n * n - wall.size  # from scratch: every free cell
     assert stats.cells_touched < n * n // 2  # kept: the rows between goal and wall
     np.testing.assert_array_equal(eds.costs(), g)
-
-
-@pytest.mark.timeout(60)
-def test_a_cut_over_whose_band_is_small_is_taken_before_any_raise():
-    """A cell blocked right in front of the user: few cells lie between its g (the level) and
-    the user's, so the call cuts over before any raise round (cut_over.cuh, "When"): only the
-    blocked cell itself was counted as raised, none of the cells its raise would have raised
-    behind it. Field, path and the next, repairing, call stay exact."""
-    from daemon.planning.cuda.planner import CudaPlanner
-
-    n = 64
-    truth = np.zeros((n, n), bool)
-    goal, user = (0, 32), (40, 32)
-    eds = CudaPlanner("fast", cut_over=4.0)
-    eds.plan(truth, goal)
-    old = dijkstra_field(truth, goal)
-    cell = 39 * n + 32
-    level, g_user = old.reshape(-1)[cell], old[user]
-    band = np.count_nonzero((old >= level) & (old <= g_user))
-    assert band <= eds.cut_over
-    truth.reshape(-1)[cell] = True
-    _, path = eds.update_and_path(np.array([cell]), np.array([True]), user)
-    g = dijkstra_field(truth, goal)
-    assert eds.cut_cells == 1 and eds.raised_cells == 0
-    assert np.array_equal(path, reference_path(g, truth, user))
-    np.testing.assert_array_equal(eds.costs(), g)
-    # Far from the user, the same kind of change has a wide band: a repair. (The cut-over
-    # kept every cell below the first change's level: those of the band alone are too many.)
-    far = 10 * n + 5
-    assert np.count_nonzero((g >= g.reshape(-1)[far]) & (g < level)) > eds.cut_over
-    truth.reshape(-1)[far] = True
-    _, path = eds.update_and_path(np.array([far]), np.array([True]), user)
-    g = dijkstra_field(truth, goal)
-    assert eds.cut_cells == 0 and eds.raised_cells > 0
-    assert np.array_equal(path, reference_path(g, truth, user))
-    np.testing.assert_array_equal(eds.costs(), g)
