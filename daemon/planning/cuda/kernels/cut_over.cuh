@@ -22,80 +22,66 @@
 // Freeing: a new path through a freed x leaves x (the last changed edge on it is x -> n, n a
 // neighbour), so it costs at least STRAIGHT + g*(n) >= level; costs of paths avoiding the
 // change did not move. Hence new g*(v) = old g(v) for every v with g(v) < level, exactly.
-// (3) The cells at or above level take INF; the tiles that hold one next to a kept cell, and
-// the tiles of the changed cells, are flagged. No other cell is inconsistent: a kept cell is
-// exact, a reset cell whose neighbours are all reset (or blocked) has nothing to take from
-// them, and a cell that already held INF with a finite kept neighbour would be unreachable
-// across an unchanged edge from a cell below level, impossible by (1), or across a changed
-// edge, whose ends both lie next to a changed cell and so at or above level. The relaxation
-// (fast.cu) then finds the exact field from any flagged field of upper bounds, focused or
-// not, and the deferrals are all dropped (their pending values were at or above lb >= level:
-// reset). Flagging only the border of the kept region, not every tile that was reset, spares
-// the relaxation a visit of every tile beyond the change (half the map, for a change between
-// the goal and the user), most of which the focused wave never needs.
-
+// (3) The cells at or above level take INF; the tiles that held one, and the tiles of the
+// changed cells, are flagged. No other cell is inconsistent: a kept cell is exact, and a cell
+// that already held INF with a finite kept neighbour would be unreachable across an unchanged
+// edge from a cell below level, impossible by (1), or across a changed edge, whose ends both
+// lie next to a changed cell and so at or above level. The relaxation (fast.cu) then finds
+// the exact field from any flagged field of upper bounds, focused or not, and the deferrals
+// are all dropped (their pending values were at or above lb >= level: reset).
+//
+// On a walk the change lies ahead of the user, away from the goal, so the cells between the
+// goal and the change keep their g and the wave starts next to the change.
 #pragma once
 #include "rounds.cuh"
 
-// The least g the changed cell `cell` can give or take away (the rule above): its own old g if
-// it is newly blocked, STRAIGHT + its least neighbour's g if it is freed.
-__device__ __forceinline__ int change_level(const Grid& G, const int* g, int cell, bool now_blocked) {
-    if (now_blocked) return __ldcg(g + cell);
-    int cy = cell / G.w, cx = cell % G.w, low = INF;
+// Every block of the call's group, after the raise round that passed the limit. delta/ndelta:
+// the call's delta (cell * 2 + blocked). left: the flags the last raise round left; dirty, cnt:
+// the flags the relaxation takes and their count (zero); seeds: the tiles of the changed
+// cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words. Two
+// group barriers: the level, then the reset.
+__device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, const int* delta,
+                                  int ndelta, unsigned* left, unsigned* dirty, unsigned* cnt,
+                                  unsigned* seeds, unsigned* stale, unsigned* deferred, int* lb,
+                                  unsigned* ctrl, unsigned* bar) {
+    const int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
+    int low = INF;
+    for (int i = tid; i < ndelta; i += stride) {
+        int code = __ldcv(delta + i);
+        int cell = code >> 1;
+        if (code & 1) {
+            low = min(low, __ldcg(g + cell));
+            continue;
+        }
+        int cy = cell / G.w, cx = cell % G.w;
 #pragma unroll
-    for (int k = 0; k < 8; ++k) {
-        int ny = cy + NB_DR[k], nx = cx + NB_DC[k];
-        if (ny >= 0 && nx >= 0 && ny < G.h && nx < G.w)
-            low = min(low, __ldcg(g + ny * G.w + nx) + STRAIGHT);
+        for (int k = 0; k < 8; ++k) {
+            int ny = cy + NB_DR[k], nx = cx + NB_DC[k];
+            if (ny >= 0 && nx >= 0 && ny < G.h && nx < G.w)
+                low = min(low, __ldcg(g + ny * G.w + nx) + STRAIGHT);
+        }
     }
-    return low;
-}
-
-// Every thread of the call's group, in round 0 (before its barrier), with `low` the least
-// change_level of the changed cells it applied: the deferred tiles' bounds are folded in and
-// the group's least value goes into ctrl[C_KEEP], stored as INF - level so that the zero the
-// word starts with means "no bound" and a max keeps the least level (one atomic a warp).
-__device__ void note_level(const Grid& G, int low, const unsigned* deferred, const int* lb,
-                           unsigned* ctrl) {
-    for (int t = GBLOCK * THREADS + threadIdx.x; t < G.ntiles; t += GSIZE * THREADS)
+    for (int t = tid; t < G.ntiles; t += stride)
         if (__ldcg(deferred + t)) low = min(low, __ldcg(lb + t));
+    // One atomic a warp; stored as INF - level so that the zero the word starts with means
+    // "no bound" and a max keeps the least level.
     low = __reduce_min_sync(FULL, low);
     if ((threadIdx.x & 31) == 0 && low < INF) atomicMax(ctrl + C_KEEP, (unsigned)(INF - low));
-}
+    grid_barrier(ctrl, bar);
 
-// The level round 0 noted (after its barrier).
-__device__ __forceinline__ int kept_level(const unsigned* ctrl) {
-    return INF - (int)__ldcg(ctrl + C_KEEP);
-}
-
-// Every block of the call's group, after round 0 (whatever raise rounds followed). left: the
-// flags the last round left; dirty, cnt: the flags the relaxation takes and their count
-// (zero); seeds: the tiles of the changed cells; stale, deferred, lb: the path exits' and the
-// focused repair's per-tile words; gs: the block's halo tile. One group barrier.
-__device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, unsigned* left,
-                                  unsigned* dirty, unsigned* cnt, unsigned* seeds,
-                                  unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
-                                  unsigned* bar, int (*gs)[HT]) {
-    const int tid = GBLOCK * THREADS + threadIdx.x;
-    const int level = kept_level(ctrl);
+    const int level = INF - (int)__ldcg(ctrl + C_KEEP);
     for (int t = GBLOCK; t < G.ntiles; t += GSIZE) {
         const TileCell c = tile_cell(G, t);
-        // A neighbour read here holds its old g or, reset meanwhile by another block, INF:
-        // either is at or above level exactly when the old g is (kept cells are not written).
-        load_tile_g(G, g, c.oy, c.ox, gs);
-        __syncthreads();
-        bool border = false;
+        bool reset = false;
         if (c.inside) {
             raised[c.idx] = 0;
-            int v = gs[c.y + 1][c.x + 1];
+            int v = __ldcg(g + c.idx);
             if (v >= level && v < INF) {
                 __stcg(g + c.idx, INF);
-#pragma unroll
-                for (int k = 0; k < 8; ++k)
-                    border = border || gs[c.y + 1 + NB_DR[k]][c.x + 1 + NB_DC[k]] < level;
+                reset = true;
             }
         }
-        int any = __syncthreads_or(border);  // also: gs is read before the next tile's load
+        int any = __syncthreads_or(reset);
         if (threadIdx.x == 0) {
             if (any || __ldcg(seeds + t)) flag_tile(dirty, cnt, t);
             left[t] = 0u;
@@ -106,9 +92,9 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
         }
     }
     if (tid == 0) {
-        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
+        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the first barrier
         ctrl[C_RAISED] = 0u;
-        ctrl[C_ROUNDS] += 1;
+        ctrl[C_ROUNDS] += 2;
     }
     grid_barrier(ctrl, bar);
 }

@@ -218,7 +218,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         // on one count, and spent ~200 µs here (scripts/profile_cuda_phases.py); a warp's cells lie mostly in
         // one tile.
         unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
-        int low = INF;  // the least g the changes can reach (cut_over.cuh, change_level)
         const int lane = threadIdx.x & 31;
         for (int base = tid - lane; base < ndelta; base += stride) {
             int i = base + lane;
@@ -230,7 +229,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
                 unsigned char now = code & 1;
                 if (__ldcg(blocked + cell) != now) {
                     blocked[cell] = now;
-                    low = min(low, change_level(G, g, cell, now));
                     int cy = cell / w, cx = cell % w;
                     seed = (cy / TILE) * G.tiles_x + cx / TILE;
                     if (now) {
@@ -263,7 +261,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         flagged = __reduce_add_sync(FULL, flagged);
         if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
         if (lane == 0 && mine) count_raised(ctrl, mine, limit, cnt1);
-        note_level(G, low, deferred, lb, ctrl);
     }
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 1);
@@ -278,9 +275,9 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         }
         stamp(ctrl, 2);
         if (pending & CUT_PENDING) {
-            keep_below_change(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
-                              ctrl + C_CNT + (r + 1) % 3, seeds, stale, deferred, lb, ctrl, &bar,
-                              gs);
+            keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
+                              (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
+                              deferred, lb, ctrl, &bar);
         } else {
             // The focus's g after the reset: the raise is over (its last barrier) and the
             // reset round lowers nothing.
