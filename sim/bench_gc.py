@@ -141,6 +141,24 @@ class GcRecorder:
         return out
 
 
+def line(r: dict) -> str:
+    """One walk's row as one line: the replanning step's wall and CPU ms (median / p99 / max,
+    walk), the p99 steps holding a collection, and the collections by place (count, by
+    generation, CPU ms in all), the process's CPU and RSS."""
+    where = " | ".join(
+        f"{p} {r[p]['n']} {r[p]['by_gen']} {r[p]['cpu_ms_total']:.2f} ms"
+        for p in ("in_plan", "in_step", "between")
+    )
+    return (f"{r['scenario']} {r['grid']} {r['planner']} {r['backend']}: wall {r['ms_median']:.3f}"
+            f" / {r['ms_p99']:.3f} / {r['ms_max']:.3f}, {r['walk_ms']:.1f} | cpu "
+            f"{r.get('cpu_ms_median', 0):.3f} / {r.get('cpu_ms_p99', 0):.3f} / "
+            f"{r.get('cpu_ms_max', 0):.3f}, {r.get('cpu_walk_ms', 0):.1f} | p99 steps with gc "
+            f"{r['tail_with_gc']}/{r['tail_calls']} | {where} | process {r['walk_cpu_s']:.2f} s "
+            f"cpu, {r['walk_wall_s']:.2f} s wall, load {r['load1']:.1f} | rss "
+            f"{r['rss_mb'][0] if r['rss_mb'] else 0:.1f} -> "
+            f"{r['rss_mb'][-1] if r['rss_mb'] else 0:.1f} MB")  # fmt: skip
+
+
 def rss_mb() -> float:
     with open("/proc/self/statm", encoding="ascii") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
@@ -173,8 +191,7 @@ def main(argv: list[str] | None = None) -> None:
                    "backend": a.backend, "walk_cpu_s": cpu, "walk_wall_s": wall,
                    "load1": os.getloadavg()[0], **rec.summary()}  # fmt: skip
             rows.append(row)
-            print(json.dumps({k: v for k, v in row.items() if k != "rss_mb"}), flush=True)
-            print(f"  rss MB every {rec.rss_every} steps: {row['rss_mb']}", flush=True)
+            print(line(row), flush=True)
     if a.json is not None:
         a.json.write_text(json.dumps(rows, indent=1) + "\n")
 
