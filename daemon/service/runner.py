@@ -252,7 +252,7 @@ class UserRunner:
             )
             inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
-            gc_policy.after_step(self.navigator)  # the output is out: collect between steps
+            gc_policy.after_step()  # the output is out: collect between steps
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
     async def _gather(self) -> None:
