@@ -108,8 +108,8 @@ def recording(log: CallLog) -> Callable[[], None]:
         clock["post"] = time.perf_counter()
         post(self, slot, n_delta)
 
-    def timed_wait(self, io, seq):
-        wait(self, io, seq)
+    def timed_wait(self, io, seq, share=False):
+        wait(self, io, seq, share)
         clock["done"] = time.perf_counter()
 
     def collector(phase: str, info: dict) -> None:

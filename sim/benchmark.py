@@ -13,7 +13,6 @@ matplotlib is imported only to plot.
 
 from __future__ import annotations
 
-import gc
 import os
 import platform
 from collections.abc import Callable
@@ -24,6 +23,7 @@ import numpy as np
 
 from daemon.navigation.warm import warm_up as warm_navigator
 from daemon.planning import resolve_backend
+from daemon.runtime import gc_policy
 
 from .courtyard import make_courtyard
 from .scenarios import SCENARIOS, check_grid, make_scenario, scenario_list
@@ -98,9 +98,9 @@ def device_name(backend: str) -> str:
 def settle_heap() -> None:
     """Collect, then freeze what exists, as the daemon does once it is ready: a walk's steps
     then never wait for a full collection of the objects built before it (measured: one
-    28 ms gen-2 pause in a 400² walk otherwise)."""
-    gc.collect()
-    gc.freeze()
+    28 ms gen-2 pause in a 400² walk otherwise). The walk's own steps run under the daemon's
+    collector policy (``gc_policy.after_step`` in ``closed_loop``)."""
+    gc_policy.settle()
 
 
 def warm_up(backend: str, variant: str, modes: list[str]) -> None:

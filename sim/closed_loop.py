@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from daemon.navigation import Inbox, Navigator, StepReport
+from daemon.runtime import gc_policy
 from protocol.messages import BeltPattern, Goal, GoalCell, NavState, PatternKind, Pose, Proximity
 
 from .world import World
@@ -122,6 +123,7 @@ def run_walk(
     for _ in range(max_actions):
         if map_first and inbox.deltas and inbox.goal is None:
             navigator.step(inbox, now)
+            gc_policy.after_step()
             inbox = Inbox()
         inbox.pose = pose_source(world, now)
         if proximity_source is not None:
@@ -132,6 +134,7 @@ def run_walk(
         if out.belt:
             belt = out.belt[-1]
             walk.belts.append(belt)
+        gc_policy.after_step()  # as the runner does once the step's output is put
         said = any(cue.kind in ANNOUNCING for cue in out.voice)
         if owed:
             walk.reroutes_announced += said

@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 import zenoh
 
 from daemon.navigation import Inbox, Navigator, Rejection, StepOutput
+from daemon.runtime import gc_policy
 from protocol import codec
 from protocol import topics as T
 from protocol.messages import (
@@ -251,6 +252,7 @@ class UserRunner:
             )
             inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
+            gc_policy.after_step()  # the output is out: collect between steps
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
     async def _gather(self) -> None:

@@ -178,13 +178,24 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
 // supports are the tight neighbours (==) and the raised cells exactly those whose cost must
 // rise (the CPU's rule), fewer than the whole pred subtree. Where a focused repair left tiles
 // unsettled (fast.cu), a cell may hold more than a lowered neighbour's g + c: that neighbour
-// still proves its g an upper bound (the cost of a real path), so it counts as a support. Returns the edge bits of newly raised cells; *any_raised tells whether the
-// tile holds one, *fresh how many it raised in this visit.
+// still proves its g an upper bound (the cost of a real path), so it counts as a support.
+// Returns the edge bits of newly raised cells; *any_raised tells whether the tile holds one,
+// *fresh how many it raised in this visit.
+//
+// The fixpoint runs on bit masks, one warp alone: lane y holds row y's raised cells as bits
+// (with its halo columns: bit j is halo column j) and, per direction, which cells that
+// neighbour supports; one Jacobi pass is two shuffles and eight bit operations. A raise
+// moves one cell a pass (a shadow 32 cells deep takes 32 passes): block-wide, each pass was
+// nine shared loads in each of 32 warps and a block barrier. The least fixpoint of a
+// monotone rule is the same whatever the passes' form, so the raised set is the old one.
 __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
                                int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
                                bool* any_raised, unsigned* fresh) {
-    __shared__ unsigned s_bits;
+    __shared__ unsigned s_bits, s_passes;
     __shared__ int s_any;
+    // s_tight[(dr + 1) * 3 + dc + 1][y]: bit x set when neighbour (dr, dc) supports (y, x);
+    // s_rows[y]: row y's cells that may rise, then its raised cells.
+    __shared__ unsigned s_tight[9][TILE], s_rows[TILE], s_was[TILE];
     const TileCell c = tile_cell(G, t);
     const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
     const bool inside = c.inside;
@@ -205,24 +216,59 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
         for (int k = 0; k < 8; ++k)
             if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] <= gv) tight |= 1u << k;
     }
-    bool was = rs[y + 1][x + 1] != 0;
-    unsigned n = 0;
-    while (true) {
-        bool ch = false;
-        if (tight && !rs[y + 1][x + 1]) {
-            bool all = true;
+    const bool was = rs[y + 1][x + 1] != 0;
+    // Warp y is row y, lane x its cell x.
 #pragma unroll
-            for (int k = 0; k < 8; ++k)
-                if ((tight >> k) & 1u) all = all && rs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]];
-            if (all) {
-                rs[y + 1][x + 1] = 1;
-                ch = true;
-            }
-        }
-        ++n;
-        if (!__syncthreads_or(ch)) break;
+    for (int k = 0; k < 8; ++k) {
+        unsigned m = __ballot_sync(FULL, (tight >> k) & 1u);
+        if (x == 0) s_tight[(NB_DR[k] + 1) * 3 + NB_DC[k] + 1][y] = m;
     }
-    bool now = rs[y + 1][x + 1] != 0;
+    unsigned may = __ballot_sync(FULL, tight && !was), had = __ballot_sync(FULL, was);
+    if (x == 0) {
+        s_rows[y] = may;
+        s_was[y] = had;
+    }
+    __syncthreads();
+    if (y == 0) {
+        const int row = x;  // lane x of warp 0 takes tile row x
+        unsigned tk[9];
+#pragma unroll
+        for (int j = 0; j < 9; ++j) tk[j] = j == 4 ? 0u : s_tight[j][row];
+        const unsigned may_rise = s_rows[row];
+        unsigned r = s_was[row];
+        typedef unsigned long long u64;
+        // Halo columns 0 and 33 of this row, and the halo rows above and below: fixed here.
+        const u64 sides = (u64)(rs[row + 1][0] != 0) | ((u64)(rs[row + 1][HT - 1] != 0) << (HT - 1));
+        const u64 top = __ballot_sync(FULL, rs[0][x] != 0) | ((u64)(rs[0][TILE] != 0) << TILE) |
+                        ((u64)(rs[0][TILE + 1] != 0) << (TILE + 1));
+        const u64 bottom = __ballot_sync(FULL, rs[HT - 1][x] != 0) |
+                           ((u64)(rs[HT - 1][TILE] != 0) << TILE) |
+                           ((u64)(rs[HT - 1][TILE + 1] != 0) << (TILE + 1));
+        unsigned passes = 0;
+        while (true) {
+            const u64 mid = sides | ((u64)r << 1);
+            u64 up = __shfl_up_sync(FULL, mid, 1), down = __shfl_down_sync(FULL, mid, 1);
+            if (row == 0) up = top;
+            if (row == TILE - 1) down = bottom;
+            unsigned rise = may_rise & ~r;
+            // Neighbour (dr, dc) of cell x is halo column x + dc + 1 of its row.
+#pragma unroll
+            for (int dr = -1; dr <= 1; ++dr) {
+#pragma unroll
+                for (int dc = -1; dc <= 1; ++dc) {
+                    const u64 src = dr < 0 ? up : (dr > 0 ? down : mid);
+                    rise &= ~tk[(dr + 1) * 3 + dc + 1] | (unsigned)(src >> (dc + 1));
+                }
+            }
+            ++passes;
+            if (!__any_sync(FULL, rise)) break;
+            r |= rise;
+        }
+        s_rows[row] = r;
+        if (row == 0) s_passes = passes;
+    }
+    __syncthreads();
+    bool now = (s_rows[y] >> x) & 1u;
     bool newly = inside && now && !was;
     if (newly) {
         raised[idx] = 1;
@@ -230,7 +276,7 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
     }
     if (inside && now) s_any = 1;
     *fresh = __syncthreads_count(newly);
-    if (threadIdx.x == 0) atomicAdd(sweeps, n);
+    if (threadIdx.x == 0) atomicAdd(sweeps, s_passes);
     *any_raised = s_any != 0;
     return s_bits;
 }
