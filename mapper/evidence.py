@@ -18,36 +18,49 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .binning import Window
 
-_OFFSETS = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
 _BEYOND_COS = math.cos(math.radians(50.0))
 """A neighbour is beyond a cell along the ray when its direction is within 50° of the ray's:
 one or two of the eight, so a ray meeting a face at a slant still finds the face's cell."""
 
 
-def beyond_counts(obst: np.ndarray, win: Window, cam_x: float, cam_y: float) -> np.ndarray:
-    """Per window cell, the most obstacle points in a neighbour just beyond it along the
-    ray from the camera."""
-    side = win.side
-    inv = 1.0 / win.cell_m
-    cam_row = win.map_rows - 1 - cam_y * inv + 0.5 - win.r0
-    cam_col = cam_x * inv - 0.5 - win.c0
-    rows = np.arange(side, dtype=np.float32)[:, None] - np.float32(cam_row)
-    cols = np.arange(side, dtype=np.float32)[None, :] - np.float32(cam_col)
-    norm = np.hypot(rows, cols) + np.float32(1e-6)
-    ur, uc = rows / norm, cols / norm
-    padded = np.pad(obst, 1)
-    best = np.zeros_like(obst)
-    for dr, dc in _OFFSETS:
-        toward = (ur * dr + uc * dc) / math.hypot(dr, dc) > _BEYOND_COS
-        there = padded[1 + dr : 1 + dr + side, 1 + dc : 1 + dc + side]
-        np.maximum(best, np.where(toward, there, 0), out=best)
-    return best
+@njit(cache=True, nogil=True)
+def _tails(obst, cam_row, cam_col, tail_share, beyond_cos):
+    """One pass over the window: a cell with obstacle points is a tail when they are fewer
+    than ``tail_share`` of the most in a neighbour beyond it along the ray (numpy's eight
+    shifted where-max took 0.31 ms a frame on the dev VM)."""
+    side = obst.shape[0]
+    tail = np.zeros((side, side), np.bool_)
+    for r in range(side):
+        for c in range(side):
+            own = obst[r, c]
+            if own <= 0:
+                continue
+            dr0, dc0 = r - cam_row, c - cam_col
+            norm = math.sqrt(dr0 * dr0 + dc0 * dc0) + 1e-6
+            ur, uc = dr0 / norm, dc0 / norm
+            best = 0
+            for dr in range(-1, 2):
+                for dc in range(-1, 2):
+                    if dr == 0 and dc == 0:
+                        continue
+                    rr, cc = r + dr, c + dc
+                    if rr < 0 or rr >= side or cc < 0 or cc >= side:
+                        continue
+                    if (ur * dr + uc * dc) / math.sqrt(dr * dr + dc * dc) > beyond_cos:
+                        best = max(best, obst[rr, cc])
+            tail[r, c] = own < tail_share * best
+    return tail
 
 
 def range_tail(obst: np.ndarray, win: Window, cam_x: float, cam_y: float,
                tail_share: float) -> np.ndarray:  # fmt: skip
     """Cells whose obstacle points are the range-noise tail of the face beyond them."""
-    return (obst > 0) & (obst < tail_share * beyond_counts(obst, win, cam_x, cam_y))
+    inv = 1.0 / win.cell_m
+    cam_row = win.map_rows - 1 - cam_y * inv + 0.5 - win.r0
+    cam_col = cam_x * inv - 0.5 - win.c0
+    return _tails(np.ascontiguousarray(obst), float(cam_row), float(cam_col), float(tail_share),
+                  _BEYOND_COS)  # fmt: skip
