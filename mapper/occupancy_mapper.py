@@ -2,11 +2,18 @@
 
 ``OccupancyMapper.process`` checks the frame (``frame.check_frame``), fits the floor
 (``floor.fit_floor``), runs the per-pixel pass on the chosen backend (``backends``), clears
-along the rays, and merges the frame into the global map: a cell with at least
-``min_points`` obstacle points is OCCUPIED, a cell some ray passed before its hit is FREE,
-everything else keeps what it had. Only the cells that changed come out, ready for a
+along the rays, and fuses the frame into the global map by per-cell log-odds (the
+occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, ch. 9:
+l_t = l_{t-1} + log-odds of the inverse sensor model − l_0, with l_0 = 0): a cell with at
+least ``min_points`` obstacle points in this frame is a hit, unless they are the range-noise
+tail of the face beyond it (``evidence.range_tail``); a cell some ray passed before its hit,
+or such a tail over a seen floor, is a pass. Hits add ``l_hit``, passes add ``l_pass``
+(negative), clamped. A cell is published OCCUPIED at or above ``l_occupied``, FREE at or
+below ``l_free``, and keeps what it had between them, so a single noisy frame cannot close
+a passage the camera has seen through. Only the cells that changed come out, ready for a
 ``MapDelta``. Everything is computed before the map is touched, so a frame refused at any
-point leaves the map exactly as it was.
+point leaves the map exactly as it was. Proximity (STOP) reads this frame's hits alone,
+tails included: it never waits for evidence to build up.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import numpy as np
 from .backends import make_binner
 from .binning import Window, clear_rays
 from .camera_model import Intrinsics
+from .evidence import range_tail
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
 from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
 from .proximity import Proximity, nearest_obstacles
@@ -73,6 +81,24 @@ class MapperSettings:
     """An obstacle the mapper saw but has not seen again for this long, out of view, goes back
     to UNKNOWN (0: never). A person who walked off while nobody looked is not a wall for
     good; a box still there is seen again on the way. Obstacles of the start map stay."""
+    tail_share: float = 0.25
+    """A cell with fewer obstacle points than this share of the cell beyond it along the
+    ray holds that face's range-noise tail (``evidence.range_tail``), not an obstacle."""
+    l_hit: float = 0.85
+    """Log-odds a hit adds (p = 0.70)."""
+    l_pass: float = -0.4
+    """Log-odds a ray passing through adds (p = 0.40)."""
+    l_occupied: float = 0.7
+    """At or above: published OCCUPIED. One hit on a cell never seen is enough (an
+    obstacle that appears is mapped at once); a cell seen free needs hits to outweigh
+    its passes."""
+    l_free: float = -0.35
+    """At or below: published FREE. One pass frees a cell never seen, as before."""
+    l_min: float = -2.0
+    """Clamp below: a cell seen free many times needs 4 hits in a row to be an obstacle."""
+    l_max: float = 3.5
+    """Clamp above: an obstacle seen many times is freed after 10 passes (a person who
+    walked away leaves no ghost for more than 10 frames)."""
     corridor_m: float = 0.2
     """Half-width of the walking corridor in which an obstacle counts as ahead: half a
     walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
@@ -115,6 +141,10 @@ class OccupancyMapper:
         else:
             self.occupancy = np.full(s.shape, UNKNOWN, np.uint8)
         self._fixed = self.occupancy == OCCUPIED
+        self.logodds = np.zeros(s.shape, np.float32)
+        """Each cell's fused evidence; the start map's cells start at their threshold."""
+        self.logodds[self.occupancy == OCCUPIED] = s.l_occupied
+        self.logodds[self.occupancy == FREE] = s.l_free
         self.seen_at = np.zeros(s.shape, np.float64)
         """When each cell was last seen occupied or free."""
         self._forgot_at = 0.0
@@ -179,14 +209,21 @@ class OccupancyMapper:
         # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
         # in front of a face, where range noise scatters some of the face's points, is not.
         occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
-        cleared = free.astype(bool) & (obst == 0)
-        cells, values, seen = self._changes(win, occupied, cleared, floor >= s.min_points)
+        tail = range_tail(obst, win, cam[0], cam[1], s.tail_share)
+        floor_seen = floor >= s.min_points
+        # The tail of a face's range noise is no hit, and where its floor is seen, the rays
+        # that made it went on through: a pass.
+        cleared = (free.astype(bool) & (obst == 0)) | (tail & floor_seen)
+        cells, values, seen, odds = self._changes(win, occupied & ~tail, cleared, floor_seen)
         cells, values = self._forget(cells, values, seen, frame.stamp)
         prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
                                  frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
         # Everything is known: only now does the map change.
         self.occupancy.reshape(-1)[cells] = values
+        if odds is not None:
+            self.logodds[odds[0]] = odds[1]
+        self.logodds.reshape(-1)[cells[values == UNKNOWN]] = 0.0  # forgotten
         self.seen_at.reshape(-1)[seen] = frame.stamp
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
         if isinstance(refit, Sample):
@@ -277,21 +314,29 @@ class OccupancyMapper:
                 np.concatenate((values, np.full(gone.size, UNKNOWN, np.uint8))))  # fmt: skip
 
     def _changes(self, win: Window, occupied: np.ndarray, free: np.ndarray,
-                 floor_seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-        """Flat cells and new values where the frame changes the map (window clipped), and
-        the flat cells it saw. A ray crossing a cell frees it when it was unknown; a cell
-        the map holds as an obstacle is freed only where the frame also sees its floor (a
-        ray grazing the corner of a box's cell is no proof the box has gone)."""
-        h, w = self.settings.shape
+                 floor_seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                  tuple | None]:  # fmt: skip
+        """Flat cells and new values where the frame changes the map (window clipped), the
+        flat cells it saw, and the window's fused log-odds to store (its slice and values).
+        A pass counts against a cell the map holds as an obstacle only where the frame also
+        sees its floor (a ray grazing the corner of a box's cell is no proof it has gone)."""
+        s = self.settings
+        h, w = s.shape
         r0, c0 = max(0, win.r0), max(0, win.c0)
         r1, c1 = min(h, win.r0 + win.side), min(w, win.c0 + win.side)
         if r0 >= r1 or c0 >= c1:
-            return np.empty(0, np.int64), np.empty(0, np.uint8), np.empty(0, np.int64)
+            none = np.empty(0, np.int64)
+            return none, np.empty(0, np.uint8), none, None
         local = (slice(r0 - win.r0, r1 - win.r0), slice(c0 - win.c0, c1 - win.c0))
         old = self.occupancy[r0:r1, c0:c1]
-        frees = free[local] & ((old != OCCUPIED) | floor_seen[local])
-        new = np.where(occupied[local], OCCUPIED, np.where(frees, FREE, old))
+        hits = occupied[local]
+        passes = free[local] & ((old != OCCUPIED) | floor_seen[local])
+        odds = self.logodds[r0:r1, c0:c1] + np.float32(s.l_hit) * hits
+        odds += np.float32(s.l_pass) * passes
+        np.clip(odds, s.l_min, s.l_max, out=odds)
+        new = np.where(odds >= s.l_occupied, OCCUPIED, np.where(odds <= s.l_free, FREE, old))
         rr, cc = np.nonzero(new != old)
-        sr, sc = np.nonzero(occupied[local] | free[local])
+        sr, sc = np.nonzero(hits | free[local])
         return (((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8),
-                ((sr + r0) * w + (sc + c0)).astype(np.int64))  # fmt: skip
+                ((sr + r0) * w + (sc + c0)).astype(np.int64),
+                ((slice(r0, r1), slice(c0, c1)), odds))  # fmt: skip

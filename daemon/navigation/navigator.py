@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from daemon.planning.inflation import radius_in_cells
 from daemon.planning.registry import make_planner
 from protocol.messages import Goal, NavState, NavStatus, PatternKind, Pose, StatusCode
 
+from .clear_way import keep_clear
 from .controls import UserControls, Whereabouts
 from .goals import goal_cell
 from .inbox import Inbox, StepOutput
@@ -298,6 +300,11 @@ class Navigator:
             path, self.pose, grid.shape, now, blocked=grid.blocked, occupancy=grid.occupancy
         )
         self.last.guide_ms = (time.perf_counter() - t0) * 1e3
+        # From where the user really stands, not the cell's centre: never past a known corner.
+        safe = keep_clear(g.pattern, self.pose, g.target, grid.occupancy, self.settings.cell_m)
+        if safe is not None:
+            g = replace(g, pattern=safe)
+            self.guidance.hysteresis.reset()  # the next direction is felt from this one
         out.belt.append(g.pattern)
         if g.cue is not None:
             out.voice.append(g.cue)

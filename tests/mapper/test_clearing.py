@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from mapper.occupancy_mapper import FREE, OCCUPIED
 
 from .scenes import frame, mapper, person_scene
@@ -9,11 +11,21 @@ from .scenes import frame, mapper, person_scene
 
 def test_person_who_walks_away_is_cleared():
     m = mapper()
+    s = m.settings
     m.process(frame(person_scene(29), 1.0))
-    assert (m.occupancy[37, 29:32] == OCCUPIED).all()
-    # They step two cells to the side; the next frame sees the floor where they stood.
-    result = m.process(frame(person_scene(35), 1.2))
-    assert (m.occupancy[37, 29:32] == FREE).all()
+    assert (m.occupancy[37, 29:32] == OCCUPIED).all()  # one frame maps a new obstacle
+    for i in range(10):  # they stand long enough for the evidence to saturate
+        m.process(frame(person_scene(29), 1.1 + 0.1 * i, rng=i))
+    assert (m.logodds[37, 29:32] == s.l_max).all()
+    # They step to the side; each frame's rays pass where they stood, over its floor.
+    bound = math.ceil((s.l_max - s.l_free) / -s.l_pass)
+    assert bound == 10
+    for n in range(1, bound + 1):
+        result = m.process(frame(person_scene(35), 2.1 + 0.1 * n, rng=100 + n))
+        if (m.occupancy[37, 29:32] == FREE).all():
+            break
+    assert (m.occupancy[37, 29:32] == FREE).all(), "a ghost outlived the bound"
+    assert n == bound  # no frame earlier: one frame's passes do not wipe a known obstacle
     assert (m.occupancy[37, 35:38] == OCCUPIED).all()
     changed = set(result.cells.tolist())
     assert {37 * 60 + c for c in range(29, 32)} <= changed  # the clearing went out as a delta

@@ -43,11 +43,13 @@ def test_each_bad_frame_is_refused_and_leaves_the_map_unchanged(warm):
     for bad, why in _bad_frames(good):
         before = warm.occupancy.copy()
         seen = warm.seen_at.copy()
+        odds = warm.logodds.copy()
         with pytest.raises(FrameRejected) as exc:
             warm.process(bad)
         assert exc.value.refusal is why, (why, exc.value)
         assert np.array_equal(warm.occupancy, before)
         assert np.array_equal(warm.seen_at, seen)
+        assert np.array_equal(warm.logodds, odds)
     assert sum(warm.refused.values()) == len(_bad_frames(good))
     assert warm.refused[Refusal.STALE] == 3
     warm.process(good)  # and the next good frame is mapped as usual
