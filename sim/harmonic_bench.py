@@ -44,7 +44,7 @@ def _pcts(values: np.ndarray) -> dict:
 def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool = False):
     """The walk's navigator; ``step`` sets the harmonic planner's replanning stop: ``full``
     relaxes every step to the tolerance, a number N stops after N sweeps on a field without
-    a pit, ``N/M`` also fills the pits' basins after M sweeps, not the planner's 40 ("": the
+    a pit, ``N/M`` also fills the pits' basins after M sweeps, not the planner's 20 ("": the
     planner's default); ``smooth`` asks guidance for the planner's smoothing model."""
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
