@@ -169,7 +169,8 @@ def test_cuda_changes_queued_for_the_launch_match_the_cpu_engine(maps):
         reach = maps.reachable(blocked, goal) & ~blocked
         f_cpu, f_gpu = cpu.field(), gpu.field()
         assert ((f_gpu >= rx.BLOCKED_W / 2) == (f_cpu >= rx.BLOCKED_W / 2)).all()
-        assert np.abs(f_cpu[reach] - f_gpu[reach]).max() < GPU_TOL
+        if reach.any():  # not while the goal itself is blocked
+            assert np.abs(f_cpu[reach] - f_gpu[reach]).max() < GPU_TOL
         engine = gpu.engine
         assert (engine.fixed.get() == engine.fixed_host).all()
         paths_hold(gpu, blocked, maps.reachable(blocked, goal))
