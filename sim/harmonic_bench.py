@@ -71,6 +71,12 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 steps: tuple[str, ...] = ("",)) -> list[dict]:  # fmt: skip
     """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
     Each row's ``residual`` is the field's after each step (what an early stop left)."""
+    from daemon.navigation.warm import warm_up
+
+    for name in planners:
+        # As the daemon does before READY: every compiled path (a fill, a whole-map reach
+        # search) loaded once, not on the first walk step that needs it.
+        warm_up(name, backend)
     rows = []
     for grid in grids:
         scenario = make_scenario("courtyard", grid, unknown, 0)
