@@ -152,3 +152,46 @@ def test_a_float32_fill_stays_strictly_above_where_eps_is_below_rounding():
     assert not rx.has_pit(flat, fixed, 7)
     assert (mark == 0).all()
     assert fl.lowest_each(flat, fixed, 7, idx.copy(), pits) == 0
+
+
+def _slope_with(dent_depth: float, radius: float, n: int = 60):
+    """A sloped open field, the goal at a corner, with a dent sunk into it at (40, 40)."""
+    r, c = np.mgrid[0 : n + 2, 0 : n + 2]
+    w = 0.05 * np.hypot(r - 2, c - 2)
+    dent = np.hypot(r - 40, c - 40) < radius
+    w[dent] -= dent_depth
+    blocked = np.ones((n + 2, n + 2), dtype=bool)
+    blocked[1:-1, 1:-1] = False
+    w[blocked] = rx.BLOCKED_W
+    goal = 2 * (n + 2) + 2
+    w.reshape(-1)[goal] = 0.0
+    fixed = blocked.reshape(-1).copy()
+    fixed[goal] = True
+    return w.reshape(-1), fixed
+
+
+def test_a_shallow_dent_is_lifted_locally_and_a_deep_bowl_goes_to_the_flood():
+    n = 60
+    for depth, radius, local in ((0.12, 1.5, True), (3.0, 8, False)):
+        w, fixed = _slope_with(depth, radius, n)
+        idx, pits = np.empty(w.size, np.int8), np.empty(w.size, np.int64)
+        count = fl.lowest_each(w, fixed, n + 2, idx, pits)
+        assert count > 0
+        before = w.copy()
+        raised = np.empty(fl.RAISE_BUDGET, np.int64)
+        lifted, left = fl.raise_pits(w, fixed, n + 2, pits[:count].copy(), fl.EPS,
+                                     fl.RAISE_BUDGET, idx, raised)  # fmt: skip
+        assert (w >= before).all()
+        changed = np.flatnonzero(w != before)
+        assert set(changed) <= set(raised[:lifted])
+        if local:
+            # A few cells lifted, nothing left: no pit, and Idx is the field's own.
+            assert 0 < lifted < 40 and left.size == 0
+            fresh = np.empty_like(idx)
+            assert fl.lowest_each(w, fixed, n + 2, fresh, np.empty(w.size, np.int64)) == 0
+            assert (fresh == idx).all()
+            assert rx.descend(w, n + 2, 40 * (n + 2) + 40, 2 * (n + 2) + 2, pits) > 0
+        else:
+            # The budget spent on a real depression: its pits go on to the flood.
+            assert lifted == fl.RAISE_BUDGET and left.size > 0
+            assert rx.has_pit(w, fixed, n + 2)
