@@ -35,7 +35,6 @@ class CpuField:
         self.idx = np.empty(self.w.size, dtype=np.int8)
         self.mark = np.zeros(self.w.size, dtype=np.int8)
         self.cells = np.empty(self.w.size, dtype=np.int64)
-        self.raised = np.empty(fl.RAISE_BUDGET, dtype=np.int64)
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         self.w[cells] = w
@@ -49,19 +48,16 @@ class CpuField:
                             sweeps if budget is None else budget)  # fmt: skip
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
-        """Lift the field's pits, or fill their basins (``fill.py``); returns the cells lifted
-        or filled and those the flood did not reach (0: the field has no pit)."""
+        """Fill the basins of the field's pits (``fill.py``); returns the basins' cells and
+        those the flood did not reach (0: the field has no pit)."""
         pits = self.buf  # free until the next descent
         count = fl.lowest_each(self.w, self.fixed, self.width, self.idx, pits)
         if count == 0:
             return 0, 0
-        lifted, pits = fl.raise_pits(self.w, self.fixed, self.width, pits[:count].copy(), eps,
-                                     fl.RAISE_BUDGET, self.idx, self.raised)  # fmt: skip
-        if pits.size == 0:
-            return lifted, 0
-        counts = fl.basins(self.idx, self.fixed, self.width, pits, self.mark, self.cells)
+        counts = fl.basins(self.idx, self.fixed, self.width, pits[:count].copy(), self.mark,
+                           self.cells)  # fmt: skip
         left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
-        return lifted + counts[0], left
+        return counts[0], left
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

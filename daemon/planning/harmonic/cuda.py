@@ -8,8 +8,8 @@ residual and pit checks, and the paper's Idx with the list of pits it leaves —
 of the queued changes before it and, after it, one synchronisation for three copies into
 page-locked host memory: Idx (one byte a cell, the host walks the descent itself), the sweep
 count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
-step's sweeps, when pits are left) lifts the pits or fills their basins on a host copy of
-``w`` (``fill.py``), with the host's Idx, and scatters the cells it changed back.
+step's sweeps, when pits are left) fills their basins on the host (``fill.py``) from the
+pits, Idx and the few values of ``w`` it gathers, and scatters the basins' ``w`` back.
 ``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
 it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
 request.
@@ -18,7 +18,7 @@ Why so few host round trips (H100, 400² courtyard walk, each phase timed with a
 synchronisation round it): a step spent 0.39 ms in two ``set`` calls (cupy fancy-index
 scatters of ``w`` and ``fixed``, each index array copied from pageable memory), 0.10 ms
 clearing flags and reading Idx and the result in two blocking copies, and 0.33 ms in the
-fill's gather and scatter (cupy indexing, int64 indices), against 0.48 ms of 40 sweeps.
+fill's gather and scatter (cupy indexing with int64 indices), against 0.48 ms of 40 sweeps.
 """
 
 from __future__ import annotations
@@ -43,8 +43,9 @@ _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 cut off, newly reachable without a value yet, the goal's fixed zero."""
 _H2D = cp.cuda.runtime.memcpyHostToDevice
 _D2H = cp.cuda.runtime.memcpyDeviceToHost
-# A plain (not cooperative) launch for the fill's scatter: every function of the cooperative
-# module launches cooperatively, and cupy trims such a grid to the resident blocks.
+# Plain (not cooperative) launches for the fill's gather and scatter: every function of the
+# cooperative module launches cooperatively, and cupy trims such a grid to the resident blocks.
+_GATHER = cp.ElementwiseKernel("raw T w, int32 c", "T v", "v = w[c]", "harmonic_gather")
 _SCATTER = cp.ElementwiseKernel("int32 c, T v", "raw T w", "w[c] = v", "harmonic_scatter")
 
 
@@ -135,13 +136,12 @@ class CudaField:
         self.changes = cp.empty(n, dtype=cp.int32)
         self.queued = _pinned(n, np.int32)
         self.n_queued, self.late = 0, False
-        # The cells the fill changes and their values, on both sides.
+        # The fill's cells and values, on both sides.
         self.io_cells = cp.empty(n, dtype=cp.int32)
         self.io_vals = cp.empty(n, dtype=self.dtype)
         self.cells_host = _pinned(n, np.int32)
         self.vals_host = _pinned(n, self.dtype)
-        self.w_host = _pinned(n, self.dtype)  # the fill's copy of the field
-        self.raised = np.empty(fl.RAISE_BUDGET, dtype=np.int64)
+        self.vals = np.empty(n, dtype=self.dtype)  # the fill's host copy of some w
         self.mark = np.zeros(n, dtype=np.int8)
         self.cells = np.empty(n, dtype=np.int64)
         self.idx = cp.full(n, 4, dtype=cp.int8)
@@ -198,10 +198,8 @@ class CudaField:
         return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
-        """Lift the pits the last relaxation left, or fill their basins (``fill.py``), on a
-        host copy of the whole field (one copy, 0.6 MB at 400², 16 MB at 2000², against a
-        gather of the cells a basin's flood needs); the cells changed go back in one scatter,
-        their Idx into the host's. Returns the cells lifted or filled and those the flood did
+        """Fill the basins of the pits the last relaxation left (``fill.py``): their ``w`` on
+        the device, their Idx on the host. Returns the basins' cells and those the flood did
         not reach (0: the field has no pit)."""
         self._flush()
         if self.pit_count == 0:
@@ -210,28 +208,29 @@ class CudaField:
             pits = self.pits_host[: self.pit_count].astype(np.int64)
         else:
             pits = self.pit_list[: self.pit_count].get().astype(np.int64)
-        _copy(self.w_host.ctypes.data, self.w.data.ptr, self.w_host.nbytes, _D2H)
+        counts = fl.basins(self.idx_view, self.fixed_host, self.width, pits, self.mark,
+                           self.cells)  # fmt: skip
+        n_basin, total = counts[0], sum(counts)
+        cells = self.cells[:total]
+        # Gather: the cells up (int32, pinned), their w down, one synchronisation.
+        self.cells_host[:total] = cells
+        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * total, _H2D)
+        _GATHER(self.w, self.io_cells[:total], self.io_vals[:total])
+        _copy(self.vals_host.ctypes.data, self.io_vals.data.ptr,
+              total * self.dtype.itemsize, _D2H)  # fmt: skip
         cp.cuda.get_current_stream().synchronize()
-        lifted, pits = fl.raise_pits(self.w_host, self.fixed_host, self.width, pits, eps,
-                                     fl.RAISE_BUDGET, self.idx_view, self.raised)  # fmt: skip
-        n_basin = left = 0
-        if pits.size:
-            counts = fl.basins(self.idx_view, self.fixed_host, self.width, pits, self.mark,
-                               self.cells)  # fmt: skip
-            n_basin = counts[0]
-            left = fl.flood(self.w_host, self.width, self.cells, *counts, eps, self.mark,
-                            self.idx_view)  # fmt: skip
-        k = lifted + n_basin
-        self.cells_host[:lifted] = self.raised[:lifted]
-        self.cells_host[lifted:k] = self.cells[:n_basin]
-        self.vals_host[:k] = self.w_host[self.cells_host[:k]]
-        # The pinned buffers are not written again before a synchronisation (the next relax);
-        # the next launch or copy on the stream waits for the scatter.
-        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * k, _H2D)
-        _copy(self.io_vals.data.ptr, self.vals_host.ctypes.data, k * self.dtype.itemsize, _H2D)
-        _SCATTER(self.io_cells[:k], self.io_vals[:k], self.w)
+        self.vals[cells] = self.vals_host[:total]
+        left = fl.flood(self.vals, self.width, self.cells, *counts, eps, self.mark,
+                        self.idx_view)  # fmt: skip
+        # Scatter: the basins' new w up, to the cells already on the device (the basins come
+        # first); the next launch or copy on the stream waits for it. The pinned values are
+        # not written again before a synchronisation (the next relax).
+        self.vals_host[:n_basin] = self.vals[cells[:n_basin]]
+        _copy(self.io_vals.data.ptr, self.vals_host.ctypes.data,
+              n_basin * self.dtype.itemsize, _H2D)  # fmt: skip
+        _SCATTER(self.io_cells[:n_basin], self.io_vals[:n_basin], self.w)
         self.pit_count = left
-        return k, left
+        return n_basin, left
 
     def descend(self, start: int) -> np.ndarray | None:
         k = _walk(self.idx_view, self.width, start, self.goal, self.buf)

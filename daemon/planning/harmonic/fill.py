@@ -39,8 +39,6 @@ EPS = 0.05
 plan's first-guess slope (``planner.INIT_SLOPE``). A filled basin so has a real slope, which a
 step's sweeps do not turn back into pits as easily as a near-flat one (H100, 2000² courtyard
 walk, steps at omega 1: fills on 9 of 60 steps; 1e-3 at omega 1.3: 58 of 60)."""
-RAISE_BUDGET = 1000
-"""Lifts ``raise_pits`` may make before the pits left go to ``flood``."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -208,7 +206,13 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
             if w[j] > v and w[j] < BLOCKED_W:
                 size = _push(keys, items, size, w[j], j)
                 continue
-            _above(w, j, v, eps)
+            # Raised: strictly above v in w's own float type (float32 on the GPU rounds
+            # v + ε back to v once ε is below half a unit in the last place).
+            step = eps
+            w[j] = v + step
+            while w[j] <= v:
+                step *= 2.0
+                w[j] = v + step
             queue[tail] = j
             tail += 1
     left = 0
@@ -222,83 +226,3 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
     for k in range(total + n_outer):
         mark[cells[k]] = 0
     return left
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _above(w: np.ndarray, i: int, v: float, eps: float) -> None:
-    """``w[i] = v + ε``, strictly above ``v`` in w's own float type (float32 on the GPU rounds
-    v + ε back to v once ε is below half a unit in the last place)."""
-    step = eps
-    w[i] = v + step
-    while w[i] <= v:
-        step *= 2.0
-        w[i] = v + step
-
-
-@numba.njit(cache=True, nogil=True)
-def _pit(w: np.ndarray, fixed: np.ndarray, i: int, offs: np.ndarray) -> bool:
-    if fixed[i]:
-        return False
-    wi = w[i]
-    if wi >= BLOCKED_W:
-        return True
-    lower = False
-    for d in range(9):
-        lower = lower or w[i + offs[d]] < wi
-    return not lower
-
-
-@numba.njit(cache=True, nogil=True)
-def raise_pits(w: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray, eps: float,
-               budget: int, idx: np.ndarray,
-               raised: np.ndarray) -> tuple[int, np.ndarray]:  # fmt: skip
-    """Lift each pit ε above its lowest neighbour, lowest pit first, and in turn any neighbour
-    the lift leaves without a lower one, at most ``budget`` lifts; Idx of the lifted cells and
-    their neighbours rewritten. Returns the cells lifted (``raised[:n]``, a cell once per
-    lift) and the pits left when the budget ran out or a pit has no neighbour with a value
-    (for ``basins`` and ``flood``; none: the field has no pit).
-
-    Every pit of the field is in the heap until it is lifted (a lift changes only the lifted
-    cell's neighbours' verdicts, and they go in), so an empty heap means no pit. A pit a
-    step's sweeps leave in a field they are still relaxing is a dent a few cells wide: a
-    handful of lifts, where ``flood`` would pass over the whole region that drains into it
-    (H100, 2000² walk: basins of 75–90 k cells, 7–11 ms a step). A real depression (a wall
-    the sensor just revealed) would take lifts in the thousands; the budget hands it to
-    ``flood``."""
-    offs = _offsets(width)
-    cap = pits.size + 8 * budget + 1
-    keys = np.empty(cap, dtype=np.float64)
-    items = np.empty(cap, dtype=np.int64)
-    size = 0
-    for p in pits:
-        size = _push(keys, items, size, w[p], p)
-    n = 0
-    while size > 0:
-        p, size = _pop(keys, items, size)
-        if not _pit(w, fixed, p, offs):
-            continue
-        m = BLOCKED_W
-        for d in range(9):
-            if d != 4:
-                m = min(m, w[p + offs[d]])
-        if m >= BLOCKED_W or n >= budget:
-            left = np.empty(size + 1, dtype=np.int64)  # duplicates: ``basins`` takes each once
-            left[0] = p
-            k = 1
-            while size > 0:
-                q, size = _pop(keys, items, size)
-                if _pit(w, fixed, q, offs):
-                    left[k] = q
-                    k += 1
-            return n, left[:k].copy()
-        _above(w, p, m, eps)
-        raised[n] = p
-        n += 1
-        for d in range(9):
-            j = p + offs[d]
-            if _border(j, width, w.size):
-                continue
-            idx[j] = _steepest(w, j, offs)
-            if d != 4 and _pit(w, fixed, j, offs):
-                size = _push(keys, items, size, w[j], j)
-    return n, np.empty(0, dtype=np.int64)
