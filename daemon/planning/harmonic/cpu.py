@@ -32,7 +32,7 @@ class CpuField:
         self.w = w0.astype(np.float64)
         self.scratch = np.empty_like(self.w)
         self.buf = np.empty(self.w.size, dtype=np.int64)
-        self.idx = np.full(self.w.size, 4, dtype=np.int8)
+        self.idx = np.empty(self.w.size, dtype=np.int8)
         self.mark = np.zeros(self.w.size, dtype=np.int8)
         self.cells = np.empty(self.w.size, dtype=np.int64)
 
@@ -58,11 +58,6 @@ class CpuField:
                            self.cells)  # fmt: skip
         left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
         return counts[0], left
-
-    @property
-    def idx_view(self) -> np.ndarray:
-        """Idx as the last ``fill`` found it (the CUDA engine's host copy has the same name)."""
-        return self.idx
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

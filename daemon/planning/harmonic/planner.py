@@ -152,8 +152,7 @@ class HarmonicPlanner(GlobalPlanner):
         cells, values = checked_update_input(self._shape, cells, blocked)
         w = self._shape[1]
         padded = (cells // w + 1) * (w + 2) + cells % w + 1
-        lost, gained = self.reach.apply(padded, np.ascontiguousarray(values),
-                                        self.engine.idx_view)  # fmt: skip
+        lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
         if lost.size == 0 and gained.size == 0:
             return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
         # Cut off or blocked: u = 1, fixed. Newly reachable: no value yet (the next sweep

@@ -10,9 +10,7 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   cells, those around it still join up inside a window round the cluster (its bounding box
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
-  Otherwise each of the change's contacts is shown to reach the goal from the last step's
-  field (its descent, or a BFS to a cell already shown; ``_proven``), and only where that
-  fails, one BFS over the whole map.
+  Otherwise, one BFS over the whole map.
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
 """
@@ -26,12 +24,6 @@ from .relax import bfs_steps
 
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
-PROOF_SHARE = 8
-"""``_proven`` gives up (and the whole-map search runs) past 1/PROOF_SHARE of the map's cells,
-so a change it cannot clear costs at most an eighth more than the search alone."""
-SHOWN, DOOMED, WALKING, SEEN = 1, 2, 4, 8
-"""``_proven``'s marks: reaches the goal; descends into a new obstacle or a stop; on the walk
-now; met by a contact's search."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -116,84 +108,6 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label)
         ok = _joined(blocked, reach, group[:n], width, height, margin, mark, queue)
     for i in new:
         label[i] = 0
-    return ok
-
-
-@numba.njit(cache=True, nogil=True)
-def _walk(blocked, idx, start, offs, mark, trail, m, budget) -> tuple[bool, int]:
-    """Follow ``idx`` from ``start`` through cells still free: True when it meets a cell shown
-    to reach the goal (``SHOWN``), False when it meets a new obstacle, a stop, a cell already
-    found doomed, or itself; either way every cell it went through is marked so (each cell
-    is walked once). Returns the outcome and the new length of ``trail``."""
-    first, cur, ok = m, start, False
-    while m < budget:
-        f = mark[cur]
-        if f & SHOWN:
-            ok = True
-            break
-        if f & (DOOMED | WALKING) or blocked[cur]:
-            break
-        mark[cur] = f | WALKING
-        trail[m] = cur
-        m += 1
-        d = idx[cur]
-        if d < 0 or d > 8 or d == 4:
-            break
-        cur += offs[d]
-    for k in range(first, m):
-        mark[trail[k]] = (mark[trail[k]] & ~WALKING) | (SHOWN if ok else DOOMED)
-    return ok, m
-
-
-@numba.njit(cache=True, nogil=True)
-def _proven(blocked, reach, new, width, idx, goal, mark, queue, trail, budget) -> bool:
-    """True when every reached free neighbour of the newly blocked cells ``new`` is shown to
-    reach the goal in the changed map within ``budget`` marked cells; else the whole-map
-    search decides. A contact follows ``idx`` (the last step's Idx: a field without a pit
-    descends to the goal) while the cells stay free (``_walk``); a contact whose descent ran
-    into a new obstacle searches (BFS) until a cell it meets descends freely or is shown.
-    Sound whatever ``idx`` holds: a shown cell has a chain of free 8-neighbours to the goal
-    in the changed map, which is reachability's own rule. ``mark``: scratch of zeros, left
-    zeroed; ``queue`` (the searches) and ``trail`` (the walks): the marked cells."""
-    offs = np.empty(9, dtype=np.int64)
-    for d in range(9):
-        offs[d] = (d // 3 - 1) * width + d % 3 - 1
-    mark[goal] = SHOWN
-    trail[0] = goal
-    n, m, ok = 0, 1, True
-    for i in new:
-        for e in range(9):
-            j = i + offs[e]
-            if not ok or blocked[j] or not reach[j] or mark[j] & SHOWN:
-                continue
-            found, m = _walk(blocked, idx, j, offs, mark, trail, m, budget)
-            start = head = n
-            if not found and not mark[j] & SEEN:
-                mark[j] |= SEEN
-                queue[n] = j
-                n += 1
-            while not found and head < n and n + m < budget:
-                cur = queue[head]
-                head += 1
-                for d in range(9):
-                    nxt = cur + offs[d]
-                    if blocked[nxt] or mark[nxt] & SEEN:
-                        continue
-                    mark[nxt] |= SEEN
-                    queue[n] = nxt
-                    n += 1
-                    found, m = _walk(blocked, idx, nxt, offs, mark, trail, m, budget)
-                    if found:
-                        break
-            if found:
-                for k in range(start, n):
-                    mark[queue[k]] |= SHOWN
-            else:
-                ok = False
-    for k in range(n):
-        mark[queue[k]] = 0
-    for k in range(m):
-        mark[trail[k]] = 0
     return ok
 
 
@@ -298,13 +212,10 @@ class Reach:
         self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
         self.full_searches += 1
 
-    def apply(self, cells: np.ndarray, values: np.ndarray,
-              idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
         reachability changed (newly blocked cells count as lost; newly freed ones that the goal
-        reaches as gained). ``idx``: the field's Idx before the change (int8, padded flat),
-        which lets a change the windows cannot clear be cleared without the whole-map search
-        (``_proven``)."""
+        reaches as gained)."""
         n = _flips(self.blocked, cells, values, self._label, self._flip_cells,
                    self._flip_values)  # fmt: skip
         cells, values = self._flip_cells[:n], self._flip_values[:n]
@@ -322,13 +233,9 @@ class Reach:
             return changed[~self.reach[changed]], changed[self.reach[changed]]
         if now_blocked.size:
             self.reach[now_blocked] = False
-            if self.blocked[self.goal] or not (
-                _joined_each(self.blocked, self.reach, now_blocked, self.width, self.height,
-                             MARGIN, self._mark, self._queue, self._label)
-                or (idx is not None and _proven(self.blocked, self.reach, now_blocked,
-                                                self.width, idx, self.goal, self._mark,
-                                                self._queue, self._out,
-                                                self.blocked.size // PROOF_SHARE))
+            if self.blocked[self.goal] or not _joined_each(
+                self.blocked, self.reach, now_blocked, self.width, self.height, MARGIN,
+                self._mark, self._queue, self._label,
             ):  # fmt: skip
                 before = self.reach.copy()
                 before[now_blocked] = was
