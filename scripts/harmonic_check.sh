@@ -4,7 +4,7 @@
 #   2. sim.harmonic_bench plateau: courtyard fields at $PLATEAU_GRIDS, where u / 1-u / w go flat;
 #   3. sim.harmonic_bench replan: the replanning step, harmonic beside EDS, at $REPLAN_GRIDS
 #      ($BIG_STEPS steps), each of the step stops in $STEPS (default: the planner's own; N: stop
-#      on a field without a pit after N sweeps, N/M: fill the pits' basins after M, not 40);
+#      on a field without a pit after N sweeps, N/M: fill the pits' basins after M, not 20);
 #   4. sim.harmonic_bench band: guidance's cost per call with the harmonic band on the GPU.
 # Usage on the GPU machine, from the repository root: bash scripts/harmonic_check.sh
 set -uo pipefail

@@ -44,7 +44,7 @@ def _pcts(values: np.ndarray) -> dict:
 def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool = False):
     """The walk's navigator; ``step`` sets the harmonic planner's replanning stop: ``full``
     relaxes every step to the tolerance, a number N stops after N sweeps on a field without
-    a pit, ``N/M`` also fills the pits' basins after M sweeps, not the planner's 40 ("": the
+    a pit, ``N/M`` also fills the pits' basins after M sweeps, not the planner's 20 ("": the
     planner's default); ``smooth`` asks guidance for the planner's smoothing model."""
     from daemon.guidance.guide import Guidance
     from daemon.navigation import Navigator
@@ -71,6 +71,12 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 steps: tuple[str, ...] = ("",)) -> list[dict]:  # fmt: skip
     """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
     Each row's ``residual`` is the field's after each step (what an early stop left)."""
+    from daemon.navigation.warm import warm_up
+
+    for name in planners:
+        # As the daemon does before READY: every compiled path (a fill, a whole-map reach
+        # search) loaded once, not on the first walk step that needs it.
+        warm_up(name, backend)
     rows = []
     for grid in grids:
         scenario = make_scenario("courtyard", grid, unknown, 0)

@@ -3,14 +3,22 @@
 
 The kernel source is compiled once per process and float type (``functools.cache``; cupy
 also keeps the binary in its on-disk cache), as the cuda planner's ``device.module`` does.
-A relaxation is one cooperative launch — every sweep, the residual and pit checks, and the
-paper's Idx with the list of pits it leaves — then one copy of Idx (one byte a cell) into
-page-locked host memory and one of the sweep count, residual, pit verdict and pit count: the
-host walks the descent itself. ``fill`` (after a replanning step's sweeps, when pits are
-left) fills their basins on the host (``fill.py``) from the pits, Idx and the few values of
-``w`` it reads, and writes back the basins' ``w``. ``float32`` by
-default: ``w`` grows about linearly with distance, so single precision holds it at any grid
-size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on request.
+A relaxation is one cooperative launch — the map's changes ``set`` queued, every sweep, the
+residual and pit checks, and the paper's Idx with the list of pits it leaves — with one copy
+of the queued changes before it and, after it, one synchronisation for three copies into
+page-locked host memory: Idx (one byte a cell, the host walks the descent itself), the sweep
+count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
+step's sweeps, when pits are left) fills their basins on the host (``fill.py``) from the
+pits, Idx and the few values of ``w`` it gathers, and scatters the basins' ``w`` back.
+``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
+it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
+request.
+
+Why so few host round trips (H100, 400² courtyard walk, each phase timed with a device
+synchronisation round it): a step spent 0.39 ms in two ``set`` calls (cupy fancy-index
+scatters of ``w`` and ``fixed``, each index array copied from pageable memory), 0.10 ms
+clearing flags and reading Idx and the result in two blocking copies, and 0.33 ms in the
+fill's gather and scatter (cupy indexing with int64 indices), against 0.48 ms of 40 sweeps.
 """
 
 from __future__ import annotations
@@ -27,6 +35,18 @@ from . import relax as rx
 
 SOURCE = Path(__file__).with_name("kernels") / "harmonic.cu"
 THREADS = 256
+FIRST_PITS = 64
+"""Pits copied back with every relaxation's result (a step leaves a few: 2–27 measured);
+``fill`` fetches the rest when there are more."""
+_CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
+"""``set``'s (w is BLOCKED_W, fixed) → the kernel's change code (``harmonic.cu``): blocked or
+cut off, newly reachable without a value yet, the goal's fixed zero."""
+_H2D = cp.cuda.runtime.memcpyHostToDevice
+_D2H = cp.cuda.runtime.memcpyDeviceToHost
+# Plain (not cooperative) launches for the fill's gather and scatter: every function of the
+# cooperative module launches cooperatively, and cupy trims such a grid to the resident blocks.
+_GATHER = cp.ElementwiseKernel("raw T w, int32 c", "T v", "v = w[c]", "harmonic_gather")
+_SCATTER = cp.ElementwiseKernel("int32 c, T v", "raw T w", "w[c] = v", "harmonic_scatter")
 
 
 @functools.cache
@@ -48,6 +68,20 @@ def _blocks(real: str, function: str) -> int:
     # Four blocks of 256 a multiprocessor is enough to cover the grid's memory latency; the
     # occupancy bound keeps the cooperative launch legal if the kernel ever needs more.
     return max(1, min(resident_blocks(k, THREADS), 4 * sms))
+
+
+def _pinned(count: int, dtype: type) -> np.ndarray:
+    dtype = np.dtype(dtype)
+    memory = cp.cuda.alloc_pinned_memory(max(1, count) * dtype.itemsize)
+    return np.frombuffer(memory, dtype=dtype, count=count)
+
+
+def _copy(dst: int, src: int, nbytes: int, kind: int) -> None:
+    """An asynchronous copy on the current stream, in order with its launches (pinned host
+    memory: the host goes on at once)."""
+    if nbytes:
+        stream = cp.cuda.get_current_stream().ptr
+        cp.cuda.runtime.memcpyAsync(dst, src, nbytes, kind, stream)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -84,71 +118,117 @@ class CudaField:
     def load(self, fixed: np.ndarray, w0: np.ndarray, width: int, goal: int) -> None:
         self.width, self.goal = int(width), int(goal)
         self.height = fixed.size // self.width
+        n = w0.size
         self.w = cp.asarray(w0.astype(self.dtype))
         self.fixed_host = fixed.astype(np.uint8)
         self.fixed = cp.asarray(self.fixed_host)
         self.prev = cp.empty_like(self.w) if self.jacobi else cp.empty(1, dtype=self.dtype)
-        # The residual's two slots, the pit check's three and the pit count, cleared by one
-        # launch a relax.
+        # The residual's two slots, the pit check's three and the pit count; zero before the
+        # first launch, and each launch clears them as it ends.
         self.flags = cp.zeros(6, dtype=cp.uint32)
         self.worst, self.pits = self.flags[:2], self.flags[2:]
         self.result = cp.zeros(4, dtype=cp.int32)
-        self.pit_list = cp.empty(w0.size, dtype=cp.int32)
+        self.result_host = _pinned(4, np.int32)
+        self.pit_list = cp.empty(n, dtype=cp.int32)
+        self.pits_host = _pinned(min(FIRST_PITS, n), np.int32)
         self.pit_count = 0
-        self.vals = np.empty(w0.size, dtype=self.dtype)  # the fill's host copy of some w
-        self.mark = np.zeros(w0.size, dtype=np.int8)
-        self.cells = np.empty(w0.size, dtype=np.int64)
-        self.idx = cp.full(w0.size, 4, dtype=cp.int8)
-        self.idx_host = cp.cuda.alloc_pinned_memory(w0.size)
-        self.idx_view = np.frombuffer(self.idx_host, dtype=np.int8, count=w0.size)
-        self.buf = np.empty(w0.size, dtype=np.int64)
+        # The changes ``set`` queued for the next launch (cell << 2 | code).
+        self.changes = cp.empty(n, dtype=cp.int32)
+        self.queued = _pinned(n, np.int32)
+        self.n_queued, self.late = 0, False
+        # The fill's cells and values, on both sides.
+        self.io_cells = cp.empty(n, dtype=cp.int32)
+        self.io_vals = cp.empty(n, dtype=self.dtype)
+        self.cells_host = _pinned(n, np.int32)
+        self.vals_host = _pinned(n, self.dtype)
+        self.vals = np.empty(n, dtype=self.dtype)  # the fill's host copy of some w
+        self.mark = np.zeros(n, dtype=np.int8)
+        self.cells = np.empty(n, dtype=np.int64)
+        self.idx = cp.full(n, 4, dtype=cp.int8)
+        self.idx_view = _pinned(n, np.int8)
+        self.buf = np.empty(n, dtype=np.int64)
         self.kernel = _module(self.real).get_function("harmonic_relax")
         self.blocks = _blocks(self.real, "harmonic_relax")
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
+        """Set ``cells``' ``w`` and fixedness, on the device at the next ``relax`` (``field``
+        and ``fill`` apply them first too): blocked and freed cells before fixed zeros (the
+        goal), whatever order the calls came in."""
         if cells.size == 0:
             return
-        # Plain cupy scatters: every function of the cooperative module launches
-        # cooperatively, and cupy trims such a grid to the resident blocks.
-        dev = cp.asarray(np.ascontiguousarray(cells, dtype=np.int64))
-        self.w[dev] = self.dtype.type(min(w, rx.BLOCKED_W))
-        self.fixed[dev] = np.uint8(fixed)
+        cells = np.ascontiguousarray(cells, dtype=np.int64)
         self.fixed_host[cells] = fixed
+        code = _CODES.get((w >= rx.BLOCKED_W, bool(fixed))) if w in (0.0, rx.BLOCKED_W) else None
+        if code is None or self.n_queued + cells.size > self.queued.size:
+            self._flush()
+        if code is None or cells.size > self.queued.size:
+            dev = cp.asarray(cells)
+            self.w[dev] = self.dtype.type(min(w, rx.BLOCKED_W))
+            self.fixed[dev] = np.uint8(fixed)
+            return
+        end = self.n_queued + cells.size
+        self.queued[self.n_queued : end] = (cells << 2) | code
+        self.n_queued, self.late = end, self.late or code == 2
+
+    def _flush(self) -> None:
+        """Apply the queued changes without a relaxation (the kernel does, with no sweep)."""
+        if self.n_queued:
+            self.relax(0, 0.0, 0)
 
     def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
         """As ``CpuField.relax``: sweeps, residual, and whether the field ends without a pit."""
-        self.flags.fill(0)
+        n = self.n_queued
+        _copy(self.changes.data.ptr, self.queued.ctypes.data, 4 * n, _H2D)
         self.kernel(
             (self.blocks,), (THREADS,),
             (self.w, self.fixed, self.prev, np.int32(self.height), np.int32(self.width),
              np.int32(self.jacobi), self.omega, np.int32(sweeps), np.int32(self.check_every),
              np.float32(tol), self.worst, self.result, self.idx,
-             np.int32(sweeps if budget is None else budget), self.pits, self.pit_list),
+             np.int32(sweeps if budget is None else budget), self.pits, self.pit_list,
+             self.changes, np.int32(n), np.int32(self.late)),
         )  # fmt: skip
-        return self._read()
-
-    def _read(self) -> tuple[int, float, bool]:
+        self.n_queued, self.late = 0, False
         self.launches += 1
-        self.idx.get(out=self.idx_view)
-        done, bits, settled, self.pit_count = (int(v) for v in self.result.get())
+        _copy(self.idx_view.ctypes.data, self.idx.data.ptr, self.idx_view.size, _D2H)
+        _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
+        _copy(self.pits_host.ctypes.data, self.pit_list.data.ptr, 4 * self.pits_host.size, _D2H)
+        # The copies wait for the launch; the queued changes' buffer is free again after.
+        cp.cuda.get_current_stream().synchronize()
+        done, bits, settled, self.pit_count = (int(v) for v in self.result_host)
         return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
         """Fill the basins of the pits the last relaxation left (``fill.py``): their ``w`` on
         the device, their Idx on the host. Returns the basins' cells and those the flood did
         not reach (0: the field has no pit)."""
+        self._flush()
         if self.pit_count == 0:
             return 0, 0
-        pits = self.pit_list[: self.pit_count].get().astype(np.int64)
+        if self.pit_count <= self.pits_host.size:
+            pits = self.pits_host[: self.pit_count].astype(np.int64)
+        else:
+            pits = self.pit_list[: self.pit_count].get().astype(np.int64)
         counts = fl.basins(self.idx_view, self.fixed_host, self.width, pits, self.mark,
                            self.cells)  # fmt: skip
-        n_basin = counts[0]
-        cells = self.cells[: sum(counts)]
-        dev = cp.asarray(cells)
-        self.vals[cells] = self.w[dev].get()
+        n_basin, total = counts[0], sum(counts)
+        cells = self.cells[:total]
+        # Gather: the cells up (int32, pinned), their w down, one synchronisation.
+        self.cells_host[:total] = cells
+        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * total, _H2D)
+        _GATHER(self.w, self.io_cells[:total], self.io_vals[:total])
+        _copy(self.vals_host.ctypes.data, self.io_vals.data.ptr,
+              total * self.dtype.itemsize, _D2H)  # fmt: skip
+        cp.cuda.get_current_stream().synchronize()
+        self.vals[cells] = self.vals_host[:total]
         left = fl.flood(self.vals, self.width, self.cells, *counts, eps, self.mark,
                         self.idx_view)  # fmt: skip
-        self.w[dev[:n_basin]] = cp.asarray(self.vals[cells[:n_basin]])
+        # Scatter: the basins' new w up, to the cells already on the device (the basins come
+        # first); the next launch or copy on the stream waits for it. The pinned values are
+        # not written again before a synchronisation (the next relax).
+        self.vals_host[:n_basin] = self.vals[cells[:n_basin]]
+        _copy(self.io_vals.data.ptr, self.vals_host.ctypes.data,
+              n_basin * self.dtype.itemsize, _H2D)  # fmt: skip
+        _SCATTER(self.io_cells[:n_basin], self.io_vals[:n_basin], self.w)
         self.pit_count = left
         return n_basin, left
 
@@ -157,4 +237,5 @@ class CudaField:
         return None if k < 0 else self.buf[:k].copy()
 
     def field(self) -> np.ndarray:
+        self._flush()
         return self.w.get().astype(np.float64)

@@ -1,14 +1,17 @@
 // Hong & DeSouza's harmonic field on the GPU, kept as w = -ln(1 - u) (relax.py says why).
 //
-// One cooperative launch per relaxation: every thread strides over the cells of one colour
-// of the four-colour (row parity x column parity) ordering of the nine-point stencil, the
-// grid synchronises between colours, and every `check_every` sweeps the largest change of
-// the sweep (the residual, in log units) is reduced into a global word; all threads read it
-// after a grid sync and leave together once it is below `tol` — or, past `budget` sweeps,
-// once no free cell is a pit (a replanning step's stop: every descent reaches the goal). `jacobi` instead sweeps eq. (1)
-// as written, from a copy of the last sweep. At the end each cell gets the paper's Idx: the
-// neighbour (0..8, row-major in the 3 x 3 block) of lowest w when strictly below its own, 4
-// (itself) when none is; the host walks it. REAL is float or double (-DREAL=...).
+// One cooperative launch per relaxation. It first applies the map's changes the host queued
+// (`changes`: cell << 2 | code; code 0 blocked or cut off, 1 newly reachable with no value
+// yet, both before code 2, the goal's fixed zero). Then every thread strides over the cells
+// of one colour of the four-colour (row parity x column parity) ordering of the nine-point
+// stencil, the grid synchronises between colours, and every `check_every` sweeps the largest
+// change of the sweep (the residual, in log units) is reduced into a global word; all threads
+// read it after a grid sync and leave together once it is below `tol` — or, past `budget`
+// sweeps, once no free cell is a pit (a replanning step's stop: every descent reaches the
+// goal). `jacobi` instead sweeps eq. (1) as written, from a copy of the last sweep. At the end
+// each cell gets the paper's Idx: the neighbour (0..8, row-major in the 3 x 3 block) of lowest
+// w when strictly below its own, 4 (itself) when none is; the host walks it. REAL is float or
+// double (-DREAL=...).
 #include <cooperative_groups.h>
 namespace cg = cooperative_groups;
 
@@ -88,14 +91,33 @@ __device__ bool has_pit(const REAL* w, const unsigned char* fixed, int height, i
     return false;
 }
 
-extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, REAL* prev,
+// The queued changes of a step, in the launch that relaxes after them (one launch and one
+// copy a step, not two scatters per kind of change): code 2 after a grid barrier, so the
+// goal's zero wins over its own "newly reachable" entry.
+__device__ void apply_changes(cg::grid_group& grid, REAL* w, unsigned char* fixed,
+                              const int* changes, int n_changes, int late, long long first,
+                              long long stride) {
+    for (int pass = 0; pass < (late ? 2 : 1); ++pass) {
+        for (long long k = first; k < n_changes; k += stride) {
+            const int code = changes[k] & 3, cell = changes[k] >> 2;
+            if ((code == 2) != (pass == 1)) continue;
+            w[cell] = code == 2 ? (REAL)0 : BLOCKED_W;
+            fixed[cell] = code != 1;
+        }
+        grid.sync();
+    }
+}
+
+extern "C" __global__ void harmonic_relax(REAL* w, unsigned char* fixed, REAL* prev,
                                           int height, int width, int jacobi, REAL omega,
                                           int max_sweeps, int check_every, float tol,
                                           unsigned* worst, int* result, signed char* idx,
-                                          int budget, unsigned* pits, int* pit_list) {
+                                          int budget, unsigned* pits, int* pit_list,
+                                          const int* changes, int n_changes, int late) {
     cg::grid_group grid = cg::this_grid();
     const long long stride = (long long)gridDim.x * blockDim.x;
     const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (n_changes > 0) apply_changes(grid, w, fixed, changes, n_changes, late, first, stride);
     const int ih = height - 2, iw = width - 2;  // the padded ring never moves
     int done = 0, checks = 0, settled = 0;
     float residual = __int_as_float(0x7f800000);  // +inf (NVRTC has no math.h)
@@ -151,7 +173,7 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
             }
         }
     }
-    // pits[3] counts the listed pits (cleared with the other slots before the launch).
+    // pits[3] counts the listed pits.
     write_idx(w, fixed, idx, height, width, first, stride, pit_list, pits + 3);
     grid.sync();
     if (first == 0) {
@@ -159,5 +181,10 @@ extern "C" __global__ void harmonic_relax(REAL* w, const unsigned char* fixed, R
         result[1] = (int)__float_as_uint(residual);
         result[2] = settled || residual < tol;
         result[3] = (int)*(volatile unsigned*)(pits + 3);
+        // Every thread has read the slots (a grid barrier since): clear them for the next
+        // launch here, not with a launch of its own before it. `worst` and `pits` are one
+        // array of six words (cuda.py's `flags`).
+        for (int k = 0; k < 2; ++k) worst[k] = 0u;
+        for (int k = 0; k < 4; ++k) pits[k] = 0u;
     }
 }

@@ -142,3 +142,39 @@ def test_cuda_fills_the_basin_a_wall_leaves(maps):
     blocked.reshape(-1)[door] = True
     assert stats.iterations <= 5 and gpu.filled > 100 and gpu.settled
     paths_hold(gpu, blocked, maps.reachable(blocked, (2, 36)))
+
+
+def test_cuda_changes_queued_for_the_launch_match_the_cpu_engine(maps):
+    # ``set`` queues a step's changes for the relaxation's own launch (``harmonic.cu``'s
+    # ``apply_changes``): blocked cells, newly reachable ones and the goal freed again (in
+    # the same step as a cell beside it) must come out as the CPU engine sets them.
+    from daemon.planning.harmonic import relax as rx
+
+    blocked = np.zeros((30, 30), dtype=bool)
+    goal = (5, 5)
+    cpu, gpu = make_planner("harmonic", "cpu"), cuda_planner("rb")
+    for planner in (cpu, gpu):
+        planner.plan(blocked, goal)
+    wall = 15 * 30 + np.arange(0, 28)
+    steps = [
+        (wall, True),
+        (np.array([5 * 30 + 5]), True),
+        (np.array([5 * 30 + 5, 5 * 30 + 6, 15 * 30 + 3]), np.array([False, True, False])),
+    ]
+    for cells, values in steps:
+        for planner in (cpu, gpu):
+            planner.update(cells, values)
+            planner.converge()
+        blocked.reshape(-1)[cells] = values
+        reach = maps.reachable(blocked, goal) & ~blocked
+        f_cpu, f_gpu = cpu.field(), gpu.field()
+        assert ((f_gpu >= rx.BLOCKED_W / 2) == (f_cpu >= rx.BLOCKED_W / 2)).all()
+        if reach.any():  # not while the goal itself is blocked
+            assert np.abs(f_cpu[reach] - f_gpu[reach]).max() < GPU_TOL
+        engine = gpu.engine
+        assert (engine.fixed.get() == engine.fixed_host).all()
+        paths_hold(gpu, blocked, maps.reachable(blocked, goal))
+    assert gpu.field()[goal] == 0.0
+    # Queued and read back without a relaxation: ``field`` applies them first.
+    gpu.engine.set(np.array([gpu._flat((20, 20))]), rx.BLOCKED_W, True)
+    assert gpu.field()[20, 20] >= rx.BLOCKED_W / 2

@@ -181,3 +181,16 @@ def test_a_goal_blocked_then_freed_again_is_the_goal_again():
     planner.update(np.array([22]), np.array([False]))
     assert planner.field()[2, 2] == 0.0
     assert tuple(planner.path((8, 8))[-1]) == (2, 2)
+
+
+def test_a_cell_named_twice_in_one_delta_takes_its_last_value():
+    # The map's rule for a delta (``Reach.apply`` keeps it without sorting): the last wins.
+    blocked = np.zeros((8, 8), dtype=bool)
+    planner = make_planner("harmonic", "cpu")
+    planner.plan(blocked, (0, 0))
+    planner.update(np.array([27, 27, 28, 28, 36]), np.array([True, False, False, True, True]))
+    field = planner.field()
+    assert field[3, 3] < rx.BLOCKED_W and field[3, 4] == field[4, 4] == rx.BLOCKED_W
+    assert not planner.reach.blocked[planner._flat((3, 3))]
+    assert planner.reach.blocked[planner._flat((3, 4))]
+    assert planner.reach.count == planner.reach.reach.sum() == 64 - 2
