@@ -159,6 +159,9 @@ class Navigator:
                 self._guide(now, out)
         elif self.pose is None and self.pose_received and self.goal_cell is not None:
             self._pose_missing(now, out)
+        # After a STOP before contact, no GUIDE back into what the camera saw (the estimate
+        # that led there may be off by more than the margin).
+        self.safety.blocked.steer(inbox.proximity, self.pose, now, self.guidance, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
             self._set_state(self.state, OK, why, now, out, force=True)
