@@ -252,6 +252,7 @@ class Navigator:
             why = f"pose quality {self.pose.quality:.2f} (sigma {self.pose.sigma_m} m)"
             self._reject(Rejection(StatusCode.POSE_UNCERTAIN, why, counted=False), now, out)
             return True
+        self.guidance.arrive_m = self.margin.arrive_within_m(self.settings.arrive_m)
         no_way = self.state == NavState.NO_PATH
         self.last.changed += self.margin.adjust(self.maps, self.route, self.goal_cell, now, no_way)
         return False
