@@ -270,7 +270,7 @@ CORRIDOR_M = 0.2
 def camera_proximity(world: World, now: float) -> Proximity:
     """The depth camera's nearest obstacles, as the mapper reports them, from where the walker
     truly is (what the camera sees does not depend on the RFID pose): the daemon's STOP
-    before contact. Distances to the cells' nearest points, as ``mapper.proximity``.
+    before contact. Distances and the corridor as ``mapper.proximity`` measures them.
 
     The field of view is taken from the walker's own position, a cell in view when any of
     its corners is: the sensor's cell-centre view (``Sensor.visible``, the map's view of
@@ -290,16 +290,16 @@ def camera_proximity(world: World, now: float) -> Proximity:
         return Proximity(frame_stamp=now, stamp=now)
     rows, cols = rows + r0, cols + c0
     left, bottom = cols * cell, (h - 1 - rows) * cell
-    # The nearest point of each cell's square, relative to the walker.
-    dx = np.clip(w.x, left, left + cell) - w.x
-    dy = np.clip(w.y, bottom, bottom + cell) - w.y
-    dist = np.hypot(dx, dy)
     half = math.radians(world.sensor.fov_deg) / 2
-    seen = dist <= 1e-9  # the walker's own cell
+    seen = (rows == world.cell()[0]) & (cols == world.cell()[1])  # the walker's own cell
     for cx in (0.0, cell):
         for cy in (0.0, cell):
             off = np.arctan2(bottom + cy - w.y, left + cx - w.x) - w.heading
             seen |= np.abs((off + math.pi) % (2 * math.pi) - math.pi) <= half
+    # As the mapper measures (``mapper.proximity``): to the cell's centre, less half a cell.
+    dx = left + cell / 2 - w.x
+    dy = bottom + cell / 2 - w.y
+    dist = np.maximum(np.hypot(dx, dy) - cell / 2, 0.0)
     seen &= dist <= reach
     if not seen.any():
         return Proximity(frame_stamp=now, stamp=now)
@@ -307,8 +307,8 @@ def camera_proximity(world: World, now: float) -> Proximity:
     fwd = dx * math.cos(w.heading) + dy * math.sin(w.heading)
     side = -dx * math.sin(w.heading) + dy * math.cos(w.heading)
     i = int(np.argmin(dist))
-    lane = (fwd >= 0) & (np.abs(side) <= CORRIDOR_M)
-    ahead = float(fwd[lane].min()) if lane.any() else None
+    lane = (fwd > -cell / 2) & (np.abs(side) <= CORRIDOR_M + cell / 2)
+    ahead = float(np.maximum(fwd[lane] - cell / 2, 0.0).min()) if lane.any() else None
     return Proximity(ahead_m=ahead, nearest_m=float(dist[i]),
                      bearing=math.atan2(side[i], fwd[i]), frame_stamp=now, stamp=now)  # fmt: skip
 
