@@ -237,6 +237,8 @@ class FilteredRfidPoses:
             self.filter.step(self.t, self.imu.step(moved), self.imu.compass(way))
         else:
             self.filter.compass(self.t, self.imu.compass(b[2]))
+            if stepped:  # an action with no step: the IMU felt the user stand
+                self.filter.still(self.t)
 
 
 def _reach(walker) -> float:
