@@ -200,7 +200,13 @@ def rfid_walks(
             callback=_one_of_matches,
         ),
     ] = "camera",
-    proximity: Annotated[bool, typer.Option(help="The camera's STOP before contact.")] = False,
+    proximity: Annotated[
+        bool,
+        typer.Option(
+            help="A worn obstacle sensor's STOP before contact, seen from where the walker "
+            "truly is, and no GUIDE back into what it saw (--no-proximity: none).",
+        ),
+    ] = True,
     map_from: Annotated[
         str,
         typer.Option(

@@ -237,6 +237,8 @@ class FilteredRfidPoses:
             self.filter.step(self.t, self.imu.step(moved), self.imu.compass(way))
         else:
             self.filter.compass(self.t, self.imu.compass(b[2]))
+            if stepped:  # an action with no step: the IMU felt the user stand
+                self.filter.still(self.t)
 
 
 def _reach(walker) -> float:
@@ -270,17 +272,40 @@ CORRIDOR_M = 0.2
 def camera_proximity(world: World, now: float) -> Proximity:
     """The depth camera's nearest obstacles, as the mapper reports them, from where the walker
     truly is (what the camera sees does not depend on the RFID pose): the daemon's STOP
-    before contact. Distances to the cells' nearest edges, as ``mapper.proximity``."""
+    before contact. Distances and the corridor as ``mapper.proximity`` measures them.
+
+    The field of view is taken from the walker's own position, a cell in view when any of
+    its corners is: the sensor's cell-centre view (``Sensor.visible``, the map's view of
+    things) missed a cell 8 cm ahead of a walker standing at the corner of its own cell,
+    its centre 45° off, and the walker stepped into it (20 %, seed 13, `contact`)."""
     w = world.walker
-    seen = world.sensor.visible(world.shape, world.cell(), w.heading)
-    occupied = seen[world.true.reshape(-1)[seen] == OCCUPIED]
-    if occupied.size == 0:
-        return Proximity(frame_stamp=now, stamp=now)
-    h, width = world.shape
     cell = world.cell_m
-    dx = (occupied % width + 0.5) * cell - w.x
-    dy = (h - occupied // width - 0.5) * cell - w.y
+    h, width = world.shape
+    reach = world.sensor.range_cells * cell
+    r0, r1 = (
+        max(0, int((h * cell - w.y - reach) / cell)),
+        min(h, int((h * cell - w.y + reach) / cell) + 1),
+    )
+    c0, c1 = max(0, int((w.x - reach) / cell)), min(width, int((w.x + reach) / cell) + 1)
+    rows, cols = np.nonzero(world.true[r0:r1, c0:c1] == OCCUPIED)
+    if rows.size == 0:
+        return Proximity(frame_stamp=now, stamp=now)
+    rows, cols = rows + r0, cols + c0
+    left, bottom = cols * cell, (h - 1 - rows) * cell
+    half = math.radians(world.sensor.fov_deg) / 2
+    seen = (rows == world.cell()[0]) & (cols == world.cell()[1])  # the walker's own cell
+    for cx in (0.0, cell):
+        for cy in (0.0, cell):
+            off = np.arctan2(bottom + cy - w.y, left + cx - w.x) - w.heading
+            seen |= np.abs((off + math.pi) % (2 * math.pi) - math.pi) <= half
+    # As the mapper measures (``mapper.proximity``): to the cell's centre, less half a cell.
+    dx = left + cell / 2 - w.x
+    dy = bottom + cell / 2 - w.y
     dist = np.maximum(np.hypot(dx, dy) - cell / 2, 0.0)
+    seen &= dist <= reach
+    if not seen.any():
+        return Proximity(frame_stamp=now, stamp=now)
+    dx, dy, dist = dx[seen], dy[seen], dist[seen]
     fwd = dx * math.cos(w.heading) + dy * math.sin(w.heading)
     side = -dx * math.sin(w.heading) + dy * math.cos(w.heading)
     i = int(np.argmin(dist))
@@ -299,7 +324,7 @@ def rfid_belt_walk(
     uhf_range_m: float = PAPER.uhf_range_m,
     max_actions: int | None = None,
     register: str = "true",
-    proximity: bool = False,
+    proximity: bool = True,
     match: str = "camera",
 ) -> RfidBeltWalk:
     """One belt walk of ``scenario`` guided by the RFID pose filter, noise seeded by ``seed``.

@@ -161,6 +161,9 @@ class Navigator:
                 self._guide(now, out)
         elif self.pose is None and self.pose_received and self.goal_cell is not None:
             self._pose_missing(now, out)
+        # After a STOP before contact, no GUIDE back into what the camera saw (the estimate
+        # that led there may be off by more than the margin).
+        self.safety.blocked.steer(inbox.proximity, self.pose, now, self.guidance, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
             self._set_state(self.state, OK, why, now, out, force=True)
@@ -251,6 +254,7 @@ class Navigator:
             why = f"pose quality {self.pose.quality:.2f} (sigma {self.pose.sigma_m} m)"
             self._reject(Rejection(StatusCode.POSE_UNCERTAIN, why, counted=False), now, out)
             return True
+        self.guidance.arrive_m = self.margin.arrive_within_m(self.settings.arrive_m)
         no_way = self.state == NavState.NO_PATH
         self.last.changed += self.margin.adjust(self.maps, self.route, self.goal_cell, now, no_way)
         return False

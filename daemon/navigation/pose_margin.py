@@ -78,6 +78,14 @@ class PoseMargin:
         self.sigma_m = pose.sigma_m if pose.sigma_m is not None else 0.0
         return pose_sigma_m(pose.quality, pose.sigma_m) > self.policy.wait_sigma_m
 
+    def arrive_within_m(self, arrive_m: float) -> float:
+        """ARRIVED once the estimate is this close to the goal: ``arrive_m`` less the pose's
+        σ (never under a cell), so a user told they are there is, with σ to spare. The RFID
+        walks that failed only by "arrived off the goal" (9 of 300, ARRIVED at 0.3 m on an
+        estimate 0.24-0.29 m off, σ about 0.1 m: 0.52-0.56 m from the goal truly) all arrive
+        within 0.5 m with 0.2 m; an exact pose (σ 0) keeps ``arrive_m``."""
+        return max(self.cell_m, arrive_m - self.sigma_m)
+
     def wanted_cells(self) -> int:
         a = min(self.policy.sigmas * self.sigma_m, self.policy.a_max_m)
         return min(self.max_extra_cells, math.ceil(a / self.cell_m - 1e-9))

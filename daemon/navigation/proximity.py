@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from daemon.guidance.guide import Guidance
 from protocol.messages import PatternKind, Proximity
 
+from .blocked_side import BlockedSide
 from .inbox import StepOutput
 
 
@@ -47,6 +48,8 @@ class ProximityGuard:
         """STOPs armed so far (each a new close obstacle)."""
         self._since: float | None = None
         self._armed_at_m = 0.0
+        self.blocked = BlockedSide(self.settings.stop_m)
+        """What the STOPs saw, kept so that the GUIDE after them turns away from it."""
 
     def step(self, fresh: Proximity | None, now: float, guidance: Guidance, out: StepOutput,
              guiding: bool) -> bool:  # fmt: skip
@@ -62,6 +65,7 @@ class ProximityGuard:
             if self._since is None or p.ahead_m < self._armed_at_m - s.rearm_m:
                 self._since, self._armed_at_m = now, p.ahead_m
                 self.stops += 1
+                self.blocked.arm(now)
                 g = guidance.event(PatternKind.STOP, now, reason="obstacle ahead")
                 out.belt.append(g.pattern)
                 if g.cue is not None:

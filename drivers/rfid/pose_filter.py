@@ -110,6 +110,7 @@ class PoseFilter:
         """Motion comes from steps, not from the drift model (set by the first step too)."""
         self._last_t: float | None = None
         self._step_t: float | None = None
+        self._still = False
         self._step_dt = 0.5
         self._cadence = False
         self._step_compass = 0.0
@@ -158,6 +159,7 @@ class PoseFilter:
         else:
             self._cadence = False  # the first step after a stop: no stride to carry on
         self._step_t, self._step_len, self._step_compass = t, length_m, compass_rad
+        self._still = False
         if not self.ready:
             return
         th = compass_rad - self.s[2]
@@ -178,6 +180,14 @@ class PoseFilter:
         q[2, 2] = self.p.bias_walk_rad**2
         self.P = f @ self.P @ f.T + q
         self._eq3(t, compass_rad)
+
+    def still(self, t: float) -> None:
+        """The IMU felt no stride since the last step (the user stood, turned on the spot or
+        bumped): no stride is under way until the next step. Without it the belt walks'
+        pose ran a whole stride ahead of a user who had stopped, onto the goal: ARRIVED
+        0.5-0.6 m from it (4 of 300 walks)."""
+        self.t = max(self.t, t)
+        self._still = True
 
     def bump(self, t: float) -> None:
         """The user walked into something the map said was clear of the pose: the pose is
@@ -268,6 +278,7 @@ class PoseFilter:
         """
         if (
             not self._cadence
+            or self._still
             or self._step_t is None
             or now - self._step_t >= 1.5 * self._step_dt
             or self.compass_rad is None

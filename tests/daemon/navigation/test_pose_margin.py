@@ -117,3 +117,23 @@ def test_the_margin_never_swallows_the_goal_and_gives_way_when_it_closes_the_pat
         t = now + 0.2 + 0.1 * k
         nav2.step(Inbox(pose=pose((38, 20), sigma=0.2, stamp=t)), t)
     assert nav2.state == NavState.GUIDING and nav2.margin.extra_cells < 3
+
+
+def test_arrived_is_said_closer_to_the_goal_the_less_sure_the_pose() -> None:
+    """The goal 0.25 m ahead: within the 0.3 m arrival on an exact pose, not on one with
+    σ 0.1 m (arrival within 0.2 m then), which is guided on until it is that close."""
+    now = time.time()
+    gx, gy = 2.05, (SHAPE[0] - 5 - 0.5) / 10  # the centre of cell (5, 20)
+
+    def at(dy: float, sigma: float | None, t: float) -> Pose:
+        return Pose(x=gx, y=gy - dy, heading=1.57, stamp=t, sigma_m=sigma)
+
+    exact = navigator()
+    exact.step(Inbox(deltas=[delta(0, [0])], goal=goal(5, 20), pose=at(0.25, None, now)), now)
+    assert exact.state == NavState.ARRIVED
+    unsure = navigator()
+    unsure.step(Inbox(deltas=[delta(0, [0])], goal=goal(5, 20), pose=at(0.25, 0.1, now)), now)
+    assert unsure.state == NavState.GUIDING
+    assert unsure.guidance.arrive_m == pytest.approx(0.2)
+    unsure.step(Inbox(pose=at(0.15, 0.1, now + 0.5)), now + 0.5)
+    assert unsure.state == NavState.ARRIVED

@@ -86,6 +86,18 @@ def test_mid_stride_the_pose_is_ahead_of_the_last_step_and_falls_back_if_none_co
     assert later is not None and later.x == pytest.approx(1.5, abs=1e-6)
 
 
+def test_a_user_felt_to_stand_has_no_stride_under_way_until_the_next_step() -> None:
+    f = PoseFilter(tag_map(), start=(0.5, 3.0), start_sigma_m=0.05, pedometer=True)
+    f.step(0.5, 0.5, 0.0)
+    f.step(1.0, 0.5, 0.0)
+    f.still(1.1)  # the IMU felt no stride: the user stopped, a cadence would carry them on
+    stood = f.pose(1.5)
+    assert stood is not None and stood.x == pytest.approx(1.5, abs=1e-6)
+    f.step(2.0, 0.5, 0.0)  # walking again: the stride is carried on as before
+    mid = f.pose(2.25)
+    assert mid is not None and mid.x > 2.0 + 0.1
+
+
 def test_turning_on_the_spot_turns_the_heading_at_once() -> None:
     f = PoseFilter(tag_map(), start=(2.0, 2.0), pedometer=True)
     f.step(0.5, 0.5, 0.0)
