@@ -1,0 +1,364 @@
+"""The daemon with ``workers = N``: the users shared among N worker processes (``workers.py``).
+
+One Python process steps at most a core's worth of users: steps, the asyncio loop and zenoh's
+callbacks share its GIL. Here the parent opens the daemon's zenoh session as a *router* on the
+configured endpoints plus a private loopback one; each worker is a whole ``Daemon`` connected
+to that private endpoint as a zenoh client, with its own GIL and its own subscriptions and
+publishers, so the router sends each of its users' samples straight to it and nothing is
+copied through a pipe. The parent keeps what is the daemon's as a whole: the liveliness
+token (declared once every worker serves), the health answer (the workers' reports
+together), systemd's READY and watchdog, and the workers' lives: a worker that dies is
+started again, its users told STOP and ``internal`` meanwhile, and restored by the new
+worker from the state database. The parent hears every user's poses and deltas too (it
+routes them), but only hands a worker the first sample of a user it does not serve yet.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import zenoh
+from zenoh.handlers import Callback
+
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import Health, StatusCode
+
+from .config import DaemonConfig
+from .daemon import Observer
+from .embedded import free_port
+from .queries import say_who_may_connect
+from .sdnotify import Notifier
+from .state_db import StateDB
+from .workers import encode_sample, owner_of
+
+log = logging.getLogger("guidebelt.supervisor")
+
+START_S = 120.0
+"""How long the workers may take to serve (each compiles or loads the planner's code)."""
+RESTART_S = 1.0
+"""A dead worker is started again after this (a worker that dies at once is not a busy loop)."""
+STOP_S = 3.0
+"""How long a worker may take to tell its users STOP and close, after SIGTERM."""
+HANDOVER_S = 0.5
+"""A user no worker reported serving yet has at most one sample handed over this often."""
+FORGET_FIRST = 10_000
+"""Keys remembered for ``HANDOVER_S``: past this many the memory is cleared (junk names)."""
+SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID")
+
+
+class Worker:
+    """One worker process: started, heard, and started again by the supervisor."""
+
+    def __init__(self, index: int, count: int, config_json: str) -> None:
+        self.index, self.count = index, count
+        self._config_json = config_json
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.health: dict[str, Any] | None = None
+        """Its latest report (``Health`` as JSON); None until its first."""
+        self.ready = False
+        self._stdin_lock = threading.Lock()
+
+    def start(self, on_report: Any, on_exit: Any) -> None:
+        read, write = os.pipe()
+        env = {k: v for k, v in os.environ.items() if k not in SYSTEMD_ENV}
+        env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
+        argv = [sys.executable, "-m", "daemon.service.worker_main"]
+        argv += [str(self.index), str(self.count), str(write), str(os.getpid())]
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, pass_fds=(write,), env=env)
+        os.close(write)
+        self.ready, self.health = False, None
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(self._config_json.encode() + b"\n")
+        self.proc.stdin.flush()
+        os.set_blocking(self.proc.stdin.fileno(), False)  # zenoh's thread never waits on it
+        proc = self.proc
+        threading.Thread(
+            target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,
+            name=f"worker-{self.index}",
+        ).start()  # fmt: skip
+
+    def _listen(self, fd: int, proc: subprocess.Popen[bytes], on_report: Any, on_exit: Any) -> None:
+        with os.fdopen(fd, "rb") as reports:
+            for line in reports:
+                with contextlib.suppress(ValueError):
+                    on_report(self, proc, json.loads(line))
+        proc.wait()
+        on_exit(self, proc)
+
+    def hand(self, key: str, payload: bytes, arrived: float) -> None:
+        """Give the worker a sample it was not subscribed to (any thread; dropped if its
+        pipe is full: a pose comes again in 50 ms, a delta's gap brings a snapshot)."""
+        proc = self.proc
+        if proc is None or proc.stdin is None:
+            return
+        with self._stdin_lock, contextlib.suppress(OSError, ValueError):
+            proc.stdin.write(encode_sample(key, payload, arrived))
+            proc.stdin.flush()
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.send_signal(signal.SIGTERM)
+
+    def users(self) -> list[str]:
+        return list(self.health.get("users", [])) if self.health else []
+
+
+def worker_config(config: DaemonConfig, endpoint: str) -> str:
+    """A worker's config: the daemon's, connected to the parent's private endpoint; its step
+    slots its share of the cores."""
+    share = max(1, (os.cpu_count() or 1) // config.workers)
+    zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint])
+    update = {"zenoh": zenoh_cfg, "workers": 0, "step_workers": config.step_workers or share}
+    return config.model_copy(update=update).model_dump_json()
+
+
+def router_config(settings: wire.ZenohSettings, endpoint: str) -> zenoh.Config:
+    """The daemon's zenoh config as a router (it forwards between clients and workers),
+    listening on ``endpoint`` too."""
+    raw = json.loads(settings.to_json5())
+    raw["mode"] = "router"
+    raw["listen"]["endpoints"] = [*raw["listen"]["endpoints"], endpoint]
+    return zenoh.Config.from_json5(json.dumps(raw))
+
+
+class Supervisor:
+    def __init__(
+        self,
+        config: DaemonConfig,
+        notifier: Notifier | None = None,
+        observers: Sequence[Observer] = (),
+    ) -> None:
+        self.config = config
+        self.notifier = notifier if notifier is not None else Notifier()
+        self.observers = list(observers)
+        self.workers: list[Worker] = []
+        self.ready = threading.Event()
+        self.restarts = 0
+        self.started = time.time()
+        self._stop: asyncio.Event | None = None
+        self._stopping = False
+        self._zenoh: zenoh.Session | None = None
+        self._known: frozenset[str] = frozenset()
+        """Pose and delta keys of the users some worker serves: not handed over."""
+        self._handed: dict[str, float] = {}
+
+    def stop(self) -> None:
+        if self._stop is not None:
+            self._stop.set()
+
+    async def run(self, install_signals: bool = True) -> None:
+        loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        self._loop = loop
+        _prepare_state(self.config)
+        say_who_may_connect(self.config.zenoh)
+        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self._zenoh = zenoh.open(router_config(self.config.zenoh, endpoint))
+        conf = worker_config(self.config, endpoint)
+        n = self.config.workers
+        self.workers = [Worker(i, n, conf) for i in range(n)]
+        entities: list[Any] = []
+        observing: list[Any] = []
+        try:
+            for w in self.workers:
+                w.start(self._report_cb, self._exit_cb)
+            await self._until_ready()
+            entities += [
+                wire.declare_subscriber(self._zenoh, t, Callback(self._first, indirect=False))
+                for t in (T.POSE, T.MAP_DELTA)
+            ]
+            entities.append(wire.declare_queryable(self._zenoh, T.HEALTH, self._on_health))
+            entities.append(wire.declare_token(self._zenoh, T.ALIVE))
+            observing = [observe(self._zenoh) for observe in self.observers]
+            if install_signals:
+                for sig in (signal.SIGTERM, signal.SIGINT):
+                    loop.add_signal_handler(sig, self.stop)
+            self.notifier.ready(f"serving with {n} workers, backend {self.config.backend}")
+            self.ready.set()
+            log.info("ready", extra={"fields": {"workers": n, "zid": str(self._zenoh.zid())}})
+            ticker = loop.create_task(self._tick())
+            try:
+                await self._stop.wait()
+            finally:
+                ticker.cancel()
+        finally:
+            await self._shutdown(entities, observing)
+            if install_signals:
+                for sig in (signal.SIGTERM, signal.SIGINT):
+                    loop.remove_signal_handler(sig)
+
+    async def _until_ready(self) -> None:
+        deadline = time.monotonic() + START_S
+        while not all(w.ready for w in self.workers):
+            if time.monotonic() > deadline or any(
+                w.proc and w.proc.poll() is not None for w in self.workers
+            ):
+                raise RuntimeError("the workers did not start (their log says why)")
+            await asyncio.sleep(0.05)
+
+    async def _tick(self) -> None:
+        watchdog = self.notifier.watchdog_interval_s()
+        period = min(self.config.tick_s, watchdog) if watchdog else self.config.tick_s
+        while True:
+            await asyncio.sleep(period)
+            self.notifier.watchdog()
+
+    # -- the workers (their reader threads hand over to the loop) -------------------------
+
+    def _report_cb(self, worker: Worker, proc: subprocess.Popen[bytes], msg: dict) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._loop.call_soon_threadsafe(self._on_report, worker, proc, msg)
+
+    def _exit_cb(self, worker: Worker, proc: subprocess.Popen[bytes]) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._loop.call_soon_threadsafe(self._on_exit, worker, proc)
+
+    def _on_report(self, worker: Worker, proc: subprocess.Popen[bytes], msg: dict) -> None:
+        if proc is not worker.proc:
+            return  # from a worker since replaced
+        if msg.get("ready"):
+            worker.ready = True
+        if isinstance(msg.get("health"), dict):
+            worker.health = msg["health"]
+            keys = {
+                t.key(u) for w in self.workers for u in w.users() for t in (T.POSE, T.MAP_DELTA)
+            }
+            self._known = frozenset(keys)
+
+    def _on_exit(self, worker: Worker, proc: subprocess.Popen[bytes]) -> None:
+        if self._stopping or proc is not worker.proc:
+            return
+        users = worker.users()
+        log.error(
+            "worker died; its users are stopped and it is started again",
+            extra={"fields": {"worker": worker.index, "rc": proc.returncode, "users": len(users)}},
+        )
+        self.restarts += 1
+        worker.ready, worker.health = False, None
+        self._halt(users, f"worker {worker.index} died (exit {proc.returncode}); restarting")
+        self._loop.call_later(RESTART_S, self._restart, worker)
+
+    def _restart(self, worker: Worker) -> None:
+        if not self._stopping:
+            worker.start(self._report_cb, self._exit_cb)
+
+    def _halt(self, users: list[str], reason: str) -> None:
+        """STOP and ``internal`` to each of ``users``, said by the parent: their worker is
+        gone and cannot say it. Navigator.halt builds the same words a failed step says."""
+        from daemon.navigation import Navigator
+
+        assert self._zenoh is not None
+        settings = self.config.navigator_settings()
+        now = time.time()
+        for user in users:
+            if not T.USER_RE.match(user):
+                continue
+            out = Navigator(user, settings).halt(now, StatusCode.INTERNAL, reason)
+            for pattern in out.belt:
+                wire.put(self._zenoh, T.BELT, user, codec.encode(pattern))
+            for status in out.statuses:
+                wire.put(self._zenoh, T.STATUS, user, codec.encode(status))
+
+    # -- zenoh's threads ------------------------------------------------------------------
+
+    def _first(self, sample: zenoh.Sample) -> None:
+        """A pose or delta of a user no worker serves yet goes to the worker that will."""
+        key = str(sample.key_expr)
+        if key in self._known or sample.kind != zenoh.SampleKind.PUT:
+            return
+        now = time.monotonic()
+        if now - self._handed.get(key, -HANDOVER_S) < HANDOVER_S:
+            return
+        try:
+            user = T.user_of(key)
+        except ValueError:
+            return  # the worker refuses and counts it, if it ever hears it: not ours to
+        if len(self._handed) > FORGET_FIRST:
+            self._handed.clear()
+        self._handed[key] = now
+        worker = self.workers[owner_of(user, len(self.workers))]
+        worker.hand(key, sample.payload.to_bytes(), time.time())
+
+    def _on_health(self, query: zenoh.Query) -> None:
+        try:
+            wire.reply(query, T.HEALTH, None, codec.encode(self.health()))
+        except zenoh.ZError as exc:
+            log.warning("health reply failed", extra={"fields": {"err": str(exc)}})
+        finally:
+            query.drop()
+
+    def health(self) -> Health:
+        """The workers' latest reports together (any thread)."""
+        reports = [w.health for w in self.workers if w.health is not None]
+        by_code: dict[str, int] = {}
+        for r in reports:
+            for code, count in r.get("rejected_by_code", {}).items():
+                by_code[code] = by_code.get(code, 0) + int(count)
+        return Health(
+            daemon_id=self.config.daemon_id,
+            uptime_s=time.time() - self.started,
+            users=sorted(u for r in reports for u in r.get("users", [])),
+            backend=self.config.backend,
+            rejected=sum(int(r.get("rejected", 0)) for r in reports),
+            rejected_by_code=by_code,
+            log_lines_suppressed=sum(int(r.get("log_lines_suppressed", 0)) for r in reports),
+            overloaded=sorted(u for r in reports for u in r.get("overloaded", [])),
+            lag_p95_ms=max((float(r.get("lag_p95_ms", 0.0)) for r in reports), default=0.0),
+            stamp=time.time(),
+        )
+
+    # -- the end --------------------------------------------------------------------------
+
+    async def _shutdown(self, entities: list[Any], observing: list[Any]) -> None:
+        """Every worker tells its users STOP (through this router, so it closes last)."""
+        self._stopping = True
+        self.notifier.stopping()
+        for w in self.workers:
+            w.stop()
+        deadline = time.monotonic() + STOP_S
+        for w in self.workers:
+            while w.proc is not None and w.proc.poll() is None and time.monotonic() < deadline:
+                await asyncio.sleep(0.02)
+            if w.proc is not None and w.proc.poll() is None:
+                log.error("worker did not stop; killed", extra={"fields": {"worker": w.index}})
+                w.proc.kill()
+                w.proc.wait()
+        for observer in observing:
+            with contextlib.suppress(Exception):
+                observer.close()
+        for ent in entities:
+            with contextlib.suppress(zenoh.ZError):
+                ent.undeclare()
+        if self._zenoh is not None:
+            self._zenoh.close()
+        self.notifier.close()
+        log.info("stopped", extra={"fields": {"restarts": self.restarts}})
+
+
+def _prepare_state(config: DaemonConfig) -> None:
+    """Open (create, or move aside if unusable) the state database once, so the workers do
+    not race to: each then opens it as it is (SQLite's write-ahead log serves several)."""
+    if config.state_dir is not None:
+        opened = StateDB.open(config.state_dir, map_period_s=config.persist_map_s)
+        if opened is not None:
+            opened[0].close()
+
+
+async def supervise(config: DaemonConfig, observers: Sequence[Observer] = ()) -> None:
+    """Run until SIGTERM or SIGINT."""
+    with contextlib.suppress(asyncio.CancelledError):
+        await Supervisor(config, observers=observers).run()
