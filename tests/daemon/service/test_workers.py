@@ -1,0 +1,193 @@
+"""``workers = N``: the users shared among worker processes behind one router.
+
+One ``guidebelt run`` with two workers, a simulated walk: the user is found through the parent
+(its first inputs are a map and a pose), its worker is SIGKILLed mid-walk, the user hears STOP
+and ``internal``, the worker comes back, restores the session from the state database and the
+user arrives with no client action; health lists the user; SIGTERM stops every process.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+
+from daemon.service.config import DaemonConfig
+from daemon.service.embedded import free_port, open_peer
+from daemon.service.supervisor import worker_config
+from daemon.service.workers import owner_of
+from drivers.belt.recorder import Recorder
+from protocol import codec
+from protocol import session as wire
+from protocol import topics as T
+from protocol.messages import BeltPattern, Goal, GoalCell, Health, NavStatus, PatternKind
+from sim.courtyard import make_courtyard
+from sim.node import SimNode, SimResult
+
+from .test_crash_restore import start_daemon, wait_alive
+
+ROOT = Path(__file__).resolve().parents[3]
+USER = "walker"
+
+
+def test_a_user_belongs_to_one_worker_the_same_after_a_restart_and_users_spread():
+    assert owner_of(USER, 2) == owner_of(USER, 2)
+    counts = [0, 0, 0]
+    for i in range(300):
+        counts[owner_of(f"load{i:03d}", 3)] += 1
+    assert all(70 <= c <= 130 for c in counts), counts
+
+
+def test_a_worker_is_a_client_of_the_parents_private_endpoint_with_its_share_of_cores():
+    config = DaemonConfig(workers=2, backend="cpu", state_dir=None)
+    worker = DaemonConfig(**__import__("json").loads(worker_config(config, "tcp/127.0.0.1:9")))
+    assert worker.workers == 0 and worker.zenoh.mode == "client"
+    assert worker.zenoh.connect == ["tcp/127.0.0.1:9"] and worker.zenoh.listen == []
+    assert worker.step_workers == max(1, (os.cpu_count() or 1) // 2)
+    assert worker.backend == "cpu"
+
+
+def test_workers_with_tls_are_refused_in_one_clear_line():
+    tls = {"root_ca": "ca.pem", "certificate": "d.pem", "private_key": "d.key"}
+    zenoh = {"listen": ["tls/127.0.0.1:7447"], "tls": tls}
+    with pytest.raises(ValidationError, match="workers > 0 does not work with"):
+        DaemonConfig(workers=2, zenoh=zenoh, state_dir=None)
+    assert DaemonConfig(workers=0, zenoh=zenoh, state_dir=None).workers == 0
+
+
+def _gone(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"  # a zombie no one reaped yet
+    except FileNotFoundError:
+        return True
+
+
+def _wait_gone(pids: list[int], timeout_s: float) -> bool:
+    end = time.monotonic() + timeout_s
+    while not all(_gone(p) for p in pids):
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+@pytest.mark.timeout(30)
+def test_a_worker_dies_with_its_parent_even_a_sigkilled_one(tmp_path):
+    """PDEATHSIG: the parent cannot stop its workers when it is SIGKILLed; the kernel does."""
+    script = textwrap.dedent(f"""
+        import subprocess, sys, time
+        code = ("import os, sys, time; sys.path.insert(0, {str(ROOT)!r}); "
+                "from daemon.service.workers import die_with; die_with(int(sys.argv[1])); "
+                "print(os.getpid(), flush=True); time.sleep(60)")
+        child = subprocess.Popen([sys.executable, "-c", code, str(__import__("os").getpid())])
+        time.sleep(60)
+    """)
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE)
+    try:
+        assert parent.stdout is not None
+        worker = int(parent.stdout.readline())
+        assert not _gone(worker)
+        parent.kill()
+        parent.wait(5)
+        assert _wait_gone([worker], 10.0)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait(5)
+
+
+def _workers_of(pid: int) -> dict[int, int]:
+    """Worker index → pid, of the daemon ``pid``'s live workers."""
+    out = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            argv = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
+            stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(stat[1]) == pid and b"daemon.service.worker_main" in argv and stat[0] != "Z":
+            out[int(argv[argv.index(b"daemon.service.worker_main") + 1])] = int(entry)
+    return out
+
+
+@pytest.mark.timeout(120)
+def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp_path):
+    port = free_port()
+    config = tmp_path / "guidebelt.toml"
+    config.write_text(
+        'backend = "cpu"\n'
+        "workers = 2\n"
+        f'state_dir = "{tmp_path / "state"}"\n'
+        "persist_map_s = 0.5\n"
+        "cell_m = 0.2\n"  # the 10 m courtyard on 50² cells
+        "guide_hz = 100\n"
+        "[zenoh]\n"
+        f'listen = ["tcp/127.0.0.1:{port}"]\n'
+    )
+    log = tmp_path / "daemon.log"
+    scenario = make_courtyard(50, 0.2, seed=3)
+    proc = start_daemon(config, log)
+    session = open_peer(port)
+    node = SimNode(session, USER, scenario, pose_period_s=0.2)
+    statuses: Recorder[NavStatus] = Recorder(session, T.STATUS, USER)
+    belts: Recorder[BeltPattern] = Recorder(session, T.BELT, USER)
+    stop = threading.Event()
+    box: dict[str, SimResult] = {}
+    killed: list[float] = []
+    health: list[Health] = []
+    try:
+        wait_alive(session, proc, 60.0)
+        workers = _workers_of(proc.pid)
+        assert sorted(workers) == [0, 1]
+        mine = workers[owner_of(USER, 2)]
+
+        def crash(result: SimResult) -> None:
+            if result.steps == 6 and not killed:
+                for reply in wire.get(session, T.HEALTH, timeout=2.0):
+                    if reply.ok is not None:
+                        health.append(codec.decode(Health, reply.ok.payload.to_bytes()))
+                os.kill(mine, signal.SIGKILL)
+                killed.append(time.time())
+
+        walk = threading.Thread(
+            target=lambda: box.update(r=node.run(stop, timeout_s=60, on_step=crash))
+        )
+        walk.start()
+        time.sleep(0.3)  # the map and the first pose first: the parent hands them over
+        goal = Goal(target=GoalCell(row=scenario.goal[0], col=scenario.goal[1]), stamp=1.0)
+        wire.put(session, T.GOAL, USER, codec.encode(goal))  # once: after the crash, the store
+        walk.join(80)
+        assert not walk.is_alive()
+        result = box["r"]
+        text = log.read_text()
+        assert killed and result.arrived, (result.reason, result.steps, text[-3000:])
+        assert health and health[0].users == [USER]
+        after = [r.msg for r in statuses.received if r.msg.stamp > killed[0]]
+        assert any(s.code == "internal" for s in after), [s.code for s in after]
+        stops = [r.msg for r in belts.received if r.msg.stamp > killed[0]]
+        assert stops and stops[0].kind is PatternKind.STOP
+        assert "worker died" in text and "session restored" in text
+        workers = _workers_of(proc.pid)
+        assert sorted(workers) == [0, 1] and workers[owner_of(USER, 2)] != mine
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(10) == 0
+        assert _wait_gone(list(workers.values()), 5.0)
+    finally:
+        stop.set()
+        statuses.close()
+        belts.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+        session.close()
