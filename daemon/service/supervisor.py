@@ -29,7 +29,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import zenoh
-from zenoh.handlers import Callback
 
 from protocol import codec
 from protocol import session as wire
@@ -50,8 +49,16 @@ START_S = 120.0
 """How long the workers may take to serve (each compiles or loads the planner's code)."""
 RESTART_S = 1.0
 """A dead worker is started again after this (a worker that dies at once is not a busy loop)."""
-STOP_S = 3.0
-"""How long a worker may take to tell its users STOP and close, after SIGTERM."""
+STOP_S = 2.0
+"""How long a worker may take to tell its users STOP and close after SIGTERM (the unit's
+TimeoutStopSec is 3 s)."""
+DISCOVER_S = 0.25
+"""How often the parent looks for users no worker serves yet among the latest samples."""
+DISCOVER_RING = 32
+"""Latest poses (and deltas) kept for that look: a user sending 20 poses a second is among
+them within a look or two however many others there are, and the parent's Python sees at most
+this many samples a look, not each of them (a callback per sample cost the parent 0.05 of a
+core at 25 users; dev VM)."""
 HANDOVER_S = 0.5
 """A user no worker reported serving yet has at most one sample handed over this often."""
 FORGET_FIRST = 10_000
@@ -69,7 +76,8 @@ class Worker:
         self.health: dict[str, Any] | None = None
         """Its latest report (``Health`` as JSON); None until its first."""
         self.ready = False
-        self._stdin_lock = threading.Lock()
+        self.reported_at = 0.0
+        """When its latest report came (monotonic)."""
 
     def start(self, on_report: Any, on_exit: Any) -> None:
         read, write = os.pipe()
@@ -83,7 +91,7 @@ class Worker:
         assert self.proc.stdin is not None
         self.proc.stdin.write(self._config_json.encode() + b"\n")
         self.proc.stdin.flush()
-        os.set_blocking(self.proc.stdin.fileno(), False)  # zenoh's thread never waits on it
+        os.set_blocking(self.proc.stdin.fileno(), False)  # the loop never waits on a worker
         proc = self.proc
         threading.Thread(
             target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,
@@ -99,12 +107,12 @@ class Worker:
         on_exit(self, proc)
 
     def hand(self, key: str, payload: bytes, arrived: float) -> None:
-        """Give the worker a sample it was not subscribed to (any thread; dropped if its
-        pipe is full: a pose comes again in 50 ms, a delta's gap brings a snapshot)."""
+        """Give the worker a sample it was not subscribed to (dropped if its pipe is full: a
+        pose comes again in 50 ms, a delta's gap brings a snapshot)."""
         proc = self.proc
         if proc is None or proc.stdin is None:
             return
-        with self._stdin_lock, contextlib.suppress(OSError, ValueError):
+        with contextlib.suppress(OSError, ValueError):
             proc.stdin.write(encode_sample(key, payload, arrived))
             proc.stdin.flush()
 
@@ -119,10 +127,16 @@ class Worker:
 
 def worker_config(config: DaemonConfig, endpoint: str) -> str:
     """A worker's config: the daemon's, connected to the parent's private endpoint; its step
-    slots its share of the cores."""
+    slots and its maps' memory its share of the daemon's. ``max_users`` stays each worker's
+    (users are not spread evenly by name): at most ``workers`` × as many sessions."""
     share = max(1, (os.cpu_count() or 1) // config.workers)
     zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint])
-    update = {"zenoh": zenoh_cfg, "workers": 0, "step_workers": config.step_workers or share}
+    update = {
+        "zenoh": zenoh_cfg,
+        "workers": 0,
+        "step_workers": config.step_workers or share,
+        "memory_budget_mb": config.memory_budget_mb / config.workers,
+    }
     return config.model_copy(update=update).model_dump_json()
 
 
@@ -177,10 +191,11 @@ class Supervisor:
             for w in self.workers:
                 w.start(self._report_cb, self._exit_cb)
             await self._until_ready()
-            entities += [
-                wire.declare_subscriber(self._zenoh, t, Callback(self._first, indirect=False))
+            rings = [
+                wire.declare_subscriber(self._zenoh, t, zenoh.handlers.RingChannel(DISCOVER_RING))
                 for t in (T.POSE, T.MAP_DELTA)
             ]
+            entities += rings
             entities.append(wire.declare_queryable(self._zenoh, T.HEALTH, self._on_health))
             entities.append(wire.declare_token(self._zenoh, T.ALIVE))
             observing = [observe(self._zenoh) for observe in self.observers]
@@ -190,11 +205,12 @@ class Supervisor:
             self.notifier.ready(f"serving with {n} workers, backend {self.config.backend}")
             self.ready.set()
             log.info("ready", extra={"fields": {"workers": n, "zid": str(self._zenoh.zid())}})
-            ticker = loop.create_task(self._tick())
+            tasks = [loop.create_task(self._tick()), loop.create_task(self._discover(rings))]
             try:
                 await self._stop.wait()
             finally:
-                ticker.cancel()
+                for task in tasks:
+                    task.cancel()
         finally:
             await self._shutdown(entities, observing)
             if install_signals:
@@ -213,9 +229,27 @@ class Supervisor:
     async def _tick(self) -> None:
         watchdog = self.notifier.watchdog_interval_s()
         period = min(self.config.tick_s, watchdog) if watchdog else self.config.tick_s
+        hung_s = max(1.0, 4 * self.config.tick_s)
         while True:
             await asyncio.sleep(period)
-            self.notifier.watchdog()
+            now = time.monotonic()
+            # A worker whose loop stopped reporting stops the watchdog: systemd restarts the
+            # whole daemon, as it would a daemon of one process whose loop hung.
+            if not any(w.ready and now - w.reported_at > hung_s for w in self.workers):
+                self.notifier.watchdog()
+
+    async def _discover(self, rings: list[zenoh.Subscriber]) -> None:
+        """Each look: the latest poses and deltas of users no worker serves yet go to the
+        worker that will. Stamped as arrived at the previous look (they came since): older
+        than they are, never fresher."""
+        since = time.time()
+        while True:
+            await asyncio.sleep(DISCOVER_S)
+            now = time.time()
+            for ring in rings:
+                while (sample := ring.try_recv()) is not None:
+                    self._first(sample, since)
+            since = now
 
     # -- the workers (their reader threads hand over to the loop) -------------------------
 
@@ -232,6 +266,7 @@ class Supervisor:
             return  # from a worker since replaced
         if msg.get("ready"):
             worker.ready = True
+        worker.reported_at = time.monotonic()
         if isinstance(msg.get("health"), dict):
             worker.health = msg["health"]
             keys = {
@@ -273,9 +308,7 @@ class Supervisor:
             for status in out.statuses:
                 wire.put(self._zenoh, T.STATUS, user, codec.encode(status))
 
-    # -- zenoh's threads ------------------------------------------------------------------
-
-    def _first(self, sample: zenoh.Sample) -> None:
+    def _first(self, sample: zenoh.Sample, arrived: float) -> None:
         """A pose or delta of a user no worker serves yet goes to the worker that will."""
         key = str(sample.key_expr)
         if key in self._known or sample.kind != zenoh.SampleKind.PUT:
@@ -291,7 +324,7 @@ class Supervisor:
             self._handed.clear()
         self._handed[key] = now
         worker = self.workers[owner_of(user, len(self.workers))]
-        worker.hand(key, sample.payload.to_bytes(), time.time())
+        worker.hand(key, sample.payload.to_bytes(), arrived)
 
     def _on_health(self, query: zenoh.Query) -> None:
         try:

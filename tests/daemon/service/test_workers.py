@@ -1,7 +1,7 @@
 """``workers = N``: the users shared among worker processes behind one router.
 
-One ``guidebelt run`` with two workers, a simulated walk: the user is found through the parent
-(its first inputs are a map and a pose), its worker is SIGKILLed mid-walk, the user hears STOP
+One ``guidebelt run`` with two workers: a user who sends only poses is found through the
+parent; a simulated walk, its worker is SIGKILLed mid-walk, the user hears STOP
 and ``internal``, the worker comes back, restores the session from the state database and the
 user arrives with no client action; health lists the user; SIGTERM stops every process.
 """
@@ -28,7 +28,15 @@ from drivers.belt.recorder import Recorder
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import BeltPattern, Goal, GoalCell, Health, NavStatus, PatternKind
+from protocol.messages import (
+    BeltPattern,
+    Goal,
+    GoalCell,
+    Health,
+    NavStatus,
+    PatternKind,
+    Pose,
+)
 from sim.courtyard import make_courtyard
 from sim.node import SimNode, SimResult
 
@@ -46,13 +54,13 @@ def test_a_user_belongs_to_one_worker_the_same_after_a_restart_and_users_spread(
     assert all(70 <= c <= 130 for c in counts), counts
 
 
-def test_a_worker_is_a_client_of_the_parents_private_endpoint_with_its_share_of_cores():
+def test_a_worker_is_a_client_of_the_parents_private_endpoint_with_its_share_of_the_daemon():
     config = DaemonConfig(workers=2, backend="cpu", state_dir=None)
     worker = DaemonConfig(**__import__("json").loads(worker_config(config, "tcp/127.0.0.1:9")))
     assert worker.workers == 0 and worker.zenoh.mode == "client"
     assert worker.zenoh.connect == ["tcp/127.0.0.1:9"] and worker.zenoh.listen == []
     assert worker.step_workers == max(1, (os.cpu_count() or 1) // 2)
-    assert worker.backend == "cpu"
+    assert worker.backend == "cpu" and worker.memory_budget_mb == config.memory_budget_mb / 2
 
 
 def test_workers_with_tls_are_refused_in_one_clear_line():
@@ -121,6 +129,21 @@ def _workers_of(pid: int) -> dict[int, int]:
     return out
 
 
+def _users_after_poses_alone(session, user: str, timeout_s: float) -> list[str]:
+    """Send ``user``'s poses, nothing else (no worker subscribes to them yet: the parent
+    hands one over), until health lists the user; the users health lists then."""
+    end = time.monotonic() + timeout_s
+    users: list[str] = []
+    while time.monotonic() < end and user not in users:
+        pose = Pose(x=1.0, y=1.0, heading=0.0, stamp=time.time())
+        wire.put(session, T.POSE, user, codec.encode(pose))
+        for reply in wire.get(session, T.HEALTH, timeout=1.0):
+            if reply.ok is not None:
+                users = codec.decode(Health, reply.ok.payload.to_bytes()).users
+        time.sleep(0.05)
+    return users
+
+
 @pytest.mark.timeout(120)
 def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp_path):
     port = free_port()
@@ -151,6 +174,7 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         workers = _workers_of(proc.pid)
         assert sorted(workers) == [0, 1]
         mine = workers[owner_of(USER, 2)]
+        assert "poser" in _users_after_poses_alone(session, "poser", 5.0)
 
         def crash(result: SimResult) -> None:
             if result.steps == 6 and not killed:
@@ -172,7 +196,7 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         result = box["r"]
         text = log.read_text()
         assert killed and result.arrived, (result.reason, result.steps, text[-3000:])
-        assert health and health[0].users == [USER]
+        assert health and health[0].users == sorted(["poser", USER])
         after = [r.msg for r in statuses.received if r.msg.stamp > killed[0]]
         assert any(s.code == "internal" for s in after), [s.code for s in after]
         stops = [r.msg for r in belts.received if r.msg.stamp > killed[0]]
