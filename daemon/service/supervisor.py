@@ -6,10 +6,11 @@ configured endpoints plus a private loopback one; each worker is a whole ``Daemo
 to that private endpoint as a zenoh client, with its own GIL and its own subscriptions and
 publishers, so the router sends each of its users' samples straight to it and nothing is
 copied through a pipe. The parent keeps what is the daemon's as a whole: the liveliness
-token (declared once every worker serves), the health answer (the workers' reports
+token (declared while every worker serves), the health answer (the workers' reports
 together), systemd's READY and watchdog, and the workers' lives: a worker that dies is
-started again, its users told STOP and ``internal`` meanwhile, and restored by the new
-worker from the state database. The parent hears every user's poses and deltas too (it
+started again, its users told STOP and ``internal``, and restored by the new
+worker from the state database; the token goes meanwhile, so clients resend what the
+worker may not have written. The parent hears every user's poses and deltas too (it
 routes them), but only hands a worker the first sample of a user it does not serve yet.
 """
 
@@ -22,7 +23,6 @@ import logging
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -41,7 +41,7 @@ from .embedded import free_port
 from .queries import say_who_may_connect
 from .sdnotify import Notifier
 from .state_db import StateDB
-from .workers import encode_sample, owner_of
+from .workers import Worker, owner_of
 
 log = logging.getLogger("guidebelt.supervisor")
 
@@ -63,66 +63,6 @@ HANDOVER_S = 0.5
 """A user no worker reported serving yet has at most one sample handed over this often."""
 FORGET_FIRST = 10_000
 """Keys remembered for ``HANDOVER_S``: past this many the memory is cleared (junk names)."""
-SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID")
-
-
-class Worker:
-    """One worker process: started, heard, and started again by the supervisor."""
-
-    def __init__(self, index: int, count: int, config_json: str) -> None:
-        self.index, self.count = index, count
-        self._config_json = config_json
-        self.proc: subprocess.Popen[bytes] | None = None
-        self.health: dict[str, Any] | None = None
-        """Its latest report (``Health`` as JSON); None until its first."""
-        self.ready = False
-        self.reported_at = 0.0
-        """When its latest report came (monotonic)."""
-
-    def start(self, on_report: Any, on_exit: Any) -> None:
-        read, write = os.pipe()
-        env = {k: v for k, v in os.environ.items() if k not in SYSTEMD_ENV}
-        env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
-        argv = [sys.executable, "-m", "daemon.service.worker_main"]
-        argv += [str(self.index), str(self.count), str(write), str(os.getpid())]
-        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, pass_fds=(write,), env=env)
-        os.close(write)
-        self.ready, self.health = False, None
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(self._config_json.encode() + b"\n")
-        self.proc.stdin.flush()
-        os.set_blocking(self.proc.stdin.fileno(), False)  # the loop never waits on a worker
-        proc = self.proc
-        threading.Thread(
-            target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,
-            name=f"worker-{self.index}",
-        ).start()  # fmt: skip
-
-    def _listen(self, fd: int, proc: subprocess.Popen[bytes], on_report: Any, on_exit: Any) -> None:
-        with os.fdopen(fd, "rb") as reports:
-            for line in reports:
-                with contextlib.suppress(ValueError):
-                    on_report(self, proc, json.loads(line))
-        proc.wait()
-        on_exit(self, proc)
-
-    def hand(self, key: str, payload: bytes, arrived: float) -> None:
-        """Give the worker a sample it was not subscribed to (dropped if its pipe is full: a
-        pose comes again in 50 ms, a delta's gap brings a snapshot)."""
-        proc = self.proc
-        if proc is None or proc.stdin is None:
-            return
-        with contextlib.suppress(OSError, ValueError):
-            proc.stdin.write(encode_sample(key, payload, arrived))
-            proc.stdin.flush()
-
-    def stop(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self.proc.send_signal(signal.SIGTERM)
-
-    def users(self) -> list[str]:
-        return list(self.health.get("users", [])) if self.health else []
 
 
 def worker_config(config: DaemonConfig, endpoint: str) -> str:
@@ -169,6 +109,7 @@ class Supervisor:
         self._known: frozenset[str] = frozenset()
         """Pose and delta keys of the users some worker serves: not handed over."""
         self._handed: dict[str, float] = {}
+        self._token: zenoh.LivelinessToken | None = None
 
     def stop(self) -> None:
         if self._stop is not None:
@@ -197,7 +138,7 @@ class Supervisor:
             ]
             entities += rings
             entities.append(wire.declare_queryable(self._zenoh, T.HEALTH, self._on_health))
-            entities.append(wire.declare_token(self._zenoh, T.ALIVE))
+            self._alive(True)
             observing = [observe(self._zenoh) for observe in self.observers]
             if install_signals:
                 for sig in (signal.SIGTERM, signal.SIGINT):
@@ -266,6 +207,8 @@ class Supervisor:
             return  # from a worker since replaced
         if msg.get("ready"):
             worker.ready = True
+            if self.ready.is_set() and all(w.ready for w in self.workers):
+                self._alive(True)  # a worker started again serves
         worker.reported_at = time.monotonic()
         if isinstance(msg.get("health"), dict):
             worker.health = msg["health"]
@@ -284,8 +227,22 @@ class Supervisor:
         )
         self.restarts += 1
         worker.ready, worker.health = False, None
+        # The token goes until the worker serves again: every belt stops, and every client
+        # resends its goal when it comes back, as after a crash of the whole daemon. What the
+        # worker had not yet written to the state database (up to a commit, 0.25 s) would
+        # otherwise be lost without anyone knowing.
+        self._alive(False)
         self._halt(users, f"worker {worker.index} died (exit {proc.returncode}); restarting")
         self._loop.call_later(RESTART_S, self._restart, worker)
+
+    def _alive(self, alive: bool) -> None:
+        assert self._zenoh is not None
+        if alive and self._token is None and not self._stopping:
+            self._token = wire.declare_token(self._zenoh, T.ALIVE)
+        elif not alive and self._token is not None:
+            with contextlib.suppress(zenoh.ZError):
+                self._token.undeclare()
+            self._token = None
 
     def _restart(self, worker: Worker) -> None:
         if not self._stopping:
@@ -373,6 +330,8 @@ class Supervisor:
         for observer in observing:
             with contextlib.suppress(Exception):
                 observer.close()
+        if self._token is not None:  # gone after the users' last words, as in one process
+            self._alive(False)
         for ent in entities:
             with contextlib.suppress(zenoh.ZError):
                 ent.undeclare()

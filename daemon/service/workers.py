@@ -1,4 +1,5 @@
-"""One of the daemon's worker processes: a whole ``Daemon`` that serves only the users it owns.
+"""The daemon's worker processes: a whole ``Daemon`` that serves only the users it owns
+(``WorkerRole``), and the parent's handle on one (``Worker``).
 
 With ``workers = N`` the users are shared among N processes, each with its own GIL, asyncio
 loop and zenoh session (``supervisor.py`` starts them). A user belongs to worker
@@ -23,6 +24,7 @@ import json
 import logging
 import os
 import signal
+import subprocess
 import sys
 import threading
 import zlib
@@ -108,3 +110,69 @@ def die_with(parent: int) -> None:
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
     if os.getppid() != parent:
         os._exit(1)
+
+
+SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID")
+"""Only the parent speaks to systemd (``NotifyAccess=main``)."""
+
+
+class Worker:
+    """One worker process: started, heard, and started again by the supervisor."""
+
+    def __init__(self, index: int, count: int, config_json: str) -> None:
+        self.index, self.count = index, count
+        self._config_json = config_json
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.health: dict[str, Any] | None = None
+        """Its latest report (``Health`` as JSON); None until its first."""
+        self.ready = False
+        self.reported_at = 0.0
+        """When its latest report came (monotonic)."""
+
+    def start(self, on_report: Any, on_exit: Any) -> None:
+        read, write = os.pipe()
+        env = {k: v for k, v in os.environ.items() if k not in SYSTEMD_ENV}
+        env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
+        argv = [sys.executable, "-m", "daemon.service.worker_main"]
+        argv += [str(self.index), str(self.count), str(write), str(os.getpid())]
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, pass_fds=(write,), env=env)
+        os.close(write)
+        self.ready, self.health = False, None
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(self._config_json.encode() + b"\n")
+        self.proc.stdin.flush()
+        os.set_blocking(self.proc.stdin.fileno(), False)  # the loop never waits on a worker
+        proc = self.proc
+        threading.Thread(
+            target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,
+            name=f"worker-{self.index}",
+        ).start()  # fmt: skip
+
+    def _listen(self, fd: int, proc: subprocess.Popen[bytes], on_report: Any, on_exit: Any) -> None:
+        with os.fdopen(fd, "rb") as reports:
+            for line in reports:
+                with contextlib.suppress(ValueError):
+                    on_report(self, proc, json.loads(line))
+        proc.wait()
+        if proc.stdin is not None:
+            with contextlib.suppress(OSError):
+                proc.stdin.close()
+        on_exit(self, proc)
+
+    def hand(self, key: str, payload: bytes, arrived: float) -> None:
+        """Give the worker a sample it was not subscribed to (dropped if its pipe is full: a
+        pose comes again in 50 ms, a delta's gap brings a snapshot)."""
+        proc = self.proc
+        if proc is None or proc.stdin is None:
+            return
+        with contextlib.suppress(OSError, ValueError):
+            proc.stdin.write(encode_sample(key, payload, arrived))
+            proc.stdin.flush()
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.send_signal(signal.SIGTERM)
+
+    def users(self) -> list[str]:
+        return list(self.health.get("users", [])) if self.health else []

@@ -1,9 +1,10 @@
 """``workers = N``: the users shared among worker processes behind one router.
 
 One ``guidebelt run`` with two workers: a user who sends only poses is found through the
-parent; a simulated walk, its worker is SIGKILLed mid-walk, the user hears STOP
-and ``internal``, the worker comes back, restores the session from the state database and the
-user arrives with no client action; health lists the user; SIGTERM stops every process.
+parent; in a simulated walk the user's worker is SIGKILLed, the user hears STOP and
+``internal``, the token goes (clients learn of the restart), the worker comes back, restores
+the session from the state database and the user arrives with no client action; health lists
+the users; SIGTERM stops every process.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
+import zenoh
 from pydantic import ValidationError
 
 from daemon.service.config import DaemonConfig
@@ -171,13 +173,20 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
     health: list[Health] = []
     try:
         wait_alive(session, proc, 60.0)
+        tokens_gone: list[float] = []
+
+        def on_token(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                tokens_gone.append(time.time())
+
+        watch = wire.watch_liveliness(session, T.ALIVE, on_token)
         workers = _workers_of(proc.pid)
         assert sorted(workers) == [0, 1]
         mine = workers[owner_of(USER, 2)]
         assert "poser" in _users_after_poses_alone(session, "poser", 5.0)
 
         def crash(result: SimResult) -> None:
-            if result.steps == 6 and not killed:
+            if result.steps == 10 and not killed:  # the goal committed by then (0.25 s)
                 for reply in wire.get(session, T.HEALTH, timeout=2.0):
                     if reply.ok is not None:
                         health.append(codec.decode(Health, reply.ok.payload.to_bytes()))
@@ -202,6 +211,7 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         stops = [r.msg for r in belts.received if r.msg.stamp > killed[0]]
         assert stops and stops[0].kind is PatternKind.STOP
         assert "worker died" in text and "session restored" in text
+        assert tokens_gone and tokens_gone[0] > killed[0]  # the clients learn of the restart
         workers = _workers_of(proc.pid)
         assert sorted(workers) == [0, 1] and workers[owner_of(USER, 2)] != mine
         proc.send_signal(signal.SIGTERM)
@@ -211,6 +221,8 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         stop.set()
         statuses.close()
         belts.close()
+        if "watch" in locals():
+            watch.undeclare()
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
