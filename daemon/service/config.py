@@ -12,7 +12,7 @@ import socket
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, field_validator
 from pydantic_settings import (
     BaseSettings,
     PydanticBaseSettingsSource,
@@ -151,13 +151,6 @@ class DaemonConfig(BaseSettings):
         if name not in PLANNERS:
             raise ValueError(f"unknown planner {name!r}; choose one of {', '.join(PLANNERS)}")
         return name
-
-    @model_validator(mode="after")
-    def _workers_without_access(self) -> DaemonConfig:
-        # The workers' links to the daemon would need access rules of their own: not built yet.
-        if self.workers and self.zenoh.tls is not None:
-            raise ValueError("workers > 0 does not work with [zenoh.tls] yet: set workers = 0")
-        return self
 
     def navigator_settings(self) -> NavigatorSettings:
         """What each user's navigator takes from the daemon's config."""

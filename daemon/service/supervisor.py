@@ -12,6 +12,9 @@ started again, its users told STOP and ``internal``, and restored by the new
 worker from the state database; the token goes meanwhile, so clients resend what the
 worker may not have written. The parent hears every user's poses and deltas too (it
 routes them), but only hands a worker the first sample of a user it does not serve yet.
+Under ``[zenoh.tls]`` the private endpoint is ``tls/`` too and a worker presents the
+daemon's certificate; the router's access rules give that identity the daemon's part of the
+topic table for every user, from loopback only (``protocol.access.WORKER``).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import zenoh
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
+from protocol.access import WORKER, access_control, identities_for
 from protocol.messages import Health, StatusCode
 
 from .config import DaemonConfig
@@ -70,7 +74,9 @@ def worker_config(config: DaemonConfig, endpoint: str) -> str:
     slots and its maps' memory its share of the daemon's. ``max_users`` stays each worker's
     (users are not spread evenly by name): at most ``workers`` × as many sessions."""
     share = max(1, (os.cpu_count() or 1) // config.workers)
-    zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint])
+    # Under TLS the worker presents the daemon's certificate: the router's rules for it
+    # (``protocol.access.WORKER``) are what it may do there. It enforces nothing itself.
+    zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint], tls=config.zenoh.tls)
     update = {
         "zenoh": zenoh_cfg,
         "workers": 0,
@@ -80,12 +86,22 @@ def worker_config(config: DaemonConfig, endpoint: str) -> str:
     return config.model_copy(update=update).model_dump_json()
 
 
+def private_endpoint(settings: wire.ZenohSettings) -> str:
+    """Where the workers connect: loopback, on a free port, and under TLS when the daemon is
+    (its links accept TLS only, and the workers must be known by certificate to its rules)."""
+    scheme = "tls" if settings.tls is not None else "tcp"
+    return f"{scheme}/127.0.0.1:{free_port()}"
+
+
 def router_config(settings: wire.ZenohSettings, endpoint: str) -> zenoh.Config:
     """The daemon's zenoh config as a router (it forwards between clients and workers),
-    listening on ``endpoint`` too."""
+    listening on ``endpoint`` too; with access rules, the workers' among them."""
     raw = json.loads(settings.to_json5())
     raw["mode"] = "router"
     raw["listen"]["endpoints"] = [*raw["listen"]["endpoints"], endpoint]
+    if settings.access is not None:
+        nodes = identities_for(settings.access.users, settings.access.services)
+        raw["access_control"] = access_control([*nodes, WORKER])
     return zenoh.Config.from_json5(json.dumps(raw))
 
 
@@ -121,7 +137,7 @@ class Supervisor:
         self._loop = loop
         _prepare_state(self.config)
         say_who_may_connect(self.config.zenoh)
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        endpoint = private_endpoint(self.config.zenoh)
         self._zenoh = zenoh.open(router_config(self.config.zenoh, endpoint))
         conf = worker_config(self.config, endpoint)
         n = self.config.workers
@@ -145,7 +161,8 @@ class Supervisor:
                     loop.add_signal_handler(sig, self.stop)
             self.notifier.ready(f"serving with {n} workers, backend {self.config.backend}")
             self.ready.set()
-            log.info("ready", extra={"fields": {"workers": n, "zid": str(self._zenoh.zid())}})
+            fields = {"workers": n, "zid": str(self._zenoh.zid()), "private": endpoint}
+            log.info("ready", extra={"fields": fields})
             tasks = [loop.create_task(self._tick()), loop.create_task(self._discover(rings))]
             try:
                 await self._stop.wait()

@@ -1,16 +1,20 @@
 """``workers = N``: the users shared among worker processes behind one router.
 
-One ``guidebelt run`` with two workers: a user who sends only poses is found through the
-parent; in a simulated walk the user's worker is SIGKILLed, the user hears STOP and
-``internal``, the token goes (clients learn of the restart), the worker comes back, restores
-the session from the state database and the user arrives with no client action; health lists
-the users; SIGTERM stops every process.
+One ``guidebelt run`` with two workers, under mutual TLS and access rules as shipped: the
+workers' private endpoint lets in no one without a certificate; a user who sends only poses
+is found through the parent; in a simulated walk the user's worker is SIGKILLed, the user
+hears STOP and ``internal``, the token goes (clients learn of the restart), the worker comes
+back, restores the session from the state database and the user arrives with no client
+action; another user's certificate, by either endpoint, neither sets the walker's goal nor
+drives the belt; health lists the users; SIGTERM stops every process.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import re
 import signal
 import sqlite3
 import subprocess
@@ -22,16 +26,16 @@ from pathlib import Path
 
 import pytest
 import zenoh
-from pydantic import ValidationError
 
 from daemon.service.config import DaemonConfig
-from daemon.service.embedded import free_port, open_peer
-from daemon.service.supervisor import worker_config
+from daemon.service.embedded import free_port
+from daemon.service.supervisor import private_endpoint, worker_config
 from daemon.service.workers import owner_of
 from drivers.belt.recorder import Recorder
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
+from protocol.deployment import certify, to_toml
 from protocol.messages import (
     BeltPattern,
     Goal,
@@ -41,6 +45,8 @@ from protocol.messages import (
     PatternKind,
     Pose,
 )
+from protocol.settings import ZenohSettings, load_node_settings
+from protocol.topics import Role
 from sim.courtyard import make_courtyard
 from sim.node import SimNode, SimResult
 
@@ -60,19 +66,23 @@ def test_a_user_belongs_to_one_worker_the_same_after_a_restart_and_users_spread(
 
 def test_a_worker_is_a_client_of_the_parents_private_endpoint_with_its_share_of_the_daemon():
     config = DaemonConfig(workers=2, backend="cpu", state_dir=None)
-    worker = DaemonConfig(**__import__("json").loads(worker_config(config, "tcp/127.0.0.1:9")))
+    assert private_endpoint(config.zenoh).startswith("tcp/127.0.0.1:")
+    worker = DaemonConfig(**json.loads(worker_config(config, "tcp/127.0.0.1:9")))
     assert worker.workers == 0 and worker.zenoh.mode == "client"
     assert worker.zenoh.connect == ["tcp/127.0.0.1:9"] and worker.zenoh.listen == []
     assert worker.step_workers == max(1, (os.cpu_count() or 1) // 2)
     assert worker.backend == "cpu" and worker.memory_budget_mb == config.memory_budget_mb / 2
 
 
-def test_workers_with_tls_are_refused_in_one_clear_line():
-    tls = {"root_ca": "ca.pem", "certificate": "d.pem", "private_key": "d.key"}
-    zenoh = {"listen": ["tls/127.0.0.1:7447"], "tls": tls}
-    with pytest.raises(ValidationError, match="workers > 0 does not work with"):
-        DaemonConfig(workers=2, zenoh=zenoh, state_dir=None)
-    assert DaemonConfig(workers=0, zenoh=zenoh, state_dir=None).workers == 0
+def test_under_tls_a_worker_dials_tls_with_the_daemons_certificate_and_enforces_nothing():
+    tls = {"root_ca": "ca.pem", "certificate": "daemon.pem", "private_key": "daemon.key"}
+    zenoh_table = {"listen": ["tls/127.0.0.1:7447"], "tls": tls, "access": {"users": ["ann"]}}
+    config = DaemonConfig(workers=2, zenoh=zenoh_table, state_dir=None)  # no longer refused
+    endpoint = private_endpoint(config.zenoh)
+    assert endpoint.startswith("tls/127.0.0.1:")
+    worker = DaemonConfig(**json.loads(worker_config(config, endpoint)))
+    assert worker.zenoh.connect == [endpoint] and worker.zenoh.tls == config.zenoh.tls
+    assert worker.zenoh.access is None  # the router's rules are the ones that hold
 
 
 def _gone(pid: int) -> bool:
@@ -154,9 +164,51 @@ def _users_after_poses_alone(session, user: str, timeout_s: float) -> list[str]:
     return users
 
 
+def _private_endpoint(log: Path) -> str:
+    found = re.search(r"private=(tls/127\.0\.0\.1:\d+)", log.read_text())
+    assert found, log.read_text()[-2000:]
+    return found.group(1)
+
+
+def _cannot_connect(root: Path, endpoint: str) -> None:
+    """Plain TCP, and TLS offering no certificate (the CA trusted): the workers' endpoint
+    lets in no one the deployment did not certify."""
+    plain = ZenohSettings(mode="client", connect=[endpoint.replace("tls/", "tcp/")])
+    with pytest.raises(zenoh.ZError):
+        wire.open_session(plain).close()
+    no_cert = {
+        "mode": "client",
+        "connect": {"endpoints": [endpoint]},
+        "scouting": {"multicast": {"enabled": False}},
+        "transport": {"link": {"tls": {"root_ca_certificate": str(root / "ca.pem")}}},
+    }
+    with pytest.raises(zenoh.ZError):
+        zenoh.open(zenoh.Config.from_json5(json.dumps(no_cert))).close()
+
+
+def _attack(ann: zenoh.Session, back: tuple[int, int]) -> BeltPattern:
+    """ann's phone puts the walker's goal (back where the walk started) and drives the
+    walker's belt: the forged pattern, to look for on the belt (no step of the daemon's
+    sends this sequence number)."""
+    far = Goal(target=GoalCell(row=back[0], col=back[1]), stamp=time.time())
+    wire.put(ann, T.GOAL, USER, codec.encode(far))
+    forged = BeltPattern(
+        seq=987_654, kind=PatternKind.GUIDE, motors=(201, 0, 201, 0), ttl_ms=5000, stamp=time.time()
+    )
+    wire.put(ann, T.BELT, USER, codec.encode(forged))
+    return forged
+
+
 @pytest.mark.timeout(120)
-def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp_path):
+def test_two_workers_under_tls_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp_path):
+    """The shipped config's way: mutual TLS and access rules, the workers on a private
+    tls/ endpoint with the daemon's certificate. ann (a user's certificate) tries to take
+    the walker's goal and belt through the public endpoint and the private one."""
     port = free_port()
+    certs = tmp_path / "tls"
+    nodes = {n.common_name: n for n in certify(certs, [USER, "poser", "ann"], [Role.SIM])}
+    table = load_node_settings(nodes["daemon"].toml)
+    table = table.model_copy(update={"listen": [f"tls/127.0.0.1:{port}"]})
     config = tmp_path / "guidebelt.toml"
     config.write_text(
         'backend = "cpu"\n'
@@ -164,14 +216,31 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         f'state_dir = "{tmp_path / "state"}"\n'
         "persist_map_s = 0.5\n"
         "cell_m = 0.2\n"  # the 10 m courtyard on 50² cells
-        "guide_hz = 100\n"
-        "[zenoh]\n"
-        f'listen = ["tcp/127.0.0.1:{port}"]\n'
+        "guide_hz = 100\n" + to_toml(table)
     )
     log = tmp_path / "daemon.log"
     scenario = make_courtyard(50, 0.2, seed=3)
     proc = start_daemon(config, log)
-    session = open_peer(port)
+
+    opened: list[zenoh.Session] = []
+
+    def client(cn: str, endpoint: str) -> zenoh.Session:
+        # Clients, so the router carries everything between them: what it does not forward
+        # is what its rules refused, not a quirk of peers that never met (test_tls_access).
+        node = load_node_settings(nodes[cn].toml)
+        update = {"mode": "client", "connect": [endpoint]}
+        opened.append(wire.open_session(node.model_copy(update=update)))
+        return opened[-1]
+
+    public = f"tls/127.0.0.1:{port}"
+    end = time.monotonic() + 60.0
+    while True:  # a client does not wait for the router to listen: try until it does
+        try:
+            session = client("sim", public)  # the walker's phone, RFID node and belt
+            break
+        except zenoh.ZError:
+            assert proc.poll() is None and time.monotonic() < end, "the daemon did not listen"
+            time.sleep(0.2)
     node = SimNode(session, USER, scenario, pose_period_s=0.2)
     statuses: Recorder[NavStatus] = Recorder(session, T.STATUS, USER)
     belts: Recorder[BeltPattern] = Recorder(session, T.BELT, USER)
@@ -191,7 +260,10 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         workers = _workers_of(proc.pid)
         assert sorted(workers) == [0, 1]
         mine = workers[owner_of(USER, 2)]
+        private = _private_endpoint(log)
+        _cannot_connect(certs, private)
         assert "poser" in _users_after_poses_alone(session, "poser", 5.0)
+        anns = [client("user:ann", at) for at in (public, private)]  # by either endpoint
 
         def crash(result: SimResult) -> None:
             # Once the store has the goal (no client here resends it): a kill before the
@@ -215,6 +287,14 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         result = box["r"]
         text = log.read_text()
         assert killed and result.arrived, (result.reason, result.steps, text[-3000:])
+        # After the restart ann sends the walker a goal back at the start, and a pattern.
+        attacked = time.time()
+        forged = [_attack(ann, scenario.start) for ann in anns]
+        time.sleep(1.0)  # her goal would have been planned for, her pattern played, by now
+        assert [
+            (r.msg.state, r.msg.code) for r in statuses.received if r.msg.stamp > attacked
+        ] == []
+        assert [r for r in belts.received if r.msg.seq == forged[0].seq] == []
         assert health and health[0].users == sorted(["poser", USER])
         after = [r.msg for r in statuses.received if r.msg.stamp > killed[0]]
         assert any(s.code == "internal" for s in after), [s.code for s in after]
@@ -236,4 +316,5 @@ def test_two_workers_guide_a_walk_through_a_worker_crash_and_stop_on_sigterm(tmp
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
-        session.close()
+        for s in opened:
+            s.close()
