@@ -22,6 +22,9 @@ def load(
         int | None,
         typer.Option(min=0, max=64, help="the daemon's worker processes (default: its config's)"),
     ] = None,
+    tls: Annotated[
+        bool, typer.Option(help="mutual TLS and access rules, as shipped (certificates made here)")
+    ] = False,
     json_out: Annotated[str, typer.Option("--json", help="also write the result here")] = "",
 ) -> None:
     """Start `guidebelt run` on a free loopback port and play USERS wearers against it:
@@ -35,7 +38,7 @@ def load(
 
     spec = LoadSpec(users, grid, pose_hz, delta_hz, seconds, warmup)
     env = {} if workers is None else {"GUIDEBELT_WORKERS": str(workers)}
-    result = run_against_daemon(spec, backend, env)
+    result = run_against_daemon(spec, backend, env, tls=tls)
     text = json.dumps(result, indent=2)
     typer.echo(text)
     if json_out:

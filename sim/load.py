@@ -15,6 +15,7 @@ users the daemon cannot serve must hear ``overloaded`` instead.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import threading
@@ -22,6 +23,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import zenoh
@@ -294,10 +296,29 @@ def tree_cpu_seconds(pid: int) -> float:
     return total
 
 
-def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = None) -> dict:
+def _deployment(spec: LoadSpec, port: int, root: Path) -> tuple[dict, wire.ZenohSettings]:
+    """As shipped: certificates for every load user and the simulator, the daemon on a
+    ``tls/`` port with the access rules (its config file); the generator is the simulator."""
+    from protocol.deployment import certify
+    from protocol.settings import load_node_settings
+
+    names = [f"load{i:03d}" for i in range(spec.users)]
+    certify(root, names, [T.Role.SIM])
+    env = {
+        "GUIDEBELT_CONFIG": str(root / "daemon.toml"),
+        "GUIDEBELT_ZENOH__LISTEN": json.dumps([f"tls/127.0.0.1:{port}"]),
+    }
+    sim = load_node_settings(root / "sim.toml")
+    return env, sim.model_copy(update={"connect": [f"tls/127.0.0.1:{port}"]})
+
+
+def run_against_daemon(
+    spec: LoadSpec, backend: str = "cpu", env: dict | None = None, tls: bool = False
+) -> dict:
     """Start ``guidebelt run`` as its own process on a free loopback port, load it, stop it.
 
-    ``env`` adds ``GUIDEBELT_…`` settings (e.g. a smaller step budget) to the daemon's."""
+    ``env`` adds ``GUIDEBELT_…`` settings (e.g. a smaller step budget) to the daemon's;
+    ``tls``: mutual TLS and access rules, as the shipped config."""
     import json
     import shutil
     import signal
@@ -306,7 +327,8 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
     import tempfile
     from pathlib import Path
 
-    from daemon.service.embedded import free_port, open_peer
+    from daemon.service.embedded import free_port
+    from protocol.settings import loopback
 
     root = Path(__file__).resolve().parents[1]
     port = free_port()
@@ -324,10 +346,14 @@ def run_against_daemon(spec: LoadSpec, backend: str = "cpu", env: dict | None = 
         "GUIDEBELT_STATE_DIR": (state := tempfile.mkdtemp(prefix="guidebelt-load-")),
         **(env or {}),
     }
+    settings = loopback(connect_port=port)
+    if tls:
+        tls_env, settings = _deployment(spec, port, Path(state) / "tls")
+        daemon_env.update(tls_env)
     daemon = subprocess.Popen([sys.executable, "-m", "cli.app", "run"], cwd=root, env=daemon_env)
     session = gen = None
     try:
-        session = open_peer(port)
+        session = wire.open_session(settings)
         deadline = time.monotonic() + 60
         while not wire.alive(session, T.ALIVE, timeout=0.5):
             if daemon.poll() is not None or time.monotonic() > deadline:
