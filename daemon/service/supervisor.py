@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import os
 import signal
@@ -36,7 +35,6 @@ import zenoh
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.access import WORKER, access_control, identities_for
 from protocol.messages import Health, StatusCode
 
 from .config import DaemonConfig
@@ -93,18 +91,6 @@ def private_endpoint(settings: wire.ZenohSettings) -> str:
     return f"{scheme}/127.0.0.1:{free_port()}"
 
 
-def router_config(settings: wire.ZenohSettings, endpoint: str) -> zenoh.Config:
-    """The daemon's zenoh config as a router (it forwards between clients and workers),
-    listening on ``endpoint`` too; with access rules, the workers' among them."""
-    raw = json.loads(settings.to_json5())
-    raw["mode"] = "router"
-    raw["listen"]["endpoints"] = [*raw["listen"]["endpoints"], endpoint]
-    if settings.access is not None:
-        nodes = identities_for(settings.access.users, settings.access.services)
-        raw["access_control"] = access_control([*nodes, WORKER])
-    return zenoh.Config.from_json5(json.dumps(raw))
-
-
 class Supervisor:
     def __init__(
         self,
@@ -138,7 +124,7 @@ class Supervisor:
         _prepare_state(self.config)
         say_who_may_connect(self.config.zenoh)
         endpoint = private_endpoint(self.config.zenoh)
-        self._zenoh = zenoh.open(router_config(self.config.zenoh, endpoint))
+        self._zenoh = wire.open_router(self.config.zenoh, endpoint)
         conf = worker_config(self.config, endpoint)
         n = self.config.workers
         self.workers = [Worker(i, n, conf) for i in range(n)]
