@@ -7,6 +7,8 @@ from typing import Annotated
 
 import typer
 
+WORKER_HOST = "127.0.0.1"
+
 
 def certs(
     user: Annotated[
@@ -55,12 +57,16 @@ def certs(
         if unknown:
             raise ValueError(f"unknown service {unknown[0]!r}: choose from {', '.join(known)}")
         services = [known[s] for s in names]
+        hosts = tuple(host) if host else DEFAULT_HOSTS
+        # A worker (``workers = N``) dials the daemon's private endpoint on 127.0.0.1 and
+        # checks the name there like any node: the daemon's certificate must carry it.
+        hosts += () if WORKER_HOST in hosts else (WORKER_HOST,)
         nodes = certify(
             out,
             users,
             services,
             endpoint=endpoint,
-            hosts=tuple(host) if host else DEFAULT_HOSTS,
+            hosts=hosts,
             installed_at=installed_at,
             new_ca=new_ca,
         )

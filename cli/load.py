@@ -18,6 +18,13 @@ def load(
         float, typer.Option(min=0, max=600, help="seconds not measured, once all have joined")
     ] = 5.0,
     backend: Annotated[str, typer.Option(help="the daemon's backend")] = "cpu",
+    workers: Annotated[
+        int | None,
+        typer.Option(min=0, max=64, help="the daemon's worker processes (default: its config's)"),
+    ] = None,
+    tls: Annotated[
+        bool, typer.Option(help="mutual TLS and access rules, as shipped (certificates made here)")
+    ] = False,
     json_out: Annotated[str, typer.Option("--json", help="also write the result here")] = "",
 ) -> None:
     """Start `guidebelt run` on a free loopback port and play USERS wearers against it:
@@ -30,7 +37,8 @@ def load(
     from sim.load import LoadSpec, run_against_daemon
 
     spec = LoadSpec(users, grid, pose_hz, delta_hz, seconds, warmup)
-    result = run_against_daemon(spec, backend)
+    env = {} if workers is None else {"GUIDEBELT_WORKERS": str(workers)}
+    result = run_against_daemon(spec, backend, env, tls=tls)
     text = json.dumps(result, indent=2)
     typer.echo(text)
     if json_out:

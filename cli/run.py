@@ -48,7 +48,12 @@ def run(
 
         max_bytes = int(record_max_mb * 2**20)
         observers.append(lambda session: Recorder(session, record, None, max_bytes).start())
-    uvloop.run(serve(cfg, observers))
+    if cfg.workers:
+        from daemon.service.supervisor import supervise
+
+        uvloop.run(supervise(cfg, observers))
+    else:
+        uvloop.run(serve(cfg, observers))
     # Everything the daemon owns is closed by now. Skip the interpreter's teardown: the
     # compiled planner's runtime takes ~0.7 s to unload, and systemd (and the user waiting
     # for the belt to go quiet) get a stop well inside one second.

@@ -30,7 +30,11 @@ from typing import Any
 from .topics import PER_USER_ROLES, TOPICS, Kind, Role, Topic, check_user
 
 SERVICE_ROLES = (Role.MAPPER, Role.SIM, Role.MONITOR)
-"""Roles not bound to a user (the daemon itself is the enforcer, never a subject)."""
+"""Roles not bound to a user (the daemon itself is the enforcer; its workers, below, are
+the one way it is also a subject)."""
+LOOPBACK_INTERFACES = ("lo",)
+"""Where a worker's link may come from: the daemon's certificate is honoured on this host's
+loopback only, so its key, were it copied off the machine, opens nothing."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,8 @@ def rules_for(who: Identity) -> list[dict[str, Any]]:
     """The allowing rules of one identity, merged by (flow, messages) over the table."""
     keys: dict[tuple[str, tuple[str, ...]], list[str]] = {}
     for topic in TOPICS:
+        if who.role is Role.DAEMON and not topic.per_user:
+            continue  # the parent alone answers health and holds the token, not a worker
         for flow, messages in _grants(topic, who.role):
             # The daemon declares over every user; announcing that leaks nothing of a user.
             key = topic.selector(None) if flow == "egress_daemon" else _key(topic, who)
@@ -124,8 +130,17 @@ def rules_for(who: Identity) -> list[dict[str, Any]]:
     ]
 
 
+WORKER = Identity(Role.DAEMON)
+"""A worker process of the daemon (``workers = N``): it holds the daemon's certificate and
+connects to the parent's router, which enforces these rules. It may do on its link what the
+table lets the daemon do for every user (subscribe to poses, goals and deltas, publish
+belts, cues and statuses, answer status queries, ask the mapper for a snapshot) and no more:
+not the daemon-wide health answer nor the liveliness token, which stay the parent's."""
+
+
 def access_control(identities: Iterable[Identity]) -> dict[str, Any]:
-    """zenoh's ``access_control`` config for the daemon: deny all but the table's grants."""
+    """zenoh's ``access_control`` config for the daemon: deny all but the table's grants.
+    Pass ``WORKER`` among ``identities`` for a daemon whose users are served by workers."""
     rules: list[dict[str, Any]] = []
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
@@ -138,7 +153,10 @@ def access_control(identities: Iterable[Identity]) -> dict[str, Any]:
         if not mine:
             continue
         rules += mine
-        subjects.append({"id": who.common_name, "cert_common_names": [who.common_name]})
+        subject: dict[str, Any] = {"id": who.common_name, "cert_common_names": [who.common_name]}
+        if who.role is Role.DAEMON:
+            subject["interfaces"] = list(LOOPBACK_INTERFACES)
+        subjects.append(subject)
         policies.append(
             {"id": who.common_name, "rules": [r["id"] for r in mine], "subjects": [who.common_name]}
         )

@@ -9,22 +9,42 @@ caller spells a key or chooses a congestion policy of its own.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from typing import Any
 
 import zenoh
 
+from .access import WORKER, access_control, identities_for
 from .settings import ZenohSettings, loopback
 from .topics import Kind, Topic
 
 __all__ = [
     "ZenohSettings", "alive", "declare_publisher", "declare_queryable", "declare_subscriber",
-    "declare_token", "get", "loopback", "open_session", "put", "reply", "watch_liveliness",
+    "declare_token", "get", "loopback", "open_router", "open_session", "put", "reply",
+    "watch_liveliness",
 ]  # fmt: skip
 
 
 def open_session(settings: ZenohSettings) -> zenoh.Session:
     return zenoh.open(zenoh.Config.from_json5(settings.to_json5()))
+
+
+def router_config(settings: ZenohSettings, private: str) -> zenoh.Config:
+    """The daemon's config as a zenoh *router* (``workers = N``: it forwards between the
+    nodes and its worker processes), listening on the workers' ``private`` endpoint too; with
+    access rules, the workers' among them (``access.WORKER``)."""
+    raw = json.loads(settings.to_json5())
+    raw["mode"] = "router"
+    raw["listen"]["endpoints"] = [*raw["listen"]["endpoints"], private]
+    if settings.access is not None:
+        nodes = identities_for(settings.access.users, settings.access.services)
+        raw["access_control"] = access_control([*nodes, WORKER])
+    return zenoh.Config.from_json5(json.dumps(raw))
+
+
+def open_router(settings: ZenohSettings, private: str) -> zenoh.Session:
+    return zenoh.open(router_config(settings, private))
 
 
 def _send_qos(topic: Topic) -> dict[str, Any]:

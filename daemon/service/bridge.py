@@ -57,8 +57,13 @@ class Bridge:
         loop: asyncio.AbstractEventLoop,
         on_sample: SampleSink,
         on_query: QuerySink,
+        worker: bool = False,
     ) -> None:
+        """``worker``: one of several processes sharing the users (``daemon.service.workers``):
+        poses and deltas are always subscribed to per user (every user's would reach every
+        worker), and the daemon-wide health query and liveliness token are the parent's."""
         self.session = session
+        self._worker = worker
         self._loop = loop
         self._on_sample = on_sample
         self._on_query = on_query
@@ -96,11 +101,13 @@ class Bridge:
                 )
         self._restream()
         for topic in QUERIES:
-            self._queryables.append(
-                wire.declare_queryable(self.session, topic, self._query_cb(topic))
-            )
-        # Declared last: drivers see the daemon alive only once it can hear them.
-        self._token = wire.declare_token(self.session, T.ALIVE)
+            if not (self._worker and topic is T.HEALTH):
+                self._queryables.append(
+                    wire.declare_queryable(self.session, topic, self._query_cb(topic))
+                )
+        if not self._worker:
+            # Declared last: drivers see the daemon alive only once it can hear them.
+            self._token = wire.declare_token(self.session, T.ALIVE)
 
     def _sample_cb(self, topic: Topic) -> Callback:
         loop, sink = self._loop, self._on_sample
@@ -177,12 +184,13 @@ class Bridge:
         nobody is shed, else each guided user's own. New subscribers are declared before the
         old ones go. At 100 users with 94 shed, zenoh's threads took 0.22 of a core handing
         the shed users' 2,800 samples a second to a callback only to drop them."""
-        wanted = self._users - self._shed if self._shed else set()
-        if self._closed or ((not self._shed) == bool(self._every) and wanted == set(self._own)):
+        per_user = self._worker or bool(self._shed)
+        wanted = self._users - self._shed if per_user else set()
+        if self._closed or ((not per_user) == bool(self._every) and wanted == set(self._own)):
             return  # closed: a user forgotten while the daemon stops subscribes to nothing
         self._last.clear()
         self._once_until = time.monotonic() + 1.0
-        if self._shed:
+        if per_user:
             for user in sorted(wanted - set(self._own)):
                 self._own[user] = [
                     wire.declare_subscriber(self.session, t, self._sample_cb(t), user)

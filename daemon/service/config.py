@@ -92,6 +92,14 @@ class DaemonConfig(BaseSettings):
     step_workers: int = Field(
         default=0, ge=0, le=256, description="users stepped at once; 0: one per CPU core"
     )
+    workers: int = Field(
+        default=0,
+        ge=0,
+        le=64,
+        description="worker processes the users are shared among, each with its own GIL and "
+        "zenoh session (the daemon then routes between them and the clients); 0: every user "
+        "in the daemon's own process",
+    )
     lag_budget_ms: float = Field(
         default=50.0,
         ge=5,

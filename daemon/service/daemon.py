@@ -36,10 +36,11 @@ from .admission import Admission, AdmissionSettings, map_too_big
 from .bridge import Bridge
 from .config import DaemonConfig
 from .persistence import Persistence
-from .queries import QueryAnswers, rejections_by_code, say_who_may_connect
+from .queries import QueryAnswers, daemon_health, say_who_may_connect
 from .runner import Pacing, UserRunner
 from .sdnotify import Notifier
 from .user_settings import SettingsStore
+from .workers import WorkerRole
 
 log = logging.getLogger("guidebelt.daemon")
 
@@ -59,8 +60,12 @@ class Daemon:
         config: DaemonConfig,
         notifier: Notifier | None = None,
         observers: Sequence[Observer] = (),
+        worker: WorkerRole | None = None,
     ) -> None:
+        """``worker``: this daemon is one of the processes the users are shared among
+        (``workers.py``): it serves only the users it owns."""
         self.config = config
+        self.worker = worker
         self.observers = list(observers)
         self._observing: list[Any] = []
         self.notifier = notifier if notifier is not None else Notifier()
@@ -92,6 +97,7 @@ class Daemon:
 
     async def run(self, install_signals: bool = True) -> None:
         loop = asyncio.get_running_loop()
+        worker = self.worker
         self._stop = asyncio.Event()
         self.state = Persistence(self.config)
         self.settings = SettingsStore(
@@ -109,7 +115,9 @@ class Daemon:
         say_who_may_connect(self.config.zenoh)
         self._zenoh = open_session(self.config.zenoh)
         answers = QueryAnswers(self.runners, self.health)
-        self._bridge = Bridge(self._zenoh, loop, self._on_sample, answers.on_query)
+        self._bridge = Bridge(
+            self._zenoh, loop, self._on_sample, answers.on_query, worker=worker is not None
+        )
         self._restore()  # before the bridge hears anyone: a goal sent now finds its session
         self._bridge.start()
         self._observing = [observe(self._zenoh) for observe in self.observers]
@@ -122,6 +130,8 @@ class Daemon:
         gc.collect()
         gc.freeze()
         self.notifier.ready(f"serving, backend {self.config.backend}")
+        if worker is not None:
+            worker.serving(self, loop)
         self.ready.set()
         log.info(
             "ready",
@@ -154,7 +164,7 @@ class Daemon:
 
     def _restore(self) -> None:
         assert self.state is not None
-        users = self.state.users()
+        users = [u for u in self.state.users() if self.worker is None or self.worker.owns(u)]
         for user in users[: self.config.max_users]:
             runner = self._runner(user)
             assert runner is not None
@@ -203,6 +213,8 @@ class Daemon:
                 self._pacing.behind = late_ms > self.config.lag_budget_ms
             self.notifier.watchdog()
             self._review_load()
+            if self.worker is not None:
+                self.worker.report(self)
             if self.state is not None:
                 self.state.tick(self.runners)
             now = time.monotonic()  # runners stamp inputs on any thread with this clock
@@ -312,6 +324,8 @@ class Daemon:
                     fields["suppressed"] = held
                 log.warning("rejected", extra={"fields": fields})
             return
+        if self.worker is not None and not self.worker.owns(user):
+            return  # another worker's user (every worker hears the rarer inputs of everyone)
         if topic is T.BELT_HEALTH and user not in self.runners:
             return  # a belt that is merely on starts no session (nor keeps an idle one alive)
         runner = self._runner(user)
@@ -355,6 +369,9 @@ class Daemon:
         else:
             runner.put_goal(msg)
 
+    hear = _on_sample
+    """A sample that came another way (a worker's: handed over by its parent)."""
+
     def _map_too_big(self, user: str, cells: int | None) -> str | None:
         """Why a map of ``cells`` cells may not be ``user``'s (None: it may)."""
         others = (r.navigator.maps.map for u, r in self.runners.items() if u != user)
@@ -376,20 +393,8 @@ class Daemon:
     # -- queries (loop thread) ------------------------------------------------------------
 
     def health(self) -> Health:
-        return Health(
-            daemon_id=self.config.daemon_id,
-            uptime_s=time.time() - self.started,
-            users=sorted(self.runners),
-            backend=self.config.backend,
-            rejected=self.rejected_unrouted
-            + sum(r.navigator.rejected for r in self.runners.values()),
-            rejected_by_code=rejections_by_code(self.rejected_unrouted, self.runners),
-            log_lines_suppressed=self.log_limit.suppressed_total
-            + sum(r.navigator.log_limit.suppressed_total for r in self.runners.values()),
-            overloaded=self.admission.shed,
-            lag_p95_ms=round(self.admission.last_p95_ms, 3),
-            stamp=time.time(),
-        )
+        return daemon_health(self.config, self.started, self.runners, self.admission,
+                             self.rejected_unrouted, self.log_limit.suppressed_total)  # fmt: skip
 
 
 async def serve(config: DaemonConfig, observers: Sequence[Observer] = ()) -> None:

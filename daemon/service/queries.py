@@ -18,6 +18,8 @@ from protocol.messages import Health
 from protocol.settings import ZenohSettings
 from protocol.topics import Topic
 
+from .admission import Admission
+from .config import DaemonConfig
 from .runner import UserRunner
 
 log = logging.getLogger("guidebelt.daemon")
@@ -71,6 +73,31 @@ class QueryAnswers:
             runner.reply_snapshot(query, T.MAP_SNAPSHOT.key(users[0]))
         )
         task.add_done_callback(lambda t: t.exception() if not t.cancelled() else None)
+
+
+def daemon_health(
+    config: DaemonConfig,
+    started: float,
+    runners: dict[str, UserRunner],
+    admission: Admission,
+    unrouted: int,
+    suppressed: int,
+) -> Health:
+    """The daemon's answer on ``health``; ``unrouted``: messages refused before reaching a
+    user, ``suppressed``: log lines the daemon itself held back."""
+    return Health(
+        daemon_id=config.daemon_id,
+        uptime_s=time.time() - started,
+        users=sorted(runners),
+        backend=config.backend,
+        rejected=unrouted + sum(r.navigator.rejected for r in runners.values()),
+        rejected_by_code=rejections_by_code(unrouted, runners),
+        log_lines_suppressed=suppressed
+        + sum(r.navigator.log_limit.suppressed_total for r in runners.values()),
+        overloaded=admission.shed,
+        lag_p95_ms=round(admission.last_p95_ms, 3),
+        stamp=time.time(),
+    )
 
 
 def rejections_by_code(unrouted: int, runners: dict[str, UserRunner]) -> dict[str, int]:

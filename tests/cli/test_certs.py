@@ -40,6 +40,17 @@ def test_certs_writes_every_node_and_keeps_the_ca(tmp_path):
     assert fresh.exit_code == 0 and (out / "ca.pem").read_bytes() != ca
 
 
+def test_the_daemons_certificate_names_loopback_for_its_workers_whatever_hosts_are_given(tmp_path):
+    from cryptography import x509
+
+    run = CliRunner().invoke(app, ["certs", "--out", str(tmp_path), "--host", "belt.example"])
+    assert run.exit_code == 0, run.output
+    cert = x509.load_pem_x509_certificate((tmp_path / "daemon.pem").read_bytes())
+    names = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert "belt.example" in names.get_values_for_type(x509.DNSName)
+    assert [str(a) for a in names.get_values_for_type(x509.IPAddress)] == ["127.0.0.1"]
+
+
 @pytest.mark.parametrize(
     "args, said",
     [

@@ -7,7 +7,7 @@ import stat
 import pytest
 
 from protocol import topics as T
-from protocol.access import Identity, access_control, identities_for, rules_for
+from protocol.access import WORKER, Identity, access_control, identities_for, rules_for
 from protocol.topics import Role
 
 pytest.importorskip("cryptography")
@@ -74,6 +74,23 @@ def test_the_config_has_one_subject_and_policy_per_identity_and_denies_the_rest(
     assert len(ids) == len(set(ids))
     assert all(r["permission"] == "allow" for r in config["rules"])
     assert {i for p in config["policies"] for i in p["rules"]} == set(ids)
+
+
+def test_a_worker_does_the_daemons_part_for_every_user_on_loopback_and_nothing_daemon_wide():
+    puts = grants(WORKER, "ingress", "put")
+    assert {T.BELT.any_user(), T.STATUS.any_user(), T.VOICE.any_user()} <= puts
+    assert T.GOAL.any_user() not in puts and T.MAP_DELTA.any_user() not in puts
+    assert T.POSE.any_user() in grants(WORKER, "ingress", "declare_subscriber")
+    assert grants(WORKER, "ingress", "query") == {T.MAP_SOURCE.any_user()}
+    every = {k for rule in rules_for(WORKER) for k in rule["key_exprs"]}
+    # Health and the liveliness token are the parent's: a worker can neither answer the one
+    # (and so forge the daemon's health) nor hold the other.
+    assert T.HEALTH.key() not in every and T.ALIVE.key() not in every
+    assert grants(WORKER, "ingress", "liveliness_token") == set()
+    config = access_control([*identities_for(["ann"], []), WORKER])
+    (subject,) = [s for s in config["subjects"] if s["cert_common_names"] == ["daemon"]]
+    assert subject["interfaces"] == ["lo"]
+    assert all("interfaces" not in s for s in config["subjects"] if s is not subject)
 
 
 def test_identities_name_their_user_exactly():

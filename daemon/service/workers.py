@@ -1,0 +1,178 @@
+"""The daemon's worker processes: a whole ``Daemon`` that serves only the users it owns
+(``WorkerRole``), and the parent's handle on one (``Worker``).
+
+With ``workers = N`` the users are shared among N processes, each with its own GIL, asyncio
+loop and zenoh session (``supervisor.py`` starts them). A user belongs to worker
+``crc32(user) % N``: the same worker after a restart, so it finds the user's session in the
+state database. A worker subscribes to its own users' poses and map deltas only (no sample
+of another worker's user is sent to it, nor crosses a pipe), and to every user's rarer inputs
+(goals, buttons, settings, belt health, proximity), keeping its own. The parent hands it the
+first sample of a user it has not heard yet (a user whose first input is a pose) on its stdin;
+the worker tells the parent which users it serves, with their health, every tick, on a pipe.
+
+A worker stops on SIGTERM, when its stdin closes, or when its parent dies (PDEATHSIG).
+Its process starts in ``worker_main.py``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import ctypes
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import zlib
+from typing import Any, Protocol
+
+from protocol import topics as T
+from protocol.messages import Health
+from protocol.topics import Topic
+
+
+class Served(Protocol):
+    """The daemon, as its role sees it (the daemon imports this module, not the reverse)."""
+
+    def health(self) -> Health: ...
+    def hear(self, topic: Topic, key: str, payload: bytes, arrived: float) -> None: ...
+    def stop(self) -> None: ...
+
+
+log = logging.getLogger("guidebelt.worker")
+
+PR_SET_PDEATHSIG = 1
+
+
+def owner_of(user: str, workers: int) -> int:
+    """The worker that serves ``user`` (stable across restarts, for the same ``workers``)."""
+    return zlib.crc32(user.encode()) % workers
+
+
+def encode_sample(key: str, payload: bytes, arrived: float) -> bytes:
+    """One line on a worker's stdin: a sample the parent heard for one of its users."""
+    text = base64.b64encode(payload).decode()
+    return json.dumps({"key": key, "payload": text, "arrived": arrived}).encode() + b"\n"
+
+
+class WorkerRole:
+    """What makes a ``Daemon`` one worker among several (its ``worker`` argument)."""
+
+    def __init__(self, index: int, count: int, report_fd: int) -> None:
+        self.index = index
+        self.count = count
+        self._out = os.fdopen(report_fd, "wb", buffering=0)
+
+    def owns(self, user: str) -> bool:
+        return owner_of(user, self.count) == self.index
+
+    def serving(self, daemon: Served, loop: asyncio.AbstractEventLoop) -> None:
+        """The daemon listens: tell the parent, and take the samples it hands over."""
+        self._send({"ready": True})
+        threading.Thread(
+            target=self._read_parent, args=(daemon, loop), name="parent", daemon=True
+        ).start()
+
+    def report(self, daemon: Served) -> None:
+        """Each tick: the users served here and their health, for the parent's health answer
+        and its routing of new users."""
+        self._send({"health": daemon.health().model_dump(mode="json")})
+
+    def _send(self, message: dict[str, Any]) -> None:
+        # The parent gone: its end of stdin stops this worker.
+        with contextlib.suppress(BrokenPipeError, ValueError):
+            self._out.write(json.dumps(message).encode() + b"\n")
+
+    def _read_parent(self, daemon: Served, loop: asyncio.AbstractEventLoop) -> None:
+        for line in sys.stdin.buffer:
+            try:
+                msg = json.loads(line)
+                key, arrived = str(msg["key"]), float(msg["arrived"])
+                topic, payload = T.topic_of(key), base64.b64decode(msg["payload"])
+            except (ValueError, KeyError, TypeError) as exc:  # the parent's bug: say it, go on
+                log.error("bad line from the parent", extra={"fields": {"err": str(exc)[:200]}})
+                continue
+            with contextlib.suppress(RuntimeError):  # the loop closed: stopping
+                loop.call_soon_threadsafe(daemon.hear, topic, key, payload, arrived)
+        # stdin closed: the parent is gone or wants us gone; stop as on SIGTERM.
+        with contextlib.suppress(RuntimeError):
+            loop.call_soon_threadsafe(daemon.stop)
+
+
+def die_with(parent: int) -> None:
+    """SIGTERM this process when its parent dies (Linux), even by SIGKILL: a worker never
+    outlives the daemon. Checked once after: the parent may have died before the call."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID")
+"""Only the parent speaks to systemd (``NotifyAccess=main``)."""
+
+
+class Worker:
+    """One worker process: started, heard, and started again by the supervisor."""
+
+    def __init__(self, index: int, count: int, config_json: str) -> None:
+        self.index, self.count = index, count
+        self._config_json = config_json
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.health: dict[str, Any] | None = None
+        """Its latest report (``Health`` as JSON); None until its first."""
+        self.ready = False
+        self.reported_at = 0.0
+        """When its latest report came (monotonic)."""
+
+    def start(self, on_report: Any, on_exit: Any) -> None:
+        read, write = os.pipe()
+        env = {k: v for k, v in os.environ.items() if k not in SYSTEMD_ENV}
+        env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
+        argv = [sys.executable, "-m", "daemon.service.worker_main"]
+        argv += [str(self.index), str(self.count), str(write), str(os.getpid())]
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, pass_fds=(write,), env=env)
+        os.close(write)
+        self.ready, self.health = False, None
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(self._config_json.encode() + b"\n")
+        self.proc.stdin.flush()
+        os.set_blocking(self.proc.stdin.fileno(), False)  # the loop never waits on a worker
+        proc = self.proc
+        threading.Thread(
+            target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,
+            name=f"worker-{self.index}",
+        ).start()  # fmt: skip
+
+    def _listen(self, fd: int, proc: subprocess.Popen[bytes], on_report: Any, on_exit: Any) -> None:
+        with os.fdopen(fd, "rb") as reports:
+            for line in reports:
+                with contextlib.suppress(ValueError):
+                    on_report(self, proc, json.loads(line))
+        proc.wait()
+        if proc.stdin is not None:
+            with contextlib.suppress(OSError):
+                proc.stdin.close()
+        on_exit(self, proc)
+
+    def hand(self, key: str, payload: bytes, arrived: float) -> None:
+        """Give the worker a sample it was not subscribed to (dropped if its pipe is full: a
+        pose comes again in 50 ms, a delta's gap brings a snapshot)."""
+        proc = self.proc
+        if proc is None or proc.stdin is None:
+            return
+        with contextlib.suppress(OSError, ValueError):
+            proc.stdin.write(encode_sample(key, payload, arrived))
+            proc.stdin.flush()
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.send_signal(signal.SIGTERM)
+
+    def users(self) -> list[str]:
+        return list(self.health.get("users", [])) if self.health else []
