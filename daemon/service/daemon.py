@@ -11,7 +11,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
-import gc
 import logging
 import os
 import signal
@@ -26,6 +25,7 @@ from daemon.navigation import Navigator
 from daemon.navigation.log_limit import LogLimiter
 from daemon.navigation.warm import warm_up
 from daemon.planning import resolve_backend
+from daemon.runtime import gc_policy
 from protocol import codec
 from protocol import topics as T
 from protocol.messages import Health, NavState, NavStatus, StatusCode
@@ -125,10 +125,9 @@ class Daemon:
             for sig in (signal.SIGTERM, signal.SIGINT):
                 loop.add_signal_handler(sig, self.stop)
         # What start-up built (modules, config, compiled kernels) leaves the collector's
-        # generations: a full collection then scans only what serving allocates. Without it a
-        # gen-2 collection paused one walking step for 28 ms (400² walk, dev VM).
-        gc.collect()
-        gc.freeze()
+        # generations, and collections wait for the gaps between steps (a gen-2 collection once
+        # paused one walking step for 28 ms: 400² walk, dev VM).
+        gc_policy.settle()
         self.notifier.ready(f"serving, backend {self.config.backend}")
         if worker is not None:
             worker.serving(self, loop)
