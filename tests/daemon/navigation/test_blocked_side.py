@@ -18,7 +18,9 @@ NORTH, EAST = math.pi / 2, 0.0
 
 
 def pose(now: float, heading: float = NORTH) -> Pose:
-    return Pose(x=1.55, y=0.45, heading=heading, stamp=now)
+    """An estimated pose (with its sigma, as the RFID filter sends): the turn away is for a
+    pose that may be off; an exact pose's map holds what the camera saw."""
+    return Pose(x=1.55, y=0.45, heading=heading, stamp=now, sigma_m=0.05)
 
 
 def seen(now: float, ahead: float | None, bearing: float = 0.0) -> Proximity:
