@@ -71,17 +71,14 @@ class Daemon:
         self.notifier = notifier if notifier is not None else Notifier()
         self.runners: dict[str, UserRunner] = {}
         self.settings = SettingsStore(config.intensity)
-        self.state: Persistence | None = None
-        """The state store, opened by ``run``."""
-        self.rejected_unrouted = 0
+        self.state: Persistence | None = None  # the state store, opened by ``run``
+        self.rejected_unrouted = 0  # refused before reaching a user (bad key, too many users)
         self.log_limit = LogLimiter()
-        """Messages refused before reaching a user (bad key, too many users)."""
         self.started = time.time()
         self._stop: asyncio.Event | None = None
         self._bridge: Bridge | None = None
         self._zenoh: zenoh.Session | None = None
-        self.ready = threading.Event()
-        """Set once the daemon listens; for whoever started it on another thread."""
+        self.ready = threading.Event()  # the daemon listens: for a starter on another thread
         self.admission = Admission(
             AdmissionSettings(
                 lag_budget_ms=config.lag_budget_ms, cpu_budget_ms=config.step_cpu_budget_ms
