@@ -7,6 +7,7 @@ imported inside the fixtures: the GPU machine, which has neither, collects these
 from __future__ import annotations
 
 import ctypes
+import gc
 import threading
 import time
 from pathlib import Path
@@ -106,3 +107,12 @@ def nvrtc() -> Nvrtc:
     if not libs:
         pytest.skip("the nvrtc wheel holds no libnvrtc.so for this platform")
     return Nvrtc(ctypes.CDLL(str(libs[0])))
+
+
+@pytest.fixture
+def collector_restored():
+    """The interpreter's collector thresholds and frozen set as they were before the test."""
+    threshold = gc.get_threshold()
+    yield
+    gc.set_threshold(*threshold)
+    gc.unfreeze()

@@ -19,14 +19,6 @@ from sim.walk import paper_settings, walk
 pytestmark = pytest.mark.timeout(120)
 
 
-@pytest.fixture
-def collector_restored():
-    threshold = gc.get_threshold()
-    yield
-    gc.set_threshold(*threshold)
-    gc.unfreeze()
-
-
 def recorded_walk(max_steps: int) -> tuple[GcRecorder, weakref.ref]:
     scenario = make_courtyard(grid=50, unknown=0.4, seed=6)
     settle_heap()  # as the bench does before each walk (and the daemon once it is ready)

@@ -125,17 +125,25 @@ def _grow(blocked, reach, freed, width, queue, out) -> int:
                 queue[tail] = i
                 tail += 1
                 break
-    head = 0
+    tail = _flood(blocked, reach, width, queue, 0, tail)
+    out[:tail] = queue[:tail]
+    return tail
+
+
+@numba.njit(cache=True, nogil=True)
+def _flood(blocked, reach, width, queue, head, tail) -> int:
+    """Breadth-first from ``queue[head:tail]`` (already marked in ``reach``) over the free
+    cells (8-connected, padded flat map); every cell reached is marked and queued. Returns
+    the new tail."""
     while head < tail:
         cur = queue[head]
         head += 1
         for d in range(9):
-            j = cur + (d // 3 - 1) * width + d % 3 - 1
-            if not blocked[j] and not reach[j]:
-                reach[j] = True
-                queue[tail] = j
+            nxt = cur + (d // 3 - 1) * width + d % 3 - 1
+            if not reach[nxt] and not blocked[nxt]:
+                reach[nxt] = True
+                queue[tail] = nxt
                 tail += 1
-    out[:tail] = queue[:tail]
     return tail
 
 
@@ -171,17 +179,7 @@ def _reached(blocked, goal, width, reach, queue) -> int:
         return 0
     reach[goal] = True
     queue[0] = goal
-    head, tail = 0, 1
-    while head < tail:
-        cur = queue[head]
-        head += 1
-        for d in range(9):
-            nxt = cur + (d // 3 - 1) * width + d % 3 - 1
-            if not reach[nxt] and not blocked[nxt]:
-                reach[nxt] = True
-                queue[tail] = nxt
-                tail += 1
-    return tail
+    return _flood(blocked, reach, width, queue, 0, 1)
 
 
 class Reach:

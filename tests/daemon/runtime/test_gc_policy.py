@@ -11,14 +11,6 @@ from daemon.runtime import gc_policy
 
 
 @pytest.fixture
-def collector_restored():
-    threshold = gc.get_threshold()
-    yield
-    gc.set_threshold(*threshold)
-    gc.unfreeze()
-
-
-@pytest.fixture
 def collections():
     seen: list[int] = []
 
