@@ -1,6 +1,6 @@
 """Extended A* against classic A*: how often it misses or lengthens a path, and the paper's setups.
 
-``python -m sim.extended_astar_study`` prints two tables (``docs/notes/extended-astar.md``):
+``python -m sim.extended_astar_study`` prints two tables:
 
 1. **Optimality on random maps.** For each density, ``--queries`` random queries (``--maps``
    maps of ``--side`` x ``--side`` cells, one goal and several starts each, ends free). The

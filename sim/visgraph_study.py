@@ -1,6 +1,6 @@
 """Chen et al.'s visibility graph + A*: their Table 1, path length, and the courtyard walks.
 
-``python -m sim.visgraph_study`` prints three tables (``docs/notes/visibility-graph.md``):
+``python -m sim.visgraph_study`` prints three tables:
 
 1. **Table 1's shape** (search time, new algorithm against Dijkstra; min, max, average). The
    paper's maps are an indoor room with a few convex obstacles of fewer than seven edges

@@ -16,7 +16,7 @@ paper's per-point GPU kernel (Figure 4) does.
 tension by hundreds of orders of magnitude. The force is therefore taken relative to the
 point's own potential, ``F·(1 − u(x_i)) = exp(w(x̂) − w(x_i)) − 1``: the paper's force scaled
 by a positive number per point, so its sign and its ordering of the candidates stay the
-paper's, and it balances the tension in cell units everywhere (``docs/notes``). A move whose
+paper's, and it balances the tension in cell units everywhere. A move whose
 new point is in a blocked cell, or whose segments to its neighbours cross one, is refused
 (the point stays); so the band never cuts an obstacle, at any iteration.
 
