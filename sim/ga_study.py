@@ -1,7 +1,6 @@
 """Ghoniem et al.'s Table 2, measured: GA alone, A* alone and GA+A*, time and path length.
 
-``python -m sim.ga_study`` prints one table (``docs/notes/ga-astar.md`` holds a run beside
-the paper's numbers); ``--json FILE`` writes its rows.
+``python -m sim.ga_study`` prints one table; ``--json FILE`` writes its rows.
 
 Maps. The paper's map is one indoor room from a stereo camera, projected to a binary grid;
 it gives no size, no obstacle layout and no cell size, only Table 2's lengths (5.61-6.82 m)
