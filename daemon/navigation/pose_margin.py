@@ -83,8 +83,9 @@ class PoseMargin:
         σ (never under a cell), so a user told they are there is, with σ to spare. The RFID
         walks that failed only by "arrived off the goal" (9 of 300, ARRIVED at 0.3 m on an
         estimate 0.24-0.29 m off, σ about 0.1 m: 0.52-0.56 m from the goal truly) all arrive
-        within 0.5 m with 0.2 m; an exact pose (σ 0) keeps ``arrive_m``."""
-        return max(self.cell_m, arrive_m - self.sigma_m)
+        within 0.5 m with 0.2 m; an exact pose (σ 0) keeps ``arrive_m``, and no pose gets more
+        (a walk that must end on the goal cell asks for half a cell)."""
+        return min(arrive_m, max(self.cell_m, arrive_m - self.sigma_m))
 
     def wanted_cells(self) -> int:
         a = min(self.policy.sigmas * self.sigma_m, self.policy.a_max_m)
