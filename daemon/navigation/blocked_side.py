@@ -82,7 +82,14 @@ class BlockedSide:
 
     def steer(self, proximity: Proximity | None, pose: Pose | None, now: float,
               guidance: Guidance, out: StepOutput) -> None:  # fmt: skip
-        """Keep this frame's readings and check this step's GUIDE against all kept."""
+        """Keep this frame's readings and check this step's GUIDE against all kept.
+
+        Only for an estimated pose (one with a sigma, as the RFID filter sends): an exact
+        pose's map holds what was seen and the step's direction already keeps clear of it
+        (``clear_way``); turning it again from body-frame points bumped known corners (camera
+        walks, 13 bumps)."""
+        if pose is not None and pose.sigma_m is None:
+            return
         if now > self.until or pose is None:
             self.points.clear()
             self.nearest = None

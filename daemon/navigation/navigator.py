@@ -161,12 +161,9 @@ class Navigator:
                 self._guide(now, out)
         elif self.pose is None and self.pose_received and self.goal_cell is not None:
             self._pose_missing(now, out)
-        # After a STOP before contact, no GUIDE back into what the camera saw: for an estimated
-        # pose (one with a sigma), which may be off by more than the margin. An exact pose's map
-        # holds what was seen, and the step's direction already keeps clear of it (keep_clear);
-        # turning it again from body-frame points bumped known corners (camera walks, 13 bumps).
-        if self.pose is not None and self.pose.sigma_m is not None:
-            self.safety.blocked.steer(inbox.proximity, self.pose, now, self.guidance, out)
+        # After a STOP before contact, no GUIDE back into what the camera saw (an estimated pose
+        # may be off by more than the margin).
+        self.safety.blocked.steer(inbox.proximity, self.pose, now, self.guidance, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"
             self._set_state(self.state, OK, why, now, out, force=True)

@@ -114,25 +114,27 @@ def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
                 mark[j] = 1
                 cells[n] = j
                 n += 1
-    ring = n
-    for k in range(n):
-        for d in range(9):
-            j = cells[k] + offs[d]
-            if mark[j] == 0:
-                mark[j] = 2
-                cells[ring] = j
-                ring += 1
-    outer = ring
-    for k in range(n, ring):
-        if _border(cells[k], width, cells.size):
+    ring = _around(cells, 0, n, mark, 2, offs, width, False)
+    outer = _around(cells, n, ring, mark, 4, offs, width, True)
+    return n, ring - n, outer - ring
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _around(cells, start, end, mark, label, offs, width, skip_border) -> int:
+    """The unmarked neighbours of ``cells[start:end]`` (a border cell's skipped when
+    ``skip_border``: its outside neighbours are off the padded map) appended from
+    ``cells[end]`` and marked ``label``; returns the new end."""
+    out = end
+    for k in range(start, end):
+        if skip_border and _border(cells[k], width, cells.size):
             continue
         for d in range(9):
             j = cells[k] + offs[d]
             if mark[j] == 0:
-                mark[j] = 4
-                cells[outer] = j
-                outer += 1
-    return n, ring - n, outer - ring
+                mark[j] = label
+                cells[out] = j
+                out += 1
+    return out
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

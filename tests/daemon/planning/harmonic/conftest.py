@@ -66,6 +66,20 @@ def reachable(blocked: np.ndarray, goal: tuple) -> np.ndarray:
     return steps.reshape(h + 2, w + 2)[1:-1, 1:-1] >= 0
 
 
+def descents_hold(planner, blocked: np.ndarray, reach: np.ndarray, steps: bool = False) -> None:
+    """From every free cell: a descent to the goal through free cells where the goal is
+    reachable, no path where it is not; ``steps``: and each move is to a neighbour."""
+    for r, c in zip(*np.nonzero(~blocked), strict=True):
+        path = planner.path((r, c))
+        if not reach[r, c]:
+            assert len(path) == 0
+            continue
+        assert tuple(path[0]) == (r, c) and tuple(path[-1]) == planner.goal
+        assert not blocked[path[:, 0], path[:, 1]].any()
+        if steps:
+            assert (np.abs(np.diff(path, axis=0)).max(axis=1) == 1).all()
+
+
 @pytest.fixture
 def maps():
     """The map makers above, for tests (``--import-mode=importlib`` imports no sibling)."""
@@ -77,4 +91,5 @@ def maps():
         segments_free=segments_free,
         serpentine=serpentine,
         reachable=reachable,
+        descents_hold=descents_hold,
     )

@@ -29,17 +29,6 @@ def cuda_planner(kernel: str):
     return HarmonicPlanner(CudaField(order=kernel), init=init)
 
 
-def paths_hold(planner, blocked, reach) -> None:
-    for r, c in zip(*np.nonzero(~blocked), strict=True):
-        path = planner.path((r, c))
-        if not reach[r, c]:
-            assert len(path) == 0
-            continue
-        assert tuple(path[0]) == (r, c) and tuple(path[-1]) == planner.goal
-        assert not blocked[path[:, 0], path[:, 1]].any()
-        assert (np.abs(np.diff(path, axis=0)).max(axis=1) == 1).all()
-
-
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("kernel", ["rb", "jacobi"])
 def test_cuda_and_cpu_fields_agree_and_descend(maps, seed, kernel):
@@ -55,7 +44,7 @@ def test_cuda_and_cpu_fields_agree_and_descend(maps, seed, kernel):
     reach = maps.reachable(blocked, goal) & ~blocked
     assert gpu.residual < 1e-4
     assert np.abs(cpu.field()[reach] - gpu.field()[reach]).max() < GPU_TOL
-    paths_hold(gpu, blocked, maps.reachable(blocked, goal))
+    maps.descents_hold(gpu, blocked, maps.reachable(blocked, goal), steps=True)
 
 
 def test_cuda_warm_replans_equal_cold_plans(maps):
@@ -73,14 +62,14 @@ def test_cuda_warm_replans_equal_cold_plans(maps):
         warm.update(cells, values)
         blocked.reshape(-1)[cells] = values
         assert warm.settled  # the step's stop: converged, or no pit
-        paths_hold(warm, blocked, maps.reachable(blocked, goal))
+        maps.descents_hold(warm, blocked, maps.reachable(blocked, goal), steps=True)
     warm.converge()
     assert warm.residual < 1e-4
     cold = cuda_planner("rb")
     cold.plan(blocked, goal)
     reach = maps.reachable(blocked, goal) & ~blocked
     assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
-    paths_hold(warm, blocked, maps.reachable(blocked, goal))
+    maps.descents_hold(warm, blocked, maps.reachable(blocked, goal), steps=True)
 
 
 def test_cuda_has_no_plateau_on_the_serpentine(maps):
@@ -120,7 +109,7 @@ def test_cuda_steps_filled_are_pit_free_and_converge_to_the_cold_field(maps, see
         host_idx = engine.idx_view.copy()
         engine.relax(0, 1e-4, 0)  # no sweep: the kernel's Idx of the same field
         assert (engine.idx_view == host_idx).all()
-        paths_hold(warm, blocked, maps.reachable(blocked, goal))
+        maps.descents_hold(warm, blocked, maps.reachable(blocked, goal), steps=True)
     assert fills > 0
     warm.converge()
     assert warm.residual < 1e-4
@@ -141,7 +130,7 @@ def test_cuda_fills_the_basin_a_wall_leaves(maps):
     stats = gpu.update(door, True)
     blocked.reshape(-1)[door] = True
     assert stats.iterations <= 5 and gpu.filled > 100 and gpu.settled
-    paths_hold(gpu, blocked, maps.reachable(blocked, (2, 36)))
+    maps.descents_hold(gpu, blocked, maps.reachable(blocked, (2, 36)), steps=True)
 
 
 def test_cuda_changes_queued_for_the_launch_match_the_cpu_engine(maps):
@@ -173,7 +162,7 @@ def test_cuda_changes_queued_for_the_launch_match_the_cpu_engine(maps):
             assert np.abs(f_cpu[reach] - f_gpu[reach]).max() < GPU_TOL
         engine = gpu.engine
         assert (engine.fixed.get() == engine.fixed_host).all()
-        paths_hold(gpu, blocked, maps.reachable(blocked, goal))
+        maps.descents_hold(gpu, blocked, maps.reachable(blocked, goal), steps=True)
     assert gpu.field()[goal] == 0.0
     # Queued and read back without a relaxation: ``field`` applies them first.
     gpu.engine.set(np.array([gpu._flat((20, 20))]), rx.BLOCKED_W, True)

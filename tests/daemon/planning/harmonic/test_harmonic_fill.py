@@ -21,16 +21,6 @@ FIELD_TOL = 5e-3
 """As ``test_harmonic_planner``: two relaxations of one map to 1e-4 agree within this."""
 
 
-def descents_hold(planner, blocked: np.ndarray, reach: np.ndarray) -> None:
-    for r, c in zip(*np.nonzero(~blocked), strict=True):
-        path = planner.path((r, c))
-        if not reach[r, c]:
-            assert len(path) == 0
-            continue
-        assert tuple(path[0]) == (r, c) and tuple(path[-1]) == planner.goal
-        assert not blocked[path[:, 0], path[:, 1]].any()
-
-
 def one_sweep_steps(variant: str = "fast"):
     planner = make_planner("harmonic", "cpu", variant)
     planner.step_sweeps, planner.step_cap = 1, 1
@@ -64,7 +54,7 @@ def test_every_step_is_pit_free_and_converge_equals_a_cold_plan(maps, seed, h, w
             fresh, pits = np.empty_like(engine.idx), np.empty(engine.idx.size, np.int64)
             assert fl.lowest_each(engine.w, engine.fixed, engine.width, fresh, pits) == 0
             assert (fresh == engine.idx).all()
-        descents_hold(planner, blocked, maps.reachable(blocked, goal))
+        maps.descents_hold(planner, blocked, maps.reachable(blocked, goal))
     assert planner.retries == 0  # no descent needed the tighter relaxation
     planner.converge()
     assert planner.residual < TOL or planner.reach.count == 0
@@ -95,7 +85,7 @@ def test_a_wall_across_the_drained_basin_is_filled_within_the_step(maps):
     blocked.reshape(-1)[door] = True
     assert stats.iterations <= 5
     assert planner.filled > 100 and planner.settled  # the room below the wall
-    descents_hold(planner, blocked, maps.reachable(blocked, goal))
+    maps.descents_hold(planner, blocked, maps.reachable(blocked, goal))
     path = planner.path((35, 36))
     assert {(20, 2), (20, 3)} & {tuple(p) for p in path}  # out through the far door
 
