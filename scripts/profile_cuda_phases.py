@@ -5,6 +5,9 @@
 scenarios as the benchmark does (``sim.walk``), records every ``update_and_path`` call's
 phases, statistics and own time, and prints, per walk, the median and p99 call and what the
 calls at or above the p99 spent in each phase: the answer to "which steps make the tail".
+The benchmark's "replanning step" is the navigator's ``Route.path_from`` around the call
+(``s.`` columns); its p99 steps ("steps >= step p99") are split the same way, ``route``
+being what ``path_from`` adds to the call.
 
     PYTHONPATH=. python3 scripts/profile_cuda_phases.py --grid 400,1000 \\
         --scenario courtyard,explore [--modes eds,dss] [--max-steps N] [--json out.json]
@@ -29,10 +32,12 @@ host memory and publishes the call, the delta applied (round 0), the raise round
 round (or the cut-over's clearing), the relaxation, the path's tile exits, the hops, the
 segments walked and the result copied. A call without a path stamps ``exits`` and ``hops``
 as empty. The host's share is the call's own time less these."""
-HOST_PARTS = ("pre", "wait", "post", "gc")
+HOST_PARTS = ("pre", "wait", "post", "gc", "route")
 """The host's clock around the call: its start to the post into the loop's box, the post to
-the done word seen, the done word to the call's return; and the garbage collector's time
-inside the call (``gc.callbacks``)."""
+the done word seen, the done word to the call's return; the garbage collector's time inside
+the call (``gc.callbacks``); and the navigator's ``Route.path_from`` around the call (its own
+time less the call's): the benchmark's "replanning step" is ``path_from``'s time, so
+``route`` is what the bench adds to the call's own time."""
 
 
 @dataclass
@@ -49,10 +54,14 @@ class CallLog:
     tiles: list[int] = field(default_factory=list)
     exit_tiles: list[int] = field(default_factory=list)
     host_us: list[np.ndarray] = field(default_factory=list)
-    """Per call: before the post, the post to the done word seen, after it, and the time the
-    interpreter's garbage collector ran inside the call (µs)."""
+    """Per call: before the post, the post to the done word seen, after it, the time the
+    interpreter's garbage collector ran inside the call, and ``path_from`` around it (µs)."""
+    step_ms: list[float] = field(default_factory=list)
+    """Per call: its step's ``Route.path_from`` time (ms), what the benchmark records."""
+    track: list[int] = field(default_factory=list)
+    """Per call: cells on the route's track (``Track.add`` scans them at every step)."""
 
-    def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 4) -> None:
+    def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 5) -> None:
         stamps = planner._io_host.array[abi.C_STAMP : abi.C_STAMP + 9].view(np.uint32)
         stamps = np.concatenate([stamps[8:], stamps[:8]])
         # differences of the low 32 bits of a ns timer: exact across a wrap
@@ -66,6 +75,14 @@ class CallLog:
         self.tiles.append(int(planner.tiles))
         self.exit_tiles.append(int(planner.exit_tiles))
         self.host_us.append(np.asarray(host_us, np.float64))
+        self.step_ms.append(ms)
+        self.track.append(0)
+
+    def routed(self, step_ms: float, track: int) -> None:
+        """The last call's step, as ``Route.path_from`` timed it around the call."""
+        self.step_ms[-1] = step_ms
+        self.track[-1] = track
+        self.host_us[-1][4] = 1e3 * (step_ms - self.ms[-1])
 
     def summary(self) -> dict:
         """Median, p99, max of the own time; mean phases, host share and statistics of all
@@ -74,14 +91,24 @@ class CallLog:
         ph = np.stack(self.phases_us)
         hs = np.stack(self.host_us)
         p99 = float(np.percentile(ms, 99))
+        steps = np.asarray(self.step_ms)
+        step_p99 = float(np.percentile(steps, 99))
         out: dict = {
             "calls": int(ms.size),
             "median": float(np.median(ms)),
             "p99": p99,
             "max": float(ms.max()),
             "walk": float(ms.sum()),
+            "step_median": float(np.median(steps)),
+            "step_p99": step_p99,
+            "step_walk": float(steps.sum()),
         }
-        for name, sel in (("all", np.ones(ms.size, bool)), ("tail", ms >= p99)):
+        selections = (
+            ("all", np.ones(ms.size, bool)),
+            ("tail", ms >= p99),
+            ("step_tail", steps >= step_p99),  # the calls of the bench's p99 steps
+        )
+        for name, sel in selections:
             device_us = ph[sel].sum(axis=1)
             out[name] = {
                 "calls": int(sel.sum()),
@@ -92,14 +119,27 @@ class CallLog:
                 "gc_calls": int((hs[sel, 3] > 0).sum()),
                 **{
                     k: float(np.asarray(getattr(self, k))[sel].mean())
-                    for k in ("cut", "cells", "launches", "raised", "rounds", "tiles", "exit_tiles")
+                    for k in (
+                        "cut",
+                        "cells",
+                        "launches",
+                        "raised",
+                        "rounds",
+                        "tiles",
+                        "exit_tiles",
+                        "step_ms",
+                        "track",
+                    )
                 },
             }
         return out
 
 
 def recording(log: CallLog) -> Callable[[], None]:
-    """Record every ``CudaPlanner.update_and_path`` into ``log``; returns the undo."""
+    """Record every ``CudaPlanner.update_and_path`` into ``log``, with the ``Route.path_from``
+    around it; returns the undo."""
+    from daemon.navigation.route import Route
+
     CudaPlanner, Loop = planner.CudaPlanner, resident.ResidentLoop
     original, post, wait = CudaPlanner.update_and_path, Loop.post, Loop.wait
     clock: dict[str, float] = {"post": 0.0, "done": 0.0, "gc": 0.0, "gc_at": 0.0}
@@ -127,17 +167,27 @@ def recording(log: CallLog) -> Callable[[], None]:
         if self.variant == "fast":
             launched = self._loop.launches - before if self._loop is not None else 0
             parts = (clock["post"] - t0, clock["done"] - clock["post"], t1 - clock["done"])
-            host = tuple(1e6 * v for v in (*parts, clock["gc"]))
+            host = tuple(1e6 * v for v in (*parts, clock["gc"], 0.0))
             log.add(self, stats.ms, int(np.size(cells)), launched, host)
         return stats, path
 
+    def path_from(self, *args, **kwargs):
+        calls = len(log.ms)
+        out = path_from_original(self, *args, **kwargs)
+        if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
+            log.routed(self.report.plan_ms, len(self.track.cells))
+        return out
+
+    path_from_original = Route.path_from
     CudaPlanner.update_and_path = update_and_path  # type: ignore[method-assign]
     Loop.post, Loop.wait = timed_post, timed_wait  # type: ignore[method-assign]
+    Route.path_from = path_from  # type: ignore[method-assign]
     gc.callbacks.append(collector)
 
     def undo() -> None:
         CudaPlanner.update_and_path = original  # type: ignore[method-assign]
         Loop.post, Loop.wait = post, wait  # type: ignore[method-assign]
+        Route.path_from = path_from_original  # type: ignore[method-assign]
         gc.callbacks.remove(collector)
 
     return undo
@@ -182,7 +232,7 @@ def main(argv: list[str] | None = None) -> None:
     modes = args.modes.split(",")
     warm_up("cuda", "fast", sorted({m.split("-")[0].split(":")[0] for m in modes}))
     rows = []
-    cols = ("median", "p99", "max", "walk")
+    cols = ("median", "p99", "max", "walk", "step_median", "step_p99", "step_walk")
     tail = (
         "ms",
         "host_us",
@@ -196,9 +246,11 @@ def main(argv: list[str] | None = None) -> None:
         "rounds",
         "tiles",
         "exit_tiles",
+        "track",
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
-    print(f"{'walk':30} {'calls':>5} " + " ".join(f"{c:>7}" for c in cols) + f" | {names}")
+    heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)
+    print(f"{'walk':30} {'calls':>5} {heads} | {names}")
     for name in args.scenario.split(","):
         for grid in (int(v) for v in args.grid.split(",")):
             for unknown in (float(v) for v in args.unknown.split(",")):
@@ -217,8 +269,9 @@ def main(argv: list[str] | None = None) -> None:
                     for part, label in (
                         ("all", f"{name} {grid} {unknown:g} {mode}"),
                         ("tail", "  calls >= p99"),
+                        ("step_tail", "  steps >= step p99"),
                     ):
-                        lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 37
+                        lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 61
                         row = " ".join(f"{s[part][c]:7.{3 if c == 'ms' else 1}f}" for c in tail)
                         print(f"{label:30} {lead} | {row}")
     if args.json:
