@@ -45,7 +45,8 @@ class CallLog:
     """Per call of one walk: own time (ms), phase times (µs), statistics."""
 
     ms: list[float] = field(default_factory=list)
-    phases_us: list[np.ndarray] = field(default_factory=list)
+    stamps: list[np.ndarray] = field(default_factory=list)
+    """Per call: the 9 phase stamps as the device left them (``phases_us`` reads them)."""
     cut: list[int] = field(default_factory=list)
     cells: list[int] = field(default_factory=list)
     launches: list[int] = field(default_factory=list)
@@ -53,7 +54,7 @@ class CallLog:
     rounds: list[int] = field(default_factory=list)
     tiles: list[int] = field(default_factory=list)
     exit_tiles: list[int] = field(default_factory=list)
-    host_us: list[np.ndarray] = field(default_factory=list)
+    host_us: list[list[float]] = field(default_factory=list)
     """Per call: before the post, the post to the done word seen, after it, the time the
     interpreter's garbage collector ran inside the call, and ``path_from`` around it (µs)."""
     step_ms: list[float] = field(default_factory=list)
@@ -62,10 +63,10 @@ class CallLog:
     """Per call: cells on the route's track (``Track.add`` scans them at every step)."""
 
     def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 5) -> None:
-        stamps = planner._io_host.array[abi.C_STAMP : abi.C_STAMP + 9].view(np.uint32)
-        stamps = np.concatenate([stamps[8:], stamps[:8]])
-        # differences of the low 32 bits of a ns timer: exact across a wrap
-        self.phases_us.append(np.diff(stamps).astype(np.uint32).astype(np.float64) / 1e3)
+        # Inside the step the bench times: only copies here, the arithmetic in ``summary``
+        # (numpy's diff and casts here put ~50 µs into the timed steps, device run 2026-11-26
+        # 23:42), and what remains is subtracted from the step (``routed``).
+        self.stamps.append(planner._io_host.array[abi.C_STAMP : abi.C_STAMP + 9].copy())
         self.ms.append(ms)
         self.cells.append(cells)
         self.launches.append(launched)
@@ -74,22 +75,31 @@ class CallLog:
         self.rounds.append(int(planner._result[abi.C_ROUNDS]))
         self.tiles.append(int(planner.tiles))
         self.exit_tiles.append(int(planner.exit_tiles))
-        self.host_us.append(np.asarray(host_us, np.float64))
+        self.host_us.append(list(host_us))
         self.step_ms.append(ms)
         self.track.append(0)
 
-    def routed(self, step_ms: float, track: int) -> None:
-        """The last call's step, as ``Route.path_from`` timed it around the call."""
+    def routed(self, step_ms: float, call_ms: float, track: int) -> None:
+        """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
+        recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
+        time plus the combiner's return)."""
         self.step_ms[-1] = step_ms
         self.track[-1] = track
-        self.host_us[-1][4] = 1e3 * (step_ms - self.ms[-1])
+        self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
+
+    def phases_us(self) -> np.ndarray:
+        """(calls, 8) µs between the stamps 8, 0, 1, ..., 7 of each call."""
+        st = np.stack(self.stamps).view(np.uint32)
+        st = np.concatenate([st[:, 8:], st[:, :8]], axis=1)
+        # differences of the low 32 bits of a ns timer: exact across a wrap
+        return np.diff(st, axis=1).astype(np.uint32).astype(np.float64) / 1e3
 
     def summary(self) -> dict:
         """Median, p99, max of the own time; mean phases, host share and statistics of all
         calls and of the calls at or above the p99."""
         ms = np.asarray(self.ms)
-        ph = np.stack(self.phases_us)
-        hs = np.stack(self.host_us)
+        ph = self.phases_us()
+        hs = np.asarray(self.host_us, np.float64)
         p99 = float(np.percentile(ms, 99))
         steps = np.asarray(self.step_ms)
         step_p99 = float(np.percentile(steps, 99))
@@ -142,7 +152,14 @@ def recording(log: CallLog) -> Callable[[], None]:
 
     CudaPlanner, Loop = planner.CudaPlanner, resident.ResidentLoop
     original, post, wait = CudaPlanner.update_and_path, Loop.post, Loop.wait
-    clock: dict[str, float] = {"post": 0.0, "done": 0.0, "gc": 0.0, "gc_at": 0.0}
+    clock: dict[str, float] = {
+        "post": 0.0,
+        "done": 0.0,
+        "gc": 0.0,
+        "gc_at": 0.0,
+        "call": 0.0,
+        "book": 0.0,
+    }
 
     def timed_post(self, slot, n_delta):
         clock["post"] = time.perf_counter()
@@ -169,13 +186,16 @@ def recording(log: CallLog) -> Callable[[], None]:
             parts = (clock["post"] - t0, clock["done"] - clock["post"], t1 - clock["done"])
             host = tuple(1e6 * v for v in (*parts, clock["gc"], 0.0))
             log.add(self, stats.ms, int(np.size(cells)), launched, host)
+            clock["call"] = t1 - t0
+            clock["book"] = time.perf_counter() - t1  # the recording's, inside the step
         return stats, path
 
     def path_from(self, *args, **kwargs):
         calls = len(log.ms)
         out = path_from_original(self, *args, **kwargs)
         if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
-            log.routed(self.report.plan_ms, len(self.track.cells))
+            step_ms = self.report.plan_ms - 1e3 * clock["book"]
+            log.routed(step_ms, 1e3 * clock["call"], len(self.track.cells))
         return out
 
     path_from_original = Route.path_from
