@@ -11,6 +11,7 @@ being what ``path_from`` adds to the call.
 
     PYTHONPATH=. python3 scripts/profile_cuda_phases.py --grid 400,1000 \\
         --scenario courtyard,explore [--modes eds,dss] [--max-steps N] [--json out.json]
+        [--per-call]
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -61,6 +63,12 @@ class CallLog:
     """Per call: its step's ``Route.path_from`` time (ms), what the benchmark records."""
     track: list[int] = field(default_factory=list)
     """Per call: cells on the route's track (``Track.add`` scans them at every step)."""
+    faults: list[int] = field(default_factory=list)
+    """Per call: the thread's minor page faults during its step (``getrusage``, read outside
+    the step's clock)."""
+    preempted: list[int] = field(default_factory=list)
+    """Per call: the thread's involuntary context switches during its step: a step the OS
+    (or the hypervisor's vCPU, which this does not see) took the core from."""
 
     def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 5) -> None:
         # Inside the step the bench times: only copies here, the arithmetic in ``summary``
@@ -78,14 +86,31 @@ class CallLog:
         self.host_us.append(list(host_us))
         self.step_ms.append(ms)
         self.track.append(0)
+        self.faults.append(0)
+        self.preempted.append(0)
 
-    def routed(self, step_ms: float, call_ms: float, track: int) -> None:
+    def routed(
+        self, step_ms: float, call_ms: float, track: int, faults: int = 0, preempted: int = 0
+    ) -> None:
         """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
         recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
         time plus the combiner's return)."""
         self.step_ms[-1] = step_ms
         self.track[-1] = track
         self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
+        self.faults[-1], self.preempted[-1] = faults, preempted
+
+    def per_call(self) -> dict[str, list]:
+        """Every call's figures (``--per-call``): which calls make a tail, not only its mean."""
+        return {
+            "ms": self.ms,
+            "step_ms": self.step_ms,
+            "phases_us": self.phases_us().round(2).tolist(),
+            "host_us": np.round(np.asarray(self.host_us, np.float64), 2).tolist(),
+            **{k: getattr(self, k) for k in ("cells", "cut", "rounds", "tiles", "track")},
+            "faults": self.faults,
+            "preempted": self.preempted,
+        }
 
     def phases_us(self) -> np.ndarray:
         """(calls, 8) µs between the stamps 8, 0, 1, ..., 7 of each call."""
@@ -139,6 +164,8 @@ class CallLog:
                         "exit_tiles",
                         "step_ms",
                         "track",
+                        "faults",
+                        "preempted",
                     )
                 },
             }
@@ -192,10 +219,14 @@ def recording(log: CallLog) -> Callable[[], None]:
 
     def path_from(self, *args, **kwargs):
         calls = len(log.ms)
+        before = resource.getrusage(resource.RUSAGE_THREAD)
         out = path_from_original(self, *args, **kwargs)
+        after = resource.getrusage(resource.RUSAGE_THREAD)
         if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
             step_ms = self.report.plan_ms - 1e3 * clock["book"]
-            log.routed(step_ms, 1e3 * clock["call"], len(self.track.cells))
+            faults = after.ru_minflt - before.ru_minflt
+            preempted = after.ru_nivcsw - before.ru_nivcsw
+            log.routed(step_ms, 1e3 * clock["call"], len(self.track.cells), faults, preempted)
         return out
 
     path_from_original = Route.path_from
@@ -248,6 +279,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--modes", default="eds,dss", help="eds, eds-unfocused, dss; :RATE cut-over")
     ap.add_argument("--max-steps", type=int, default=None)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--per-call", action="store_true", help="every call's figures in the JSON")
     args = ap.parse_args(argv)
     modes = args.modes.split(",")
     warm_up("cuda", "fast", sorted({m.split("-")[0].split(":")[0] for m in modes}))
@@ -267,6 +299,8 @@ def main(argv: list[str] | None = None) -> None:
         "tiles",
         "exit_tiles",
         "track",
+        "faults",
+        "preempted",
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
     heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)
@@ -284,6 +318,8 @@ def main(argv: list[str] | None = None) -> None:
                         "mode": mode,
                         **log.summary(),
                     }
+                    if args.per_call:
+                        s["per_call"] = log.per_call()
                     rows.append(s)
                     head = " ".join(f"{s[c]:7.3f}" for c in cols)
                     for part, label in (
