@@ -162,3 +162,59 @@ def test_a_passage_the_full_margin_closes_is_planned_with_less_clearance():
         m.blocked, m.occupancy, (3, 15), (27, 15)
     )
     assert len(path) == 0
+
+
+def deque_track(moves: list[tuple[int, int]], keep: int) -> list[tuple[int, int]]:
+    """The track as the deque alone kept it (a scan of the deque for the loop check): the
+    reference the set's lookup must agree with."""
+    from collections import deque
+
+    from daemon.navigation.pocket import TRACK_JUMP_CELLS
+
+    cells: deque[tuple[int, int]] = deque(maxlen=keep)
+
+    def append(cell):
+        if cell in cells:
+            while cells[-1] != cell:
+                cells.pop()
+            return
+        cells.append(cell)
+
+    cell = (100, 100)
+    for dr, dc in [(0, 0), *moves]:
+        cell = (cell[0] + dr, cell[1] + dc)
+        if cells and cells[-1] == cell:
+            continue
+        if cells:
+            last = cells[-1]
+            gap = max(abs(cell[0] - last[0]), abs(cell[1] - last[1]))
+            if gap > TRACK_JUMP_CELLS:
+                cells.clear()
+            for k in range(1, gap if gap <= TRACK_JUMP_CELLS else 1):
+                t = k / gap
+                append((round(last[0] + t * (cell[0] - last[0])),
+                        round(last[1] + t * (cell[1] - last[1]))))  # fmt: skip
+        append(cell)
+    return list(cells)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(-6, 6), st.integers(-6, 6)).filter(lambda m: max(map(abs, m)) <= 1)
+        | st.tuples(st.integers(-6, 6), st.integers(-6, 6)),
+        min_size=1,
+        max_size=300,
+    ),
+    st.sampled_from([3, 5, 20, 400]),
+)
+def test_the_tracks_cells_are_those_the_deque_alone_kept(moves, keep):
+    """Loops cut, jumps restarting it, steps of a few cells filled in, and the oldest cells
+    dropped past ``keep``: the set beside the deque changes none of it."""
+    track, cell = Track(keep), (100, 100)
+    track.add(cell)
+    for dr, dc in moves:
+        cell = (cell[0] + dr, cell[1] + dc)
+        track.add(cell)
+    assert list(track.cells) == deque_track(moves, keep)
+    assert track._on == set(track.cells)
