@@ -198,13 +198,13 @@ def deque_track(moves: list[tuple[int, int]], keep: int) -> list[tuple[int, int]
     return list(cells)
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(
     st.lists(
         st.tuples(st.integers(-6, 6), st.integers(-6, 6)).filter(lambda m: max(map(abs, m)) <= 1)
         | st.tuples(st.integers(-6, 6), st.integers(-6, 6)),
         min_size=1,
-        max_size=300,
+        max_size=200,
     ),
     st.sampled_from([3, 5, 20, 400]),
 )
