@@ -62,7 +62,8 @@ class CallLog:
     step_ms: list[float] = field(default_factory=list)
     """Per call: its step's ``Route.path_from`` time (ms), what the benchmark records."""
     track: list[int] = field(default_factory=list)
-    """Per call: cells on the route's track (``Track.add`` scans them at every step)."""
+    """Per call: cells on the route's track (``Track.add`` scanned them at every step, ~10 µs
+    on the H100's host at 400 cells; a set lookup now, whatever the length)."""
     faults: list[int] = field(default_factory=list)
     """Per call: the thread's minor page faults during its step (``getrusage``, read outside
     the step's clock)."""
