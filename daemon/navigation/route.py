@@ -163,8 +163,13 @@ class Route:
         goal: Cell,
         cell: Cell,
     ) -> tuple[np.ndarray, int]:
-        if self.dead is not None:
-            blocked = blocked | self.dead
+        # The map with the dead ends blocked, a whole-map temporary (160 KB at 400², 1 MB at
+        # 1000²: fresh pages past glibc's mmap threshold), is built only for the steps that
+        # read more than the user's cell: a plan, leaving a pocket, an escape. The planner
+        # holds the dead ends already; a plain step needs only the cell.
+        dead = self.dead
+        if dead is not None and (not self._planned or self._leaving is not None or dead[cell]):
+            blocked, dead = blocked | dead, None
         if not self._planned:
             self._record(planner.plan(blocked, goal))
             self._planned, self._pending, self.report.planned = True, None, True
@@ -173,7 +178,8 @@ class Route:
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
-            return self._escape(planner, blocked, occupancy, cell, goal)
+            whole = blocked if dead is None else blocked | dead
+            return self._escape(planner, whole, occupancy, cell, goal)
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -187,7 +193,8 @@ class Route:
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the
             # sensor saw late): the way out is the same as from inside the margin.
-            return self._escape(planner, blocked, occupancy, cell, goal)
+            whole = blocked if dead is None else blocked | dead
+            return self._escape(planner, whole, occupancy, cell, goal)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
         return path, path_cost(path)

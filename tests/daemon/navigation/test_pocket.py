@@ -218,3 +218,38 @@ def test_the_tracks_cells_are_those_the_deque_alone_kept(moves, keep):
         track.add(cell)
     assert list(track.cells) == deque_track(moves, keep)
     assert track._on == set(track.cells)
+
+
+def test_steps_beside_a_remembered_dead_end_build_no_whole_map_and_keep_their_paths():
+    """The planner holds a dead end once planned: a plain step reads only the user's cell of
+    it, so no step after the plan builds the map with the dead end in it (a whole-map array:
+    fresh pages at 400²), and every path is the one planned on that map."""
+    import tracemalloc
+
+    n = 300
+    m = InflatedMap(np.full((n, n), FREE, np.uint8), RADIUS)
+    band = np.zeros((n, n), bool)
+    band[60:240, 150] = True  # a remembered dead end across the user's way
+    route, ref = new_route(), new_route()
+    route.dead = band.copy()
+    goal = (150, 290)
+    tracemalloc.start()
+    try:
+        for i, col in enumerate(range(10, 100, 10)):
+            if i == 4:  # an obstacle seen: handed to the planner with the step's path
+                wall = np.array([r * n + 200 for r in range(140, 160)])
+                flipped, now = m.apply(wall, np.full(wall.size, OCCUPIED, np.uint8))
+                route.change(flipped, now)
+                ref.change(flipped, now | band.reshape(-1)[flipped])
+            tracemalloc.reset_peak()
+            before = tracemalloc.get_traced_memory()[0]
+            path, cost = route.path_from(m.blocked, m.occupancy, goal, (150, col))
+            peak = tracemalloc.get_traced_memory()[1] - before
+            want, want_cost = ref.path_from(m.blocked | band, m.occupancy, goal, (150, col))
+            assert np.array_equal(path, want) and cost == want_cost and len(path)
+            assert not any(band[tuple(c)] for c in path)
+            if i and i != 4:  # after the plan; the repair's own arrays are the planner's
+                assert peak < band.nbytes, f"step {i}: {peak} bytes"
+    finally:
+        tracemalloc.stop()
+    assert route.dead is not None
