@@ -163,10 +163,10 @@ class Route:
         goal: Cell,
         cell: Cell,
     ) -> tuple[np.ndarray, int]:
-        # The map with the dead ends blocked, a whole-map temporary (160 KB at 400², 1 MB at
-        # 1000²: fresh pages past glibc's mmap threshold), is built only for the steps that
-        # read more than the user's cell: a plan, leaving a pocket, an escape. The planner
-        # holds the dead ends already; a plain step needs only the cell.
+        # The map with the dead ends blocked, a whole-map temporary (1 MB at 1000²: ~120 µs a
+        # step), is built only for the steps that read more than the user's cell: a plan,
+        # leaving a pocket, an escape. The planner holds the dead ends already; a plain step
+        # needs only the cell.
         dead = self.dead
         if dead is not None and (not self._planned or self._leaving is not None or dead[cell]):
             blocked, dead = blocked | dead, None
