@@ -70,6 +70,10 @@ class CallLog:
     preempted: list[int] = field(default_factory=list)
     """Per call: the thread's involuntary context switches during its step: a step the OS
     (or the hypervisor's vCPU, which this does not see) took the core from."""
+    off_cpu_us: list[float] = field(default_factory=list)
+    """Per call: its step's wall time less the thread's CPU time in it (µs): time the thread did
+    not run (preempted, or the vCPU stolen where the guest accounts steal). A stalled step
+    with none ran slowly on the CPU (caches, TLB) rather than not at all."""
 
     def add(self, planner, ms: float, cells: int, launched: int, host_us=(0.0,) * 5) -> None:
         # Inside the step the bench times: only copies here, the arithmetic in ``summary``
@@ -89,9 +93,16 @@ class CallLog:
         self.track.append(0)
         self.faults.append(0)
         self.preempted.append(0)
+        self.off_cpu_us.append(0.0)
 
     def routed(
-        self, step_ms: float, call_ms: float, track: int, faults: int = 0, preempted: int = 0
+        self,
+        step_ms: float,
+        call_ms: float,
+        track: int,
+        faults: int = 0,
+        preempted: int = 0,
+        cpu_ms: float | None = None,
     ) -> None:
         """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
         recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
@@ -100,6 +111,8 @@ class CallLog:
         self.track[-1] = track
         self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
         self.faults[-1], self.preempted[-1] = faults, preempted
+        if cpu_ms is not None:
+            self.off_cpu_us[-1] = max(0.0, 1e3 * (step_ms - cpu_ms))
 
     def per_call(self) -> dict[str, list]:
         """Every call's figures (``--per-call``): which calls make a tail, not only its mean."""
@@ -111,6 +124,7 @@ class CallLog:
             **{k: getattr(self, k) for k in ("cells", "cut", "rounds", "tiles", "track")},
             "faults": self.faults,
             "preempted": self.preempted,
+            "off_cpu_us": np.round(self.off_cpu_us, 2).tolist(),
         }
 
     def phases_us(self) -> np.ndarray:
@@ -167,6 +181,7 @@ class CallLog:
                         "track",
                         "faults",
                         "preempted",
+                        "off_cpu_us",
                     )
                 },
             }
@@ -221,13 +236,18 @@ def recording(log: CallLog) -> Callable[[], None]:
     def path_from(self, *args, **kwargs):
         calls = len(log.ms)
         before = resource.getrusage(resource.RUSAGE_THREAD)
+        cpu0 = time.thread_time()  # inside getrusage's reads, outside the step's own clock
         out = path_from_original(self, *args, **kwargs)
+        cpu = time.thread_time() - cpu0
         after = resource.getrusage(resource.RUSAGE_THREAD)
         if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
             step_ms = self.report.plan_ms - 1e3 * clock["book"]
             faults = after.ru_minflt - before.ru_minflt
             preempted = after.ru_nivcsw - before.ru_nivcsw
-            log.routed(step_ms, 1e3 * clock["call"], len(self.track.cells), faults, preempted)
+            cpu_ms = 1e3 * cpu - 1e3 * clock["book"]
+            log.routed(
+                step_ms, 1e3 * clock["call"], len(self.track.cells), faults, preempted, cpu_ms
+            )
         return out
 
     path_from_original = Route.path_from
@@ -302,6 +322,7 @@ def main(argv: list[str] | None = None) -> None:
         "track",
         "faults",
         "preempted",
+        "off_cpu_us",
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
     heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)

@@ -90,6 +90,9 @@ def test_the_recording_splits_each_step_into_the_call_and_the_route(cuda, monkey
     assert s["step_p99"] >= s["step_median"] > 0
     assert s["all"]["track"] == pytest.approx(np.mean(log.track)) and max(log.track) >= 50
     assert min(log.faults) >= 0 and min(log.preempted) >= 0
+    # The stand-in's steps run on the CPU throughout: off-CPU time is the exception.
+    off = np.asarray(log.off_cpu_us)
+    assert off.min() >= 0 and np.median(off) < 0.5 * np.median(1e3 * steps)
     calls = log.per_call()
-    assert len(calls["step_ms"]) == len(calls["phases_us"]) == len(calls["faults"]) == 60
+    assert len(calls["step_ms"]) == len(calls["phases_us"]) == len(calls["off_cpu_us"]) == 60
     assert calls["phases_us"][0] == PHASES_US and calls["track"] == log.track
