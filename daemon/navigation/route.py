@@ -138,7 +138,13 @@ class Route:
         self.track.add(cell)
         if self.dead is not None and self.dead.shape != blocked.shape:
             self.dead, self._leaving = None, None  # a map of another shape: start over
-        result = self._guarded(lambda p: self._path(p, blocked, occupancy, goal, cell), retry=True)
+        # The step's call without ``_guarded``'s closure and two frames (every step runs this):
+        # the same fallback, the call asked again on the CPU.
+        try:
+            result = self._path(self.planner, blocked, occupancy, goal, cell)
+        except self._errors as exc:
+            self._fall_back(exc)
+            result = self._path(self.planner, blocked, occupancy, goal, cell)
         if len(result[0]) == 0 and self.dead is not None:
             # The remembered dead ends leave no way at all: the map decides, not the memory.
             self.dead, self._leaving = None, None
@@ -157,8 +163,13 @@ class Route:
         goal: Cell,
         cell: Cell,
     ) -> tuple[np.ndarray, int]:
-        if self.dead is not None:
-            blocked = blocked | self.dead
+        # The map with the dead ends blocked, a whole-map temporary (1 MB at 1000²: ~120 µs a
+        # step), is built only for the steps that read more than the user's cell: a plan,
+        # leaving a pocket, an escape. The planner holds the dead ends already; a plain step
+        # needs only the cell.
+        dead = self.dead
+        if dead is not None and (not self._planned or self._leaving is not None or dead[cell]):
+            blocked, dead = blocked | dead, None
         if not self._planned:
             self._record(planner.plan(blocked, goal))
             self._planned, self._pending, self.report.planned = True, None, True
@@ -167,7 +178,8 @@ class Route:
         if blocked[cell]:
             if self._pending is not None:
                 self._record(planner.update(*self._take()))
-            return self._escape(planner, blocked, occupancy, cell, goal)
+            whole = blocked if dead is None else blocked | dead
+            return self._escape(planner, whole, occupancy, cell, goal)
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -181,10 +193,11 @@ class Route:
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the
             # sensor saw late): the way out is the same as from inside the margin.
-            return self._escape(planner, blocked, occupancy, cell, goal)
+            whole = blocked if dead is None else blocked | dead
+            return self._escape(planner, whole, occupancy, cell, goal)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
-        return path, (path_cost(path) if len(path) else int(INF))
+        return path, path_cost(path)
 
     def _escape(
         self,
@@ -269,9 +282,13 @@ class Route:
         try:
             return call(self.planner)
         except self._errors as exc:
-            self.fallback_reason = f"{type(exc).__name__}: {exc}"
-            log.warning("planner failed on the device (%s); this user continues on the CPU",
-                        self.fallback_reason)  # fmt: skip
-            self.planner = self._factory("cpu")
-            self.invalidate()
+            self._fall_back(exc)
             return call(self.planner) if retry else None
+
+    def _fall_back(self, exc: BaseException) -> None:
+        """The rest of the session on a CPU planner, which plans afresh at the next call."""
+        self.fallback_reason = f"{type(exc).__name__}: {exc}"
+        log.warning("planner failed on the device (%s); this user continues on the CPU",
+                    self.fallback_reason)  # fmt: skip
+        self.planner = self._factory("cpu")
+        self.invalidate()

@@ -162,3 +162,94 @@ def test_a_passage_the_full_margin_closes_is_planned_with_less_clearance():
         m.blocked, m.occupancy, (3, 15), (27, 15)
     )
     assert len(path) == 0
+
+
+def deque_track(moves: list[tuple[int, int]], keep: int) -> list[tuple[int, int]]:
+    """The track as the deque alone kept it (a scan of the deque for the loop check): the
+    reference the set's lookup must agree with."""
+    from collections import deque
+
+    from daemon.navigation.pocket import TRACK_JUMP_CELLS
+
+    cells: deque[tuple[int, int]] = deque(maxlen=keep)
+
+    def append(cell):
+        if cell in cells:
+            while cells[-1] != cell:
+                cells.pop()
+            return
+        cells.append(cell)
+
+    cell = (100, 100)
+    for dr, dc in [(0, 0), *moves]:
+        cell = (cell[0] + dr, cell[1] + dc)
+        if cells and cells[-1] == cell:
+            continue
+        if cells:
+            last = cells[-1]
+            gap = max(abs(cell[0] - last[0]), abs(cell[1] - last[1]))
+            if gap > TRACK_JUMP_CELLS:
+                cells.clear()
+            for k in range(1, gap if gap <= TRACK_JUMP_CELLS else 1):
+                t = k / gap
+                append((round(last[0] + t * (cell[0] - last[0])),
+                        round(last[1] + t * (cell[1] - last[1]))))  # fmt: skip
+        append(cell)
+    return list(cells)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(-6, 6), st.integers(-6, 6)).filter(lambda m: max(map(abs, m)) <= 1)
+        | st.tuples(st.integers(-6, 6), st.integers(-6, 6)),
+        min_size=1,
+        max_size=200,
+    ),
+    st.sampled_from([3, 5, 20, 400]),
+)
+def test_the_tracks_cells_are_those_the_deque_alone_kept(moves, keep):
+    """Loops cut, jumps restarting it, steps of a few cells filled in, and the oldest cells
+    dropped past ``keep``: the set beside the deque changes none of it."""
+    track, cell = Track(keep), (100, 100)
+    track.add(cell)
+    for dr, dc in moves:
+        cell = (cell[0] + dr, cell[1] + dc)
+        track.add(cell)
+    assert list(track.cells) == deque_track(moves, keep)
+    assert track._on == set(track.cells)
+
+
+def test_steps_beside_a_remembered_dead_end_build_no_whole_map_and_keep_their_paths():
+    """The planner holds a dead end once planned: a plain step reads only the user's cell of
+    it, so no step after the plan builds the map with the dead end in it (a whole-map array:
+    fresh pages at 400²), and every path is the one planned on that map."""
+    import tracemalloc
+
+    n = 300
+    m = InflatedMap(np.full((n, n), FREE, np.uint8), RADIUS)
+    band = np.zeros((n, n), bool)
+    band[60:240, 150] = True  # a remembered dead end across the user's way
+    route, ref = new_route(), new_route()
+    route.dead = band.copy()
+    goal = (150, 290)
+    tracemalloc.start()
+    try:
+        for i, col in enumerate(range(10, 100, 10)):
+            if i == 4:  # an obstacle seen: handed to the planner with the step's path
+                wall = np.array([r * n + 200 for r in range(140, 160)])
+                flipped, now = m.apply(wall, np.full(wall.size, OCCUPIED, np.uint8))
+                route.change(flipped, now)
+                ref.change(flipped, now | band.reshape(-1)[flipped])
+            tracemalloc.reset_peak()
+            before = tracemalloc.get_traced_memory()[0]
+            path, cost = route.path_from(m.blocked, m.occupancy, goal, (150, col))
+            peak = tracemalloc.get_traced_memory()[1] - before
+            want, want_cost = ref.path_from(m.blocked | band, m.occupancy, goal, (150, col))
+            assert np.array_equal(path, want) and cost == want_cost and len(path)
+            assert not any(band[tuple(c)] for c in path)
+            if i and i != 4:  # after the plan; the repair's own arrays are the planner's
+                assert peak < band.nbytes, f"step {i}: {peak} bytes"
+    finally:
+        tracemalloc.stop()
+    assert route.dead is not None
