@@ -15,9 +15,9 @@ Every review (the daemon's tick):
 - guided users over the CPU budget: the most recently admitted are shed until the rest fit
   in 90 % of it; or the lag's p95 above its threshold (``shed_fraction`` × its budget) for
   ``sustain_s``: a share of them in proportion to the excess, 1 − threshold / p95 (at least
-  one, at most half; at most a tenth while users join, whose first whole-map steps are a
-  burst), so a lag ten times the threshold halves the guided users at once rather than
-  taking ten rounds of a tenth. Then no decision for ``settle_s``;
+  one, at most half; while users join, whose first whole-map steps are a burst, only past
+  the whole budget and at most a tenth), so a lag ten times the threshold halves the guided
+  users at once rather than taking ten rounds of a tenth. Then no decision for ``settle_s``;
 - the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``: the users shed
   longest ago are guided again, as many as fit (up to ``readmit_share`` of the guided) in
   80 % of the CPU budget and in 90 % of the CPU the steps were taking when the lag last
@@ -188,7 +188,7 @@ class Admission:
     def review(self, now: float) -> tuple[list[str], list[str]]:
         """(users shed now, users guided again now)."""
         self._measure(now)
-        lag_over = self.last_p95_ms > self.s.shed_fraction * self.s.lag_budget_ms
+        lag_over = self.last_p95_ms > self._threshold(now)
         if not lag_over:
             self._over_since = None
         elif self._over_since is None:
@@ -228,7 +228,7 @@ class Admission:
                 total -= self._cost.get(self._admitted[-n], 0.0)
             return self._admitted[-n:]
         if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
-            threshold = self.s.shed_fraction * self.s.lag_budget_ms
+            threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not
             # the steady load, so a tenth at a time then (those who join later wait anyway).
             joining = now - self._joined_at <= self.s.window_s
@@ -239,6 +239,16 @@ class Admission:
                 self._capacity = (self.last_cpu_ms, now)
             return self._admitted[-n:]
         return []
+
+    def _threshold(self, now: float) -> float:
+        """The lag's p95 past which users are shed: ``shed_fraction`` of the budget, or the
+        whole budget while users join. A join's first steps (a whole map taken, often a
+        snapshot asked of the map source, a whole path planned) are a burst that passes; shed
+        at 60 % of the budget then, the newest joiners were told ``overloaded`` at p95 37–49
+        ms with the steps taking 75–91 ms of CPU a second of 600 (dev VM, 50 users, two
+        workers), and readmitted seconds later: told "overloaded" for nothing."""
+        joining = now - self._joined_at <= self.s.window_s
+        return (1.0 if joining else self.s.shed_fraction) * self.s.lag_budget_ms
 
     def _room(self, cost: float, budget_share: float, now: float) -> bool:
         """Whether one more user costing ``cost`` fits in ``budget_share`` of the CPU budget

@@ -68,6 +68,16 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
         steps(ramp, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = ramp.review(t)
     assert len(shed) == 2  # users still joining: their first steps are a burst, a tenth
+    burst = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+    for i, u in enumerate(users):
+        burst.join(u, 9.0 + i * 0.08)
+    for t in (10.0, 10.6, 11.2):
+        steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
+        assert burst.review(t) == ([], [])  # joining: within the whole budget, nobody shed
+    for t in (11.7, 12.3):  # the joins over, the same lag is over 60 % of the budget
+        steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
+        shed, _ = burst.review(t)
+    assert shed == [f"u{i}" for i in range(13, 20)]  # 1 − 30/45 of 20, rounded up
     alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
     alone.join("only", 0.0)
     steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
