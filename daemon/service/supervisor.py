@@ -9,9 +9,12 @@ copied through a pipe. The parent keeps what is the daemon's as a whole: the liv
 token (declared while every worker serves), the health answer (the workers' reports
 together), systemd's READY and watchdog, and the workers' lives: a worker that dies is
 started again, its users told STOP and ``internal``, and restored by the new
-worker from the state database; the token goes meanwhile, so clients resend what the
-worker may not have written. The parent hears every user's poses and deltas too (it
-routes them), but only hands a worker the first sample of a user it does not serve yet.
+worker from the state database. Each worker holds a liveliness token of its own
+(``WORKER_ALIVE``) on its session: a worker whose session is gone while its process lives
+(closed, or its link to the router lost) is killed, and so handled the same way. The
+daemon's token goes meanwhile, so clients resend what the worker may not have written.
+The parent hears every user's poses and deltas too (it routes them), but only hands a
+worker the first sample of a user it does not serve yet.
 Under ``[zenoh.tls]`` the private endpoint is ``tls/`` too and a worker presents the
 daemon's certificate; the router's access rules give that identity the daemon's part of the
 topic table for every user, from loopback only (``protocol.access.WORKER``).
@@ -128,7 +131,7 @@ class Supervisor:
         conf = worker_config(self.config, endpoint)
         n = self.config.workers
         self.workers = [Worker(i, n, conf) for i in range(n)]
-        entities: list[Any] = []
+        entities: list[Any] = [wire.watch_workers(self._zenoh, self._token_cb)]
         observing: list[Any] = []
         try:
             for w in self.workers:
@@ -163,7 +166,7 @@ class Supervisor:
 
     async def _until_ready(self) -> None:
         deadline = time.monotonic() + START_S
-        while not all(w.ready for w in self.workers):
+        while not all(w.serving for w in self.workers):
             if time.monotonic() > deadline or any(
                 w.proc and w.proc.poll() is not None for w in self.workers
             ):
@@ -205,13 +208,43 @@ class Supervisor:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._on_exit, worker, proc)
 
+    def _token_cb(self, index: int, pid: int, alive: bool) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._loop.call_soon_threadsafe(self._on_token, index, pid, alive)
+
+    def _on_token(self, index: int, pid: int, alive: bool) -> None:
+        """A worker's token came or went. Gone while its process lives (its session closed
+        or its link to this router lost): its users would hear nothing more, so it is killed,
+        and its exit (below) tells them STOP and ``internal`` and starts it again."""
+        if not 0 <= index < len(self.workers):
+            return
+        worker = self.workers[index]
+        proc = worker.proc
+        if proc is None or proc.pid != pid:
+            return  # a worker since replaced
+        if alive:
+            worker.token_pid = pid
+            self._all_serving()
+            return
+        worker.token_pid = None
+        if self._stopping or proc.poll() is not None:
+            return  # stopping, or dead already: its exit is handled
+        log.error(
+            "worker's zenoh session gone; killed, its users are stopped",
+            extra={"fields": {"worker": index, "pid": pid, "users": len(worker.users())}},
+        )
+        proc.kill()
+
+    def _all_serving(self) -> None:
+        if self.ready.is_set() and all(w.serving for w in self.workers):
+            self._alive(True)  # a worker started again serves
+
     def _on_report(self, worker: Worker, proc: subprocess.Popen[bytes], msg: dict) -> None:
         if proc is not worker.proc:
             return  # from a worker since replaced
         if msg.get("ready"):
             worker.ready = True
-            if self.ready.is_set() and all(w.ready for w in self.workers):
-                self._alive(True)  # a worker started again serves
+            self._all_serving()
         worker.reported_at = time.monotonic()
         if isinstance(msg.get("health"), dict):
             worker.health = msg["health"]

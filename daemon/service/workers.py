@@ -30,6 +30,7 @@ import threading
 import zlib
 from typing import Any, Protocol
 
+from protocol import session as wire
 from protocol import topics as T
 from protocol.messages import Health
 from protocol.topics import Topic
@@ -70,8 +71,11 @@ class WorkerRole:
     def owns(self, user: str) -> bool:
         return owner_of(user, self.count) == self.index
 
-    def serving(self, daemon: Served, loop: asyncio.AbstractEventLoop) -> None:
-        """The daemon listens: tell the parent, and take the samples it hands over."""
+    def serving(self, daemon: Served, loop: asyncio.AbstractEventLoop, session: Any) -> None:
+        """The daemon listens: hold this worker's token on its zenoh session (the parent
+        watches it: a worker whose session is gone is a dead worker, even if its process
+        lives), tell the parent, and take the samples it hands over."""
+        self._token = wire.declare_worker_token(session, self.index, os.getpid())
         self._send({"ready": True})
         threading.Thread(
             target=self._read_parent, args=(daemon, loop), name="parent", daemon=True
@@ -126,8 +130,17 @@ class Worker:
         self.health: dict[str, Any] | None = None
         """Its latest report (``Health`` as JSON); None until its first."""
         self.ready = False
+        """It said it serves (on its report pipe)."""
+        self.token_pid: int | None = None
+        """The process whose token the parent sees now (``WORKER_ALIVE``)."""
         self.reported_at = 0.0
         """When its latest report came (monotonic)."""
+
+    @property
+    def serving(self) -> bool:
+        """Ready, and its token seen: its session reaches the router (under the access rules
+        too), so its users' samples reach it."""
+        return self.ready and self.proc is not None and self.token_pid == self.proc.pid
 
     def start(self, on_report: Any, on_exit: Any) -> None:
         read, write = os.pipe()
