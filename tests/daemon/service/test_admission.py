@@ -141,6 +141,37 @@ def test_no_user_comes_back_past_the_capacity_the_lag_measured():
     assert back == ["u4", "u5", "u6", "u7"]
 
 
+def test_late_again_above_the_remembered_capacity_keeps_the_lower_one():
+    """Late at 320 ms/s; three come back (280) but cost more than before (a snapshot and a
+    whole plan each), and the lag is over again at 340. The machine gave less than 340 both
+    times: readmission stays within 0.9 × 320, or the same users would be shed again."""
+    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i}" for i in range(8)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 11.0):
+        steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
+        adm.review(t)
+    first, back = users[:4], []
+    for t in np.arange(12.0, 20.0, 1.0):
+        steps(adm, first + back, t, cpu_ms=4.0, lag_ms=2.0)
+        back += adm.review(t)[1]
+    assert back == ["u4", "u5", "u6"]
+    for t in (20.0, 21.0):  # 4 × 40 + 3 × 60 = 340 ms/s, late: a quarter of 7 shed
+        steps(adm, first, t, cpu_ms=4.0, lag_ms=40.0)
+        steps(adm, back, t, cpu_ms=6.0, lag_ms=40.0)
+        shed, _ = adm.review(t)
+    assert shed == ["u5", "u6"]
+    again = []
+    for t in np.arange(22.0, 40.0, 1.0):  # calm, and the capacity still remembered
+        steps(adm, [*first, "u4", *again], t, cpu_ms=4.0, lag_ms=2.0)
+        again += adm.review(t)[1]
+    # u7 (40 ms/s when last guided) fits in 0.9 × 320 = 288 beside 200; u5 (60) would not.
+    # Remembering 340 instead (0.9 × 340 = 306) brought u5 back too.
+    assert again == ["u7"]
+
+
 def test_calm_brings_back_the_user_shed_longest_ago_one_at_a_time():
     s = AdmissionSettings(cpu_budget_ms=100.0, calm_s=2.0, min_shed_s=5.0, settle_s=1.0)
     adm = Admission(s)
