@@ -155,6 +155,33 @@ def test_a_worker_whose_token_goes_while_its_process_lives_is_killed():
         parent.close()
 
 
+class _Sample:
+    def __init__(self, key: str, payload: bytes) -> None:
+        self.key_expr, self.kind = key, zenoh.SampleKind.PUT
+        self.payload = zenoh.ZBytes(payload)
+
+
+def test_the_first_delta_of_a_user_is_handed_over_even_once_a_worker_serves_the_user():
+    """A worker that met the user by the goal subscribed to its deltas after the first one
+    went by; without it, it would ask for a snapshot. Later deltas of a served user, and
+    poses, are not handed over (the worker hears them itself)."""
+    sup = Supervisor(DaemonConfig(workers=2, backend="cpu", state_dir=None))
+    sup.workers = [Worker(i, 2, "{}") for i in range(2)]
+    handed: list[tuple[int, str, bytes]] = []
+    for w in sup.workers:
+        w.hand = lambda key, payload, arrived, i=w.index: handed.append((i, key, payload))  # type: ignore[method-assign]
+    owner = owner_of(USER, 2)
+    delta, pose = T.MAP_DELTA.key(USER), T.POSE.key(USER)
+    sup._known = frozenset({delta, pose})  # the worker reported serving the user
+    sup._first(_Sample(delta, b"seq 0"), 1.0)
+    sup._first(_Sample(delta, b"seq 1"), 1.0)
+    sup._first(_Sample(pose, b"pose"), 1.0)
+    assert handed == [(owner, delta, b"seq 0")]
+    other = "nobody"  # not served yet: its first pose is handed over, as before
+    sup._first(_Sample(T.POSE.key(other), b"pose"), 1.0)
+    assert handed[-1] == (owner_of(other, 2), T.POSE.key(other), b"pose")
+
+
 @pytest.mark.timeout(30)
 def test_a_worker_dies_with_its_parent_even_a_sigkilled_one(tmp_path):
     """PDEATHSIG: the parent cannot stop its workers when it is SIGKILLed; the kernel does."""
