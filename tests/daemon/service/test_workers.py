@@ -183,6 +183,26 @@ def test_the_first_delta_of_a_user_is_handed_over_even_once_a_worker_serves_the_
 
 
 @pytest.mark.timeout(30)
+def test_a_workers_stdin_holds_every_users_first_delta_of_a_start():
+    """50 walls deltas of 4 KB, base64 in JSON lines, are ~275 KB: the default 64 KB pipe
+    dropped half of them (``Worker.hand`` never blocks the loop)."""
+    import fcntl
+
+    from daemon.service.workers import PIPE_BYTES
+
+    worker = Worker(0, 1, "not a config: the worker exits at once")
+    worker.start(lambda *_: None, lambda *_: None)
+    try:
+        assert worker.proc is not None and worker.proc.stdin is not None
+        assert PIPE_BYTES >= 50 * 6000
+        assert fcntl.fcntl(worker.proc.stdin.fileno(), fcntl.F_GETPIPE_SZ) >= PIPE_BYTES
+    finally:
+        assert worker.proc is not None
+        worker.proc.kill()
+        worker.proc.wait(10)
+
+
+@pytest.mark.timeout(30)
 def test_a_worker_dies_with_its_parent_even_a_sigkilled_one(tmp_path):
     """PDEATHSIG: the parent cannot stop its workers when it is SIGKILLed; the kernel does."""
     script = textwrap.dedent(f"""
