@@ -69,14 +69,22 @@ def allowed_calls(unit: Path, analyze: str) -> set[str]:
     return allowed
 
 
-def _child_of(pid: int, timeout: float = 10.0) -> int:
+def _daemon_under(tracer: int, timeout: float = 10.0) -> int:
+    """The ``cli.app run`` process strace started (its child, found by its command line)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
-        if children:
-            return int(children[0])
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                cmdline = (entry / "cmdline").read_bytes()
+            except (OSError, ValueError, IndexError):  # gone meanwhile
+                continue
+            if ppid == tracer and b"cli.app" in cmdline:
+                return int(entry.name)
         time.sleep(0.05)
-    raise AssertionError("strace started nothing")
+    raise AssertionError("strace started no daemon")
 
 
 @pytest.mark.timeout(120)
@@ -99,7 +107,7 @@ def test_the_shipped_daemon_with_its_workers_makes_no_system_call_its_unit_forbi
     proc = subprocess.Popen(argv, cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
     daemon = None
     try:
-        daemon = _child_of(proc.pid)
+        daemon = _daemon_under(proc.pid)
         assert proc.stderr is not None
         for line in proc.stderr:  # the parent's "ready" names its workers
             if "guidebelt.supervisor" in line and "ready" in line:
