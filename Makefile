@@ -10,7 +10,7 @@ STAMP := $(VENV)/.installed
 # toolchain and simavr (the belt firmware on a simulated ATmega328P; gcc builds
 # its harness against libsimavr), systemd
 # (systemd-analyze verify on the units). Installed only when one is missing.
-DEBIAN_PACKAGES := espeak-ng gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libelf-dev pkg-config gcc libc6-dev systemd
+DEBIAN_PACKAGES := espeak-ng gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libelf-dev pkg-config gcc libc6-dev systemd strace
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 $(STAMP): pyproject.toml

@@ -27,7 +27,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from .topics import PER_USER_ROLES, TOPICS, Kind, Role, Topic, check_user
+from .topics import PER_USER_ROLES, TOPICS, WORKER_ALIVE, Kind, Role, Topic, check_user
 
 SERVICE_ROLES = (Role.MAPPER, Role.SIM, Role.MONITOR)
 """Roles not bound to a user (the daemon itself is the enforcer; its workers, below, are
@@ -110,6 +110,10 @@ def rules_for(who: Identity) -> list[dict[str, Any]]:
     """The allowing rules of one identity, merged by (flow, messages) over the table."""
     keys: dict[tuple[str, tuple[str, ...]], list[str]] = {}
     for topic in TOPICS:
+        if who.role is Role.DAEMON and topic is WORKER_ALIVE:
+            # A worker holds its own token, for its parent (the router itself) to watch.
+            keys[("ingress", ("liveliness_token",))] = [f"{topic.key()}/**"]
+            continue
         if who.role is Role.DAEMON and not topic.per_user:
             continue  # the parent alone answers health and holds the token, not a worker
         for flow, messages in _grants(topic, who.role):
@@ -135,7 +139,8 @@ WORKER = Identity(Role.DAEMON)
 connects to the parent's router, which enforces these rules. It may do on its link what the
 table lets the daemon do for every user (subscribe to poses, goals and deltas, publish
 belts, cues and statuses, answer status queries, ask the mapper for a snapshot) and no more:
-not the daemon-wide health answer nor the liveliness token, which stay the parent's."""
+not the daemon-wide health answer nor the liveliness token, which stay the parent's. It holds
+its own token (``WORKER_ALIVE``), by which the parent knows it is gone."""
 
 
 def access_control(identities: Iterable[Identity]) -> dict[str, Any]:

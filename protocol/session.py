@@ -14,15 +14,16 @@ from collections.abc import Callable
 from typing import Any
 
 import zenoh
+from zenoh.handlers import Callback
 
 from .access import WORKER, access_control, identities_for
 from .settings import ZenohSettings, loopback
-from .topics import Kind, Topic
+from .topics import WORKER_ALIVE, Kind, Topic
 
 __all__ = [
     "ZenohSettings", "alive", "declare_publisher", "declare_queryable", "declare_subscriber",
-    "declare_token", "get", "loopback", "open_router", "open_session", "put", "reply",
-    "watch_liveliness",
+    "declare_token", "declare_worker_token", "get", "loopback", "open_router", "open_session",
+    "put", "reply", "watch_liveliness", "watch_workers",
 ]  # fmt: skip
 
 
@@ -115,6 +116,30 @@ def reply(query: zenoh.Query, topic: Topic, user: str | None, payload: bytes) ->
 def declare_token(session: zenoh.Session, topic: Topic) -> zenoh.LivelinessToken:
     _expect(topic, Kind.LIVELINESS)
     return session.liveliness().declare_token(topic.key())
+
+
+def declare_worker_token(session: zenoh.Session, index: int, pid: int) -> zenoh.LivelinessToken:
+    """A worker process's token (``WORKER_ALIVE``): it goes when the worker's session does,
+    however the worker died or lost its link."""
+    return session.liveliness().declare_token(f"{WORKER_ALIVE.key()}/{index}/{pid}")
+
+
+def watch_workers(
+    session: zenoh.Session, on_change: Callable[[int, int, bool], None]
+) -> zenoh.Subscriber:
+    """``on_change(index, pid, alive)`` for every worker token that appears or goes."""
+
+    def seen(sample: zenoh.Sample) -> None:
+        parts = str(sample.key_expr).rsplit("/", 2)
+        try:
+            index, pid = int(parts[-2]), int(parts[-1])
+        except (ValueError, IndexError):
+            return  # not a worker's token: the router's rules let no one else declare one
+        on_change(index, pid, sample.kind == zenoh.SampleKind.PUT)
+
+    return session.liveliness().declare_subscriber(
+        f"{WORKER_ALIVE.key()}/**", Callback(seen, indirect=False), history=True
+    )
 
 
 def watch_liveliness(

@@ -243,11 +243,15 @@ HEALTH = _t("health", "health", Health, Q, "daemon", "CLI, monitoring", to=(S, M
             per_user=False)
 ALIVE = _t("alive", "alive", None, LV, "daemon", "belt driver (STOP when it goes)",
            to=(U, B, V, R, M, S, MON), per_user=False)
+WORKER_ALIVE = _t("worker_alive", "workers", None, LV, "each of the daemon's worker processes",
+                  "the daemon's parent (stops the worker's users when it goes)", per_user=False)
+"""One token per worker process (``workers = N``), below this key: ``…/workers/<index>/<pid>``
+(``session.declare_worker_token``). Only the daemon's parent, the router, watches them."""
 
 TOPICS: tuple[Topic, ...] = (
     MAP_DELTA, MAP_SNAPSHOT, MAP_SOURCE, POSE, GOAL, PATH, STATUS, STATUS_QUERY,
     BELT, BELT_HEALTH, BELT_BUTTON, SETTINGS_SET, SETTINGS, SETTINGS_QUERY, VOICE, RFID_STATS,
-    PROXIMITY, HEALTH, ALIVE,
+    PROXIMITY, HEALTH, ALIVE, WORKER_ALIVE,
 )  # fmt: skip
 
 

@@ -15,15 +15,16 @@ Every review (the daemon's tick):
 - guided users over the CPU budget: the most recently admitted are shed until the rest fit
   in 90 % of it; or the lag's p95 above its threshold (``shed_fraction`` × its budget) for
   ``sustain_s``: a share of them in proportion to the excess, 1 − threshold / p95 (at least
-  one, at most half; at most a tenth while users join, whose first whole-map steps are a
-  burst), so a lag ten times the threshold halves the guided users at once rather than
-  taking ten rounds of a tenth. Then no decision for ``settle_s``;
+  one, at most half; while users join, whose first whole-map steps are a burst, only past
+  the whole budget and at most a tenth), so a lag ten times the threshold halves the guided
+  users at once rather than taking ten rounds of a tenth. Then no decision for ``settle_s``;
 - the lag's p95 below ``readmit_fraction`` × its budget for ``calm_s``: the users shed
   longest ago are guided again, as many as fit (up to ``readmit_share`` of the guided) in
   80 % of the CPU budget and in 90 % of the CPU the steps were taking when the lag last
   forced a shedding (what the machine could give them then; not measured while users join,
-  whose first steps are a burst). That measured capacity is forgotten after
-  ``capacity_memory_s``, as the machine's other load comes and goes.
+  whose first steps are a burst; late again while it is remembered, the lower of the two).
+  That measured capacity is forgotten after ``capacity_memory_s``, as the machine's other
+  load comes and goes.
 
 A shed user hears ``overloaded`` and feels WAIT (never a false ``stale_pose``); their map,
 goal and pose are kept, so guidance resumes where it was. Users admitted first stay guided
@@ -188,7 +189,7 @@ class Admission:
     def review(self, now: float) -> tuple[list[str], list[str]]:
         """(users shed now, users guided again now)."""
         self._measure(now)
-        lag_over = self.last_p95_ms > self.s.shed_fraction * self.s.lag_budget_ms
+        lag_over = self.last_p95_ms > self._threshold(now)
         if not lag_over:
             self._over_since = None
         elif self._over_since is None:
@@ -228,7 +229,7 @@ class Admission:
                 total -= self._cost.get(self._admitted[-n], 0.0)
             return self._admitted[-n:]
         if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
-            threshold = self.s.shed_fraction * self.s.lag_budget_ms
+            threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not
             # the steady load, so a tenth at a time then (those who join later wait anyway).
             joining = now - self._joined_at <= self.s.window_s
@@ -236,19 +237,40 @@ class Admission:
             share = min(most, 1.0 - threshold / self.last_p95_ms)
             n = min(len(self._admitted) - 1, max(1, math.ceil(share * len(self._admitted))))
             if self.last_cpu_ms > 0 and now - self._joined_at > self.s.window_s:
-                self._capacity = (self.last_cpu_ms, now)
+                # Late again while a capacity is remembered: the machine gives less than that
+                # measure said (other work came), so the lower of the two. Readmitting up to the
+                # older one sheds the same users again seconds later: at 50 users beside other
+                # work (load average 7, dev VM) they flapped every 3-6 s, shed at 190-290 ms/s.
+                known = self._remembered(now)
+                cpu = self.last_cpu_ms if known is None else min(known, self.last_cpu_ms)
+                self._capacity = (cpu, now)
             return self._admitted[-n:]
         return []
+
+    def _threshold(self, now: float) -> float:
+        """The lag's p95 past which users are shed: ``shed_fraction`` of the budget, or the
+        whole budget while users join. A join's first steps (a whole map taken, often a
+        snapshot asked of the map source, a whole path planned) are a burst that passes; shed
+        at 60 % of the budget then, the newest joiners were told ``overloaded`` at p95 37–49
+        ms with the steps taking 75–91 ms of CPU a second of 600 (dev VM, 50 users, two
+        workers), and readmitted seconds later: told "overloaded" for nothing."""
+        joining = now - self._joined_at <= self.s.window_s
+        return (1.0 if joining else self.s.shed_fraction) * self.s.lag_budget_ms
 
     def _room(self, cost: float, budget_share: float, now: float) -> bool:
         """Whether one more user costing ``cost`` fits in ``budget_share`` of the CPU budget
         and in 90 % of the capacity the lag last measured (while it is remembered)."""
         need = self.last_cpu_ms + cost
-        if self._capacity is not None and now - self._capacity[1] > self.s.capacity_memory_s:
-            self._capacity = None
-        if self._capacity is not None and need > 0.9 * self._capacity[0]:
+        capacity = self._remembered(now)
+        if capacity is not None and need > 0.9 * capacity:
             return False
         return need <= budget_share * self.s.cpu_budget_ms
+
+    def _remembered(self, now: float) -> float | None:
+        """The capacity the lag last measured, while it is remembered."""
+        if self._capacity is not None and now - self._capacity[1] > self.s.capacity_memory_s:
+            self._capacity = None
+        return None if self._capacity is None else self._capacity[0]
 
     def _to_readmit(self, now: float) -> list[str]:
         """Those shed longest ago (each for ``min_shed_s`` at least) that fit in the room, by

@@ -127,7 +127,7 @@ class Daemon:
         gc_policy.settle()
         self.notifier.ready(f"serving, backend {self.config.backend}")
         if worker is not None:
-            worker.serving(self, loop)
+            worker.serving(self, loop, self._zenoh)
         self.ready.set()
         log.info(
             "ready",

@@ -15,7 +15,6 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 
 import zenoh
 
@@ -36,6 +35,7 @@ from protocol.messages import (
 )
 
 from .pacing import BeltRefresh, Pacing
+from .step_thread import StepThread
 
 log = logging.getLogger("guidebelt.runner")
 
@@ -67,7 +67,7 @@ class UserRunner:
         self._publish = publish
         self._request = request
         self._snapshot_timeout_s = snapshot_timeout_s
-        self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"plan-{self.user}")
+        self._worker = StepThread(f"plan-{self.user}")
         self._inbox = Inbox()
         self._lock = threading.Lock()
         """The inbox is filled on the loop and taken by the worker when its turn comes."""
@@ -217,7 +217,7 @@ class UserRunner:
             period = self.pacing.shed_period_s if self.shed else self.pacing.guide_period_s
             self._next_step_at = loop.time() + period
             try:
-                done = await loop.run_in_executor(self._executor, self._take_and_step)
+                done = await self._worker.run(self._take_and_step)
             except asyncio.CancelledError:
                 raise
             except Exception:  # even the error report failed: log it, keep serving
@@ -358,10 +358,9 @@ class UserRunner:
 
     async def reply_snapshot(self, query: zenoh.Query, key: str) -> None:
         """Answer with this user's map, read on the worker thread between steps."""
-        loop = asyncio.get_running_loop()
         try:
             maps = self.navigator.maps
-            snap = await loop.run_in_executor(self._executor, maps.snapshot, time.time())
+            snap = await self._worker.run(maps.snapshot, time.time())
             if snap is None:
                 query.reply_err(b"no map yet")
             else:
@@ -379,11 +378,9 @@ class UserRunner:
             return
         self._closed = True
         self._task.cancel()
-        loop = asyncio.get_running_loop()
         try:
-            await loop.run_in_executor(
-                self._executor,
-                lambda: self._emit(self.navigator.halt(time.time(), code, reason), True),
+            await self._worker.run(
+                lambda: self._emit(self.navigator.halt(time.time(), code, reason), True)
             )
         finally:
-            self._executor.shutdown(wait=False, cancel_futures=True)
+            self._worker.close()

@@ -7,11 +7,12 @@ to that private endpoint as a zenoh client, with its own GIL and its own subscri
 publishers, so the router sends each of its users' samples straight to it and nothing is
 copied through a pipe. The parent keeps what is the daemon's as a whole: the liveliness
 token (declared while every worker serves), the health answer (the workers' reports
-together), systemd's READY and watchdog, and the workers' lives: a worker that dies is
-started again, its users told STOP and ``internal``, and restored by the new
-worker from the state database; the token goes meanwhile, so clients resend what the
-worker may not have written. The parent hears every user's poses and deltas too (it
-routes them), but only hands a worker the first sample of a user it does not serve yet.
+together), systemd's READY and watchdog, and the workers' lives: a worker that dies (or
+whose own token, ``WORKER_ALIVE``, goes while it lives: its session lost) is started again,
+its users told STOP and ``internal``, and restored by the new worker from the state
+database; the daemon's token goes meanwhile, so clients resend what it may not have written.
+The parent hears every user's poses and deltas too (it routes them), but only hands a
+worker the first sample of a user it does not serve yet, and each user's first delta.
 Under ``[zenoh.tls]`` the private endpoint is ``tls/`` too and a worker presents the
 daemon's certificate; the router's access rules give that identity the daemon's part of the
 topic table for every user, from loopback only (``protocol.access.WORKER``).
@@ -61,6 +62,9 @@ DISCOVER_RING = 32
 them within a look or two however many others there are, and the parent's Python sees at most
 this many samples a look, not each of them (a callback per sample cost the parent 0.05 of a
 core at 25 users; dev VM)."""
+DELTA_RING = 128
+"""Latest deltas kept: every user's first delta may come at once (a map source starting with
+50 users), and each one dropped is a snapshot its worker asks for later."""
 HANDOVER_S = 0.5
 """A user no worker reported serving yet has at most one sample handed over this often."""
 FORGET_FIRST = 10_000
@@ -111,6 +115,7 @@ class Supervisor:
         self._known: frozenset[str] = frozenset()
         """Pose and delta keys of the users some worker serves: not handed over."""
         self._handed: dict[str, float] = {}
+        self._deltas_seen: set[str] = set()  # delta keys whose first sample was looked at
         self._token: zenoh.LivelinessToken | None = None
 
     def stop(self) -> None:
@@ -128,15 +133,15 @@ class Supervisor:
         conf = worker_config(self.config, endpoint)
         n = self.config.workers
         self.workers = [Worker(i, n, conf) for i in range(n)]
-        entities: list[Any] = []
+        entities: list[Any] = [wire.watch_workers(self._zenoh, self._token_cb)]
         observing: list[Any] = []
         try:
             for w in self.workers:
                 w.start(self._report_cb, self._exit_cb)
             await self._until_ready()
             rings = [
-                wire.declare_subscriber(self._zenoh, t, zenoh.handlers.RingChannel(DISCOVER_RING))
-                for t in (T.POSE, T.MAP_DELTA)
+                wire.declare_subscriber(self._zenoh, t, zenoh.handlers.RingChannel(size))
+                for t, size in ((T.POSE, DISCOVER_RING), (T.MAP_DELTA, DELTA_RING))
             ]
             entities += rings
             entities.append(wire.declare_queryable(self._zenoh, T.HEALTH, self._on_health))
@@ -163,7 +168,7 @@ class Supervisor:
 
     async def _until_ready(self) -> None:
         deadline = time.monotonic() + START_S
-        while not all(w.ready for w in self.workers):
+        while not all(w.serving for w in self.workers):
             if time.monotonic() > deadline or any(
                 w.proc and w.proc.poll() is not None for w in self.workers
             ):
@@ -205,13 +210,43 @@ class Supervisor:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._on_exit, worker, proc)
 
+    def _token_cb(self, index: int, pid: int, alive: bool) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._loop.call_soon_threadsafe(self._on_token, index, pid, alive)
+
+    def _on_token(self, index: int, pid: int, alive: bool) -> None:
+        """A worker's token came or went. Gone while its process lives (its session closed
+        or its link to this router lost): its users would hear nothing more, so it is killed,
+        and its exit (below) tells them STOP and ``internal`` and starts it again."""
+        if not 0 <= index < len(self.workers):
+            return
+        worker = self.workers[index]
+        proc = worker.proc
+        if proc is None or proc.pid != pid:
+            return  # a worker since replaced
+        if alive:
+            worker.token_pid = pid
+            self._all_serving()
+            return
+        worker.token_pid = None
+        if self._stopping or proc.poll() is not None:
+            return  # stopping, or dead already: its exit is handled
+        log.error(
+            "worker's zenoh session gone; killed, its users are stopped",
+            extra={"fields": {"worker": index, "pid": pid, "users": len(worker.users())}},
+        )
+        proc.kill()
+
+    def _all_serving(self) -> None:
+        if self.ready.is_set() and all(w.serving for w in self.workers):
+            self._alive(True)  # a worker started again serves
+
     def _on_report(self, worker: Worker, proc: subprocess.Popen[bytes], msg: dict) -> None:
         if proc is not worker.proc:
             return  # from a worker since replaced
         if msg.get("ready"):
             worker.ready = True
-            if self.ready.is_set() and all(w.ready for w in self.workers):
-                self._alive(True)  # a worker started again serves
+            self._all_serving()
         worker.reported_at = time.monotonic()
         if isinstance(msg.get("health"), dict):
             worker.health = msg["health"]
@@ -269,9 +304,18 @@ class Supervisor:
                 wire.put(self._zenoh, T.STATUS, user, codec.encode(status))
 
     def _first(self, sample: zenoh.Sample, arrived: float) -> None:
-        """A pose or delta of a user no worker serves yet goes to the worker that will."""
+        """A pose or delta of a user no worker serves yet goes to the worker that will; so does
+        a user's first delta, served or not: the worker may have subscribed (on the goal) after
+        it went by, and would ask for a snapshot. A copy it has already is skipped in sequence."""
         key = str(sample.key_expr)
-        if key in self._known or sample.kind != zenoh.SampleKind.PUT:
+        if sample.kind != zenoh.SampleKind.PUT:
+            return
+        first_delta = key not in self._deltas_seen and T.MAP_DELTA.matches(key)
+        if first_delta:
+            if len(self._deltas_seen) > FORGET_FIRST:
+                self._deltas_seen.clear()
+            self._deltas_seen.add(key)
+        elif key in self._known:
             return
         now = time.monotonic()
         if now - self._handed.get(key, -HANDOVER_S) < HANDOVER_S:

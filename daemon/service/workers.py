@@ -20,6 +20,7 @@ import asyncio
 import base64
 import contextlib
 import ctypes
+import fcntl
 import json
 import logging
 import os
@@ -30,6 +31,7 @@ import threading
 import zlib
 from typing import Any, Protocol
 
+from protocol import session as wire
 from protocol import topics as T
 from protocol.messages import Health
 from protocol.topics import Topic
@@ -46,6 +48,8 @@ class Served(Protocol):
 log = logging.getLogger("guidebelt.worker")
 
 PR_SET_PDEATHSIG = 1
+PIPE_BYTES = 1 << 20
+"""A worker's stdin pipe (the samples handed over): Linux's default largest unprivileged size."""
 
 
 def owner_of(user: str, workers: int) -> int:
@@ -70,8 +74,11 @@ class WorkerRole:
     def owns(self, user: str) -> bool:
         return owner_of(user, self.count) == self.index
 
-    def serving(self, daemon: Served, loop: asyncio.AbstractEventLoop) -> None:
-        """The daemon listens: tell the parent, and take the samples it hands over."""
+    def serving(self, daemon: Served, loop: asyncio.AbstractEventLoop, session: Any) -> None:
+        """The daemon listens: hold this worker's token on its zenoh session (the parent
+        watches it: a worker whose session is gone is a dead worker, even if its process
+        lives), tell the parent, and take the samples it hands over."""
+        self._token = wire.declare_worker_token(session, self.index, os.getpid())
         self._send({"ready": True})
         threading.Thread(
             target=self._read_parent, args=(daemon, loop), name="parent", daemon=True
@@ -126,8 +133,17 @@ class Worker:
         self.health: dict[str, Any] | None = None
         """Its latest report (``Health`` as JSON); None until its first."""
         self.ready = False
+        """It said it serves (on its report pipe)."""
+        self.token_pid: int | None = None
+        """The process whose token the parent sees now (``WORKER_ALIVE``)."""
         self.reported_at = 0.0
         """When its latest report came (monotonic)."""
+
+    @property
+    def serving(self) -> bool:
+        """Ready, and its token seen: its session reaches the router (under the access rules
+        too), so its users' samples reach it."""
+        return self.ready and self.proc is not None and self.token_pid == self.proc.pid
 
     def start(self, on_report: Any, on_exit: Any) -> None:
         read, write = os.pipe()
@@ -142,6 +158,10 @@ class Worker:
         self.proc.stdin.write(self._config_json.encode() + b"\n")
         self.proc.stdin.flush()
         os.set_blocking(self.proc.stdin.fileno(), False)  # the loop never waits on a worker
+        # Room for every user's first delta at a start (50 walls deltas of 4 KB, base64 in
+        # JSON: ~275 KB) where the default 64 KB dropped half of them (Linux; best effort).
+        with contextlib.suppress(OSError, AttributeError):
+            fcntl.fcntl(self.proc.stdin.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
         proc = self.proc
         threading.Thread(
             target=self._listen, args=(read, proc, on_report, on_exit), daemon=True,

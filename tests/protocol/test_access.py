@@ -84,9 +84,11 @@ def test_a_worker_does_the_daemons_part_for_every_user_on_loopback_and_nothing_d
     assert grants(WORKER, "ingress", "query") == {T.MAP_SOURCE.any_user()}
     every = {k for rule in rules_for(WORKER) for k in rule["key_exprs"]}
     # Health and the liveliness token are the parent's: a worker can neither answer the one
-    # (and so forge the daemon's health) nor hold the other.
+    # (and so forge the daemon's health) nor hold the other. It holds its own token only.
     assert T.HEALTH.key() not in every and T.ALIVE.key() not in every
-    assert grants(WORKER, "ingress", "liveliness_token") == set()
+    assert grants(WORKER, "ingress", "liveliness_token") == {f"{T.WORKER_ALIVE.key()}/**"}
+    others = identities_for(["ann"], [Role.MAPPER, Role.SIM, Role.MONITOR])
+    assert all(grants(who, "ingress", "liveliness_token") == set() for who in others)
     config = access_control([*identities_for(["ann"], []), WORKER])
     (subject,) = [s for s in config["subjects"] if s["cert_common_names"] == ["daemon"]]
     assert subject["interfaces"] == ["lo"]
@@ -144,5 +146,8 @@ def test_a_tls_node_speaks_only_tls_with_its_certificate_and_no_shared_memory():
 def test_every_row_of_the_table_names_who_may_send_and_receive():
     """A topic added without roles would be silently unreachable under the access rules."""
     for topic in T.TOPICS:
+        if topic is T.WORKER_ALIVE:  # inside the daemon: its workers hold it, the parent watches
+            assert topic.writers == {Role.DAEMON} and not topic.readers
+            continue
         assert topic.writers and topic.readers, topic.name
         assert not (topic.writers & topic.readers), topic.name

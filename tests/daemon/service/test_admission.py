@@ -68,6 +68,16 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
         steps(ramp, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = ramp.review(t)
     assert len(shed) == 2  # users still joining: their first steps are a burst, a tenth
+    burst = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+    for i, u in enumerate(users):
+        burst.join(u, 9.0 + i * 0.08)
+    for t in (10.0, 10.6, 11.2):
+        steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
+        assert burst.review(t) == ([], [])  # joining: within the whole budget, nobody shed
+    for t in (11.7, 12.3):  # the joins over, the same lag is over 60 % of the budget
+        steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
+        shed, _ = burst.review(t)
+    assert shed == [f"u{i}" for i in range(13, 20)]  # 1 − 30/45 of 20, rounded up
     alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
     alone.join("only", 0.0)
     steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
@@ -129,6 +139,37 @@ def test_no_user_comes_back_past_the_capacity_the_lag_measured():
         steps(adm, users[:4] + back, t, cpu_ms=4.0, lag_ms=2.0)
         back += adm.review(t)[1]
     assert back == ["u4", "u5", "u6", "u7"]
+
+
+def test_late_again_above_the_remembered_capacity_keeps_the_lower_one():
+    """Late at 320 ms/s; three come back (280) but cost more than before (a snapshot and a
+    whole plan each), and the lag is over again at 340. The machine gave less than 340 both
+    times: readmission stays within 0.9 × 320, or the same users would be shed again."""
+    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i}" for i in range(8)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 11.0):
+        steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
+        adm.review(t)
+    first, back = users[:4], []
+    for t in np.arange(12.0, 20.0, 1.0):
+        steps(adm, first + back, t, cpu_ms=4.0, lag_ms=2.0)
+        back += adm.review(t)[1]
+    assert back == ["u4", "u5", "u6"]
+    for t in (20.0, 21.0):  # 4 × 40 + 3 × 60 = 340 ms/s, late: a quarter of 7 shed
+        steps(adm, first, t, cpu_ms=4.0, lag_ms=40.0)
+        steps(adm, back, t, cpu_ms=6.0, lag_ms=40.0)
+        shed, _ = adm.review(t)
+    assert shed == ["u5", "u6"]
+    again = []
+    for t in np.arange(22.0, 40.0, 1.0):  # calm, and the capacity still remembered
+        steps(adm, [*first, "u4", *again], t, cpu_ms=4.0, lag_ms=2.0)
+        again += adm.review(t)[1]
+    # u7 (40 ms/s when last guided) fits in 0.9 × 320 = 288 beside 200; u5 (60) would not.
+    # Remembering 340 instead (0.9 × 340 = 306) brought u5 back too.
+    assert again == ["u7"]
 
 
 def test_calm_brings_back_the_user_shed_longest_ago_one_at_a_time():

@@ -29,8 +29,8 @@ import zenoh
 
 from daemon.service.config import DaemonConfig
 from daemon.service.embedded import free_port
-from daemon.service.supervisor import private_endpoint, worker_config
-from daemon.service.workers import owner_of
+from daemon.service.supervisor import Supervisor, private_endpoint, worker_config
+from daemon.service.workers import Worker, owner_of
 from drivers.belt.recorder import Recorder
 from protocol import codec
 from protocol import session as wire
@@ -100,6 +100,106 @@ def _wait_gone(pids: list[int], timeout_s: float) -> bool:
             return False
         time.sleep(0.05)
     return True
+
+
+def _wait_for(seen: list, item: tuple, timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while item not in seen and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert item in seen, seen
+
+
+@pytest.mark.timeout(30)
+def test_a_worker_whose_token_goes_while_its_process_lives_is_killed():
+    """The per-worker token: a worker whose session is gone would leave its users in silence;
+    the parent kills it, so its exit tells them STOP and ``internal`` and starts it again. A
+    token of a process since replaced, or one going while the daemon stops, changes nothing."""
+    port = free_port()
+    parent = wire.open_session(wire.loopback(listen_port=port))
+    worker_side = wire.open_session(wire.loopback(connect_port=port))
+    sleeper = [sys.executable, "-c", "import time; time.sleep(30)"]
+    procs = [subprocess.Popen(sleeper), subprocess.Popen(sleeper)]
+    seen: list[tuple[int, int, bool]] = []
+    watch = wire.watch_workers(parent, lambda *change: seen.append(change))
+    try:
+        sup = Supervisor(DaemonConfig(workers=2, backend="cpu", state_dir=None))
+        sup.workers = [Worker(i, 2, "{}") for i in range(2)]
+        for w, proc in zip(sup.workers, procs, strict=True):
+            w.proc, w.ready = proc, True
+        tokens = [wire.declare_worker_token(worker_side, i, p.pid) for i, p in enumerate(procs)]
+        stale = wire.declare_worker_token(worker_side, 0, 4_000_000)  # no such process now
+        for i, p in enumerate(procs):
+            _wait_for(seen, (i, p.pid, True))
+            sup._on_token(i, p.pid, True)
+        assert all(w.serving for w in sup.workers)
+        stale.undeclare()
+        _wait_for(seen, (0, 4_000_000, False))
+        sup._on_token(0, 4_000_000, False)
+        assert procs[0].poll() is None and sup.workers[0].serving
+        tokens[0].undeclare()
+        _wait_for(seen, (0, procs[0].pid, False))
+        sup._on_token(0, procs[0].pid, False)
+        assert procs[0].wait(5) == -signal.SIGKILL and not sup.workers[0].serving
+        sup._stopping = True  # SIGTERM: the workers' tokens go as they close, as asked
+        tokens[1].undeclare()
+        _wait_for(seen, (1, procs[1].pid, False))
+        sup._on_token(1, procs[1].pid, False)
+        assert procs[1].poll() is None
+    finally:
+        watch.undeclare()
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait(5)
+        worker_side.close()
+        parent.close()
+
+
+class _Sample:
+    def __init__(self, key: str, payload: bytes) -> None:
+        self.key_expr, self.kind = key, zenoh.SampleKind.PUT
+        self.payload = zenoh.ZBytes(payload)
+
+
+def test_the_first_delta_of_a_user_is_handed_over_even_once_a_worker_serves_the_user():
+    """A worker that met the user by the goal subscribed to its deltas after the first one
+    went by; without it, it would ask for a snapshot. Later deltas of a served user, and
+    poses, are not handed over (the worker hears them itself)."""
+    sup = Supervisor(DaemonConfig(workers=2, backend="cpu", state_dir=None))
+    sup.workers = [Worker(i, 2, "{}") for i in range(2)]
+    handed: list[tuple[int, str, bytes]] = []
+    for w in sup.workers:
+        w.hand = lambda key, payload, arrived, i=w.index: handed.append((i, key, payload))  # type: ignore[method-assign]
+    owner = owner_of(USER, 2)
+    delta, pose = T.MAP_DELTA.key(USER), T.POSE.key(USER)
+    sup._known = frozenset({delta, pose})  # the worker reported serving the user
+    sup._first(_Sample(delta, b"seq 0"), 1.0)
+    sup._first(_Sample(delta, b"seq 1"), 1.0)
+    sup._first(_Sample(pose, b"pose"), 1.0)
+    assert handed == [(owner, delta, b"seq 0")]
+    other = "nobody"  # not served yet: its first pose is handed over, as before
+    sup._first(_Sample(T.POSE.key(other), b"pose"), 1.0)
+    assert handed[-1] == (owner_of(other, 2), T.POSE.key(other), b"pose")
+
+
+@pytest.mark.timeout(30)
+def test_a_workers_stdin_holds_every_users_first_delta_of_a_start():
+    """50 walls deltas of 4 KB, base64 in JSON lines, are ~275 KB: the default 64 KB pipe
+    dropped half of them (``Worker.hand`` never blocks the loop)."""
+    import fcntl
+
+    from daemon.service.workers import PIPE_BYTES
+
+    worker = Worker(0, 1, "not a config: the worker exits at once")
+    worker.start(lambda *_: None, lambda *_: None)
+    try:
+        assert worker.proc is not None and worker.proc.stdin is not None
+        assert PIPE_BYTES >= 50 * 6000
+        assert fcntl.fcntl(worker.proc.stdin.fileno(), fcntl.F_GETPIPE_SZ) >= PIPE_BYTES
+    finally:
+        assert worker.proc is not None
+        worker.proc.kill()
+        worker.proc.wait(10)
 
 
 @pytest.mark.timeout(30)
