@@ -90,6 +90,11 @@ def _daemon_under(tracer: int, timeout: float = 10.0) -> int:
 @pytest.mark.timeout(120)
 def test_the_shipped_daemon_with_its_workers_makes_no_system_call_its_unit_forbids(tmp_path):
     strace, analyze = _tool("strace"), _tool("systemd-analyze")
+    probe = subprocess.run(
+        [strace, "-qq", "-o", os.devnull, "true"], capture_output=True, timeout=30
+    )
+    if probe.returncode != 0:  # a container without ptrace: the environment's limit, not the unit's
+        pytest.skip(f"strace cannot trace here: {probe.stderr.decode(errors='replace').strip()}")
     allowed = allowed_calls(DAEMON_UNIT, analyze)
     workers = load_config(ROOT / "systemd" / "guidebelt.toml").workers
     assert workers >= 2  # as shipped: the users shared among worker processes
