@@ -66,8 +66,13 @@ def merge_frame(obst, floor, hit, far, cam_x, cam_y, heading, r0, c0, map_rows, 
             r, c = mr - r0, mc - c0
             is_hit = occupied[r, c] and not tail[r, c]
             floor_seen = floor[r, c] >= min_points
-            # A tail whose floor is seen: its rays went on through it, a pass.
-            cleared = (free[r, c] != 0 and obst[r, c] == 0) or (tail[r, c] and floor_seen)
+            # Floor seen in a cell with nothing standing in it is free whatever the rays
+            # say: each floor point's own line of sight reached it (over a low box, past
+            # the side of a ray ended nearer). A tail whose floor is seen: its rays went on
+            # through it, a pass.
+            cleared = (obst[r, c] == 0 and (free[r, c] != 0 or floor_seen)) or (
+                tail[r, c] and floor_seen
+            )
             if not (is_hit or cleared):
                 continue
             flat = mr * w + mc

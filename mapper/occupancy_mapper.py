@@ -7,7 +7,8 @@ occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, c
 l_t = l_{t-1} + log-odds of the inverse sensor model − l_0, with l_0 = 0): a cell with at
 least ``min_points`` obstacle points in this frame is a hit, unless they are the range-noise
 tail of the face beyond it (``evidence.range_tail``); a cell some ray passed before its hit,
-or such a tail over a seen floor, is a pass. Hits add ``l_hit``, passes add ``l_pass``
+or whose floor the frame sees with nothing standing in it, or such a tail over a seen floor,
+is a pass. Hits add ``l_hit``, passes add ``l_pass``
 (negative), clamped. A cell is published OCCUPIED at or above ``l_occupied``, FREE at or
 below ``l_free``, and keeps what it had between them, so a single noisy frame cannot close
 a passage the camera has seen through. Only the cells that changed come out, ready for a
@@ -56,7 +57,8 @@ class MapperSettings:
     min_share: float = 0.25
     """Share of a cell's points (obstacle and floor) that must be obstacle points."""
     cols_per_bin: int = 4
-    """Image columns that share one clearing ray."""
+    """Image columns per clearing ray: the frame's bearings are cut into width / this bins
+    (``binning.bearing_bins``), one ray each."""
     stride: int = 1
     """Pixel step of the per-pixel pass (1 = every pixel)."""
     floor_ransac: bool = True
