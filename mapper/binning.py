@@ -4,13 +4,20 @@ One numba loop over the pixels does what seed 000's mapper does per frame ("proj
 points to the floor and defining a threshold in height", §1): back-project each pixel with
 the pinhole model, move it into the world with the camera's (floor-corrected) pose, and
 count it in the cell under it when its height above the floor lies between the minimum and
-the maximum. The same loop keeps, per bin of image columns, the nearest obstacle point and
-the farthest point seen free (floor, or anything past the range), which is where that
-column's ray clears the map. ``cuda_binning.py`` is the same pass in CuPy.
+the maximum. The same loop keeps, per bearing bin, the nearest obstacle point and the
+farthest point seen free (floor, or anything past the range), which is where that bearing's
+ray clears the map. ``cuda_binning.py`` is the same pass in CuPy.
+
+The bins are bearings on the floor, not image columns: a chest camera is pitched down (30°),
+so one image column fans out across the floor, its bottom pixels 20-30° further out than its
+top ones near the image's edges. Binned by column, an obstacle at the bottom left ended the
+ray of a column whose floor, seen far off at another bearing, was then never cleared: the
+ghost of a person who walked there stayed until forgotten, and a passage closed for good.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +30,8 @@ PUSH_M = 0.002
 a cell boundary then counts in the cell behind it, not the free one in front (above the
 millimetre of a 16-bit depth image); small enough not to carry the far edge of a table's
 top, seen at a grazing angle, into the next cell."""
+TAN_LIMIT = math.tan(math.radians(85.0))
+"""Bearings further out than this from the camera's yaw share the outermost bins."""
 
 
 @dataclass(frozen=True)
@@ -38,23 +47,50 @@ class Window:
 
 @dataclass
 class Binned:
-    """What one frame says, in its window and per column bin."""
+    """What one frame says, in its window and per bearing bin."""
 
     counts: np.ndarray
     """``(2, side, side)`` int32: obstacle points ([0]) and floor points ([1]) per cell."""
     hit: np.ndarray
-    """``(bins, 3)`` float32: squared range, x, y of the nearest obstacle point (inf: none)."""
+    """``(bins, 3)``: squared range, x, y of the nearest obstacle point (inf: none), per
+    bearing bin (``bearing_bins``)."""
     far: np.ndarray
-    """``(bins, 3)`` float32: squared range, x, y of the farthest free point (-1: none)."""
+    """``(bins, 3)``: squared range, x, y of the farthest free point (-1: none)."""
     valid: int
     """Pixels with a usable depth."""
 
 
+def bearing_bins(rot: np.ndarray, intr, width: int, height: int) -> tuple[float, float, float]:
+    """How a point's bearing picks its bin: the camera's yaw (cos, sin) and the largest
+    |tan| of a pixel's bearing from it, at the image's corners (the edges of a pinhole
+    image bound its bearings). Bin = (tan + tan_max) / (2 tan_max) of the bins."""
+    rot = np.asarray(rot, np.float64)
+    yaw = math.atan2(rot[1, 2], rot[0, 2])  # the optical axis, seen from above
+    c, s = math.cos(yaw), math.sin(yaw)
+    tan_max = 1e-3
+    for u in (0.0, width - 1.0):
+        for v in (0.0, height - 1.0):
+            ray = rot @ np.array([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, 1.0])
+            fwd, side = ray[0] * c + ray[1] * s, -ray[0] * s + ray[1] * c
+            tan_max = max(tan_max, abs(side) / fwd if fwd > 0 else TAN_LIMIT)
+    return c, s, min(tan_max, TAN_LIMIT) * (1.0 + 1e-6)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def bearing_bin(dx, dy, yaw_c, yaw_s, tan_max, bins):
+    """The bin of the bearing of (dx, dy) from the camera (``bearing_bins``)."""
+    fwd = dx * yaw_c + dy * yaw_s
+    side = dy * yaw_c - dx * yaw_s
+    t = side / fwd if fwd > 0 else (tan_max if side > 0 else -tan_max)
+    b = int((t + tan_max) * (bins / (2.0 * tan_max)))
+    return min(max(b, 0), bins - 1)
+
+
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map_rows, cell_m,
-                min_h, max_h, max_range, cols_per_bin, stride, min_depth):  # fmt: skip
+                min_h, max_h, max_range, bins, yaw_c, yaw_s, tan_max, stride,
+                min_depth):  # fmt: skip
     h, w = depth.shape
-    bins = (w + cols_per_bin - 1) // cols_per_bin
     counts = np.zeros((2, side, side), np.int32)
     hit = np.empty((bins, 3), np.float64)
     far = np.empty((bins, 3), np.float64)
@@ -83,7 +119,7 @@ def _bin_pixels(depth, scale, fx, fy, cx, cy, rot, t, floor_z, r0, c0, side, map
             pz = (az[u] + bz) * d + t[2] - floor_z
             px, py = dx + t[0], dy + t[1]
             r2 = dx * dx + dy * dy
-            b = u // cols_per_bin
+            b = bearing_bin(dx, dy, yaw_c, yaw_s, tan_max, bins)
             if r2 > max_r2:  # past the range: free as far as the range, no obstacle
                 if max_r2 > far[b, 0]:
                     k = max_range / np.sqrt(r2)
@@ -113,23 +149,26 @@ def bin_frame_cpu(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.
                   floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
                   cols_per_bin: int, stride: int,
                   min_depth: float = MIN_DEPTH_M) -> Binned:  # fmt: skip
+    h, w = depth.shape
+    bins = (w + cols_per_bin - 1) // cols_per_bin
+    yaw_c, yaw_s, tan_max = bearing_bins(rot, intr, w, h)
     counts, hit, far, valid = _bin_pixels(
         depth, float(scale), float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy),
         np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(t, np.float64),
         float(floor_z), win.r0, win.c0, win.side, win.map_rows, float(win.cell_m),
-        float(min_h), float(max_h), float(max_range), int(cols_per_bin), int(stride),
-        float(min_depth),
+        float(min_h), float(max_h), float(max_range), bins, yaw_c, yaw_s, tan_max,
+        int(stride), float(min_depth),
     )  # fmt: skip
     return Binned(counts, hit, far, int(valid))
 
 
 @njit(cache=True, nogil=True)
 def clear_rays(hit, far, cam_x, cam_y, r0, c0, side, map_rows, cell_m, clearance):
-    """``(side, side)`` uint8: 1 where some column's ray passed before its first hit.
+    """``(side, side)`` uint8: 1 where some bearing bin's ray passed before its first hit.
 
-    A ray ends ``clearance`` short of the nearest obstacle point of its column (the cell
+    A ray ends ``clearance`` short of the nearest obstacle point of its bin (the cell
     holding the obstacle's face is not the ray's to clear), or at the farthest free point
-    when the column saw no obstacle. A column with no valid depth clears nothing.
+    when the bin saw no obstacle. A bin with no valid depth clears nothing.
     """
     free = np.zeros((side, side), np.uint8)
     step = cell_m * 0.5

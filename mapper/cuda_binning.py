@@ -2,7 +2,7 @@
 
 One CUDA kernel (``kernels/bin_pixels.cu``, built with CuPy's ``RawModule``) back-projects
 every pixel, moves it into the world, tests its height and counts it in its cell with
-``atomicAdd``; the nearest obstacle point and the farthest free point of each column bin
+``atomicAdd``; the nearest obstacle point and the farthest free point of each bearing bin
 are 64-bit ``atomicMin``/``atomicMax`` of (squared range, pixel index) keys, and a second,
 tiny kernel reads back the winning points. The depth image goes up once; the window's
 counts and the per-bin arrays (a few kB) come back in one copy.
@@ -22,10 +22,12 @@ import cupy as cp
 import cupyx
 import numpy as np
 
-from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window
+from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window, bearing_bins
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
+PARAMS = 27
+"""The kernel's double parameters (``kernels/bin_pixels.cu``'s P)."""
 _MODULES: dict[str, tuple] = {}
 _BUFFERS: dict[tuple, tuple] = {}
 
@@ -53,10 +55,10 @@ def _buffers(side: int, bins: int, h: int, w: int, dtype: np.dtype) -> tuple:
             cp.empty(size, cp.int32),
             cp.empty(bins, cp.uint64),
             cp.empty(bins, cp.uint64),
-            cp.empty(24, cp.float64),
+            cp.empty(PARAMS, cp.float64),
             cp.empty((h, w), dtype),
             cupyx.empty_pinned(size, np.int32),
-            cupyx.empty_pinned(24, np.float64),
+            cupyx.empty_pinned(PARAMS, np.float64),
             cupyx.empty_pinned((h, w), dtype),
         )
     return _BUFFERS[key]
@@ -86,6 +88,7 @@ def launcher(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarr
     p[4:13] = np.asarray(rot, np.float64).ravel()
     p[13:16] = t
     p[16:24] = (floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale)
+    p[24:27] = bearing_bins(rot, intr, w, h)
     np.copyto(staged, depth)
     params.set(p, stream=stream)
     d.set(staged, stream=stream)
@@ -102,7 +105,7 @@ def launcher(depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarr
         bin_pixels(
             grid, (THREADS,),
             (d, np.int32(h), np.int32(w), params, np.int32(win.r0), np.int32(win.c0),
-             np.int32(win.side), np.int32(win.map_rows), np.int32(cols_per_bin), counts,
+             np.int32(win.side), np.int32(win.map_rows), np.int32(bins), counts,
              hit_key, far_key, valid), stream=stream,
         )  # fmt: skip
         read_bins(

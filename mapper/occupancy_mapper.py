@@ -7,7 +7,8 @@ occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, c
 l_t = l_{t-1} + log-odds of the inverse sensor model − l_0, with l_0 = 0): a cell with at
 least ``min_points`` obstacle points in this frame is a hit, unless they are the range-noise
 tail of the face beyond it (``evidence.range_tail``); a cell some ray passed before its hit,
-or such a tail over a seen floor, is a pass. Hits add ``l_hit``, passes add ``l_pass``
+or whose floor the frame sees with nothing standing in it, or such a tail over a seen floor,
+is a pass. Hits add ``l_hit``, passes add ``l_pass``
 (negative), clamped. A cell is published OCCUPIED at or above ``l_occupied``, FREE at or
 below ``l_free``, and keeps what it had between them, so a single noisy frame cannot close
 a passage the camera has seen through. Only the cells that changed come out, ready for a
@@ -27,12 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import make_binner
-from .binning import Window, clear_rays
+from .binning import Window
 from .camera_model import Intrinsics
-from .evidence import range_tail
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
 from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
-from .proximity import Proximity, nearest_obstacles
+from .merge import merge_frame
+from .proximity import Proximity
 
 FREE, OCCUPIED, UNKNOWN = 0, 1, 2
 """As ``protocol.messages.OCCUPANCY_VALUES`` and ``daemon.planning.grid``."""
@@ -56,7 +57,8 @@ class MapperSettings:
     min_share: float = 0.25
     """Share of a cell's points (obstacle and floor) that must be obstacle points."""
     cols_per_bin: int = 4
-    """Image columns that share one clearing ray."""
+    """Image columns per clearing ray: the frame's bearings are cut into width / this bins
+    (``binning.bearing_bins``), one ray each."""
     stride: int = 1
     """Pixel step of the per-pixel pass (1 = every pixel)."""
     floor_ransac: bool = True
@@ -203,28 +205,21 @@ class OccupancyMapper:
                              s.min_height_m, s.max_height_m, s.max_range_m, s.cols_per_bin,
                              s.stride)  # fmt: skip
         t3 = time.perf_counter()
-        free = clear_rays(binned.hit, binned.far, cam[0], cam[1], win.r0, win.c0, win.side,
-                          win.map_rows, win.cell_m, 0.5 * win.cell_m)  # fmt: skip
-        obst, floor = binned.counts[0], binned.counts[1]
-        # A cell is an obstacle when enough of what the camera saw of it stands up: the floor
-        # in front of a face, where range noise scatters some of the face's points, is not.
-        occupied = (obst >= s.min_points) & (obst >= s.min_share * (obst + floor))
-        tail = range_tail(obst, win, cam[0], cam[1], s.tail_share)
-        floor_seen = floor >= s.min_points
-        # The tail of a face's range noise is no hit, and where its floor is seen, the rays
-        # that made it went on through: a pass.
-        cleared = (free.astype(bool) & (obst == 0)) | (tail & floor_seen)
-        cells, values, seen, odds = self._changes(win, occupied & ~tail, cleared, floor_seen)
-        cells, values = self._forget(cells, values, seen, frame.stamp)
-        prox = nearest_obstacles(occupied, win, cam[0], cam[1], pose.heading, s.corridor_m,
-                                 frame.stamp)  # fmt: skip
+        forget_before = -math.inf
+        if s.forget_s > 0 and frame.stamp - self._forgot_at >= 1.0:  # the whole map, once a second
+            forget_before = frame.stamp - s.forget_s
+        cells, values, ahead, nearest, bearing = merge_frame(
+            binned.counts[0], binned.counts[1], binned.hit, binned.far, cam[0], cam[1],
+            pose.heading, win.r0, win.c0, win.map_rows, win.cell_m, self.occupancy,
+            self.logodds, self.seen_at, self._fixed, frame.stamp, forget_before,
+            s.min_points, s.min_share, s.tail_share, s.l_hit, s.l_pass, s.l_occupied, s.l_free,
+            s.l_min, s.l_max, s.corridor_m,
+        )  # fmt: skip
+        if forget_before > -math.inf:
+            self._forgot_at = frame.stamp
+        prox = Proximity(*(None if math.isnan(v) else v for v in (ahead, nearest, bearing)),
+                         frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
-        # Everything is known: only now does the map change.
-        self.occupancy.reshape(-1)[cells] = values
-        if odds is not None:
-            self.logodds[odds[0]] = odds[1]
-        self.logodds.reshape(-1)[cells[values == UNKNOWN]] = 0.0  # forgotten
-        self.seen_at.reshape(-1)[seen] = frame.stamp
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
         if isinstance(refit, Sample):
             self._floor_due, self._floor_age = refit, 0
@@ -296,47 +291,3 @@ class OccupancyMapper:
         if self._fitter is not None:
             self._fitter.shutdown(wait=True, cancel_futures=True)
             self._fitter, self._floor_job = None, None
-
-    def _forget(self, cells: np.ndarray, values: np.ndarray, seen: np.ndarray,
-                stamp: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Add to the change the obstacles gone unseen for ``forget_s`` (checked once a
-        second: the whole map is scanned)."""
-        s = self.settings
-        if s.forget_s <= 0 or stamp - self._forgot_at < 1.0:
-            return cells, values
-        self._forgot_at = stamp
-        old = (self.occupancy == OCCUPIED) & ~self._fixed & (self.seen_at < stamp - s.forget_s)
-        old.reshape(-1)[seen] = False
-        gone = np.flatnonzero(old)
-        if gone.size == 0:
-            return cells, values
-        return (np.concatenate((cells, gone)),
-                np.concatenate((values, np.full(gone.size, UNKNOWN, np.uint8))))  # fmt: skip
-
-    def _changes(self, win: Window, occupied: np.ndarray, free: np.ndarray,
-                 floor_seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                  tuple | None]:  # fmt: skip
-        """Flat cells and new values where the frame changes the map (window clipped), the
-        flat cells it saw, and the window's fused log-odds to store (its slice and values).
-        A pass counts against a cell the map holds as an obstacle only where the frame also
-        sees its floor (a ray grazing the corner of a box's cell is no proof it has gone)."""
-        s = self.settings
-        h, w = s.shape
-        r0, c0 = max(0, win.r0), max(0, win.c0)
-        r1, c1 = min(h, win.r0 + win.side), min(w, win.c0 + win.side)
-        if r0 >= r1 or c0 >= c1:
-            none = np.empty(0, np.int64)
-            return none, np.empty(0, np.uint8), none, None
-        local = (slice(r0 - win.r0, r1 - win.r0), slice(c0 - win.c0, c1 - win.c0))
-        old = self.occupancy[r0:r1, c0:c1]
-        hits = occupied[local]
-        passes = free[local] & ((old != OCCUPIED) | floor_seen[local])
-        odds = self.logodds[r0:r1, c0:c1] + np.float32(s.l_hit) * hits
-        odds += np.float32(s.l_pass) * passes
-        np.clip(odds, s.l_min, s.l_max, out=odds)
-        new = np.where(odds >= s.l_occupied, OCCUPIED, np.where(odds <= s.l_free, FREE, old))
-        rr, cc = np.nonzero(new != old)
-        sr, sc = np.nonzero(hits | free[local])
-        return (((rr + r0) * w + (cc + c0)).astype(np.int64), new[rr, cc].astype(np.uint8),
-                ((sr + r0) * w + (sc + c0)).astype(np.int64),
-                ((slice(r0, r1), slice(c0, c1)), odds))  # fmt: skip

@@ -14,8 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from .binning import Window
+from numba import njit
 
 
 @dataclass(frozen=True)
@@ -26,20 +25,29 @@ class Proximity:
     stamp: float
 
 
-def nearest_obstacles(occupied: np.ndarray, win: Window, x: float, y: float, heading: float,
-                      corridor_m: float, stamp: float) -> Proximity:  # fmt: skip
-    rr, cc = np.nonzero(occupied)
-    if rr.size == 0:
-        return Proximity(None, None, None, stamp)
-    cell = win.cell_m
-    cx = (cc + win.c0 + 0.5) * cell - x
-    cy = (win.map_rows - (rr + win.r0) - 0.5) * cell - y
-    # Distance to the cell's nearest edge, not its centre: contact happens at the edge.
-    dist = np.maximum(np.hypot(cx, cy) - cell / 2, 0.0)
-    fwd = cx * math.cos(heading) + cy * math.sin(heading)
-    side = -cx * math.sin(heading) + cy * math.cos(heading)
-    i = int(np.argmin(dist))
-    nearest, bearing = float(dist[i]), math.atan2(side[i], fwd[i])
-    lane = (fwd > -cell / 2) & (np.abs(side) <= corridor_m + cell / 2)
-    ahead = float(np.maximum(fwd[lane] - cell / 2, 0.0).min()) if lane.any() else None
-    return Proximity(ahead, nearest, bearing, stamp)
+@njit(cache=True, nogil=True)
+def nearest_cells(occupied, r0, c0, map_rows, cell, x, y, heading, corridor):
+    """``Proximity``'s three figures from this frame's obstacle cells (NaN: none): the
+    nearest cell edge in the corridor ahead, the nearest in any direction and its bearing."""
+    ch, sh = math.cos(heading), math.sin(heading)
+    nearest, bearing, ahead = np.inf, np.nan, np.inf
+    side_n = occupied.shape[0]
+    for r in range(side_n):
+        for c in range(side_n):
+            if not occupied[r, c]:
+                continue
+            cx = (c + c0 + 0.5) * cell - x
+            cy = (map_rows - (r + r0) - 0.5) * cell - y
+            # Distance to the cell's nearest edge, not its centre: contact happens at the edge.
+            dist = max(math.hypot(cx, cy) - cell / 2, 0.0)
+            fwd = cx * ch + cy * sh
+            side = -cx * sh + cy * ch
+            if dist < nearest:
+                nearest, bearing = dist, math.atan2(side, fwd)
+            if fwd > -cell / 2 and abs(side) <= corridor + cell / 2:
+                ahead = min(ahead, max(fwd - cell / 2, 0.0))
+    if nearest == np.inf:
+        nearest = np.nan
+    if ahead == np.inf:
+        ahead = np.nan
+    return ahead, nearest, bearing

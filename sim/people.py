@@ -3,7 +3,10 @@
 Each person paces a straight segment of free floor back and forth at a walking speed,
 a 25 cm-radius, 1.75 m-tall column in the ``Scene3D`` and OCCUPIED in the 2-D truth while
 they stand there. A person keeps ``keep_m`` from the user (they stop and wait, as people do
-when someone is in their way), so every collision a walk counts is the user's own. When a
+when someone is in their way), so every collision a walk counts is the user's own; after
+``patience_s`` of waiting they turn back along their lane, as people do for someone who
+does not move on (a blind user waiting for them to pass would otherwise wait for ever: seed
+1's camera walk stood 35 s in NO_PATH facing a person who waited 1.1 m away). When a
 person walks on, the cells they stood on are floor again: a mapper that does not clear
 them leaves a ghost on the map.
 """
@@ -30,10 +33,18 @@ class Person:
     speed: float
     s: float = 0.0
     """Distance walked along a → b → a …, metres."""
+    waited: float = 0.0
+    """Seconds waited for the user so far."""
 
     @property
     def length(self) -> float:
         return math.hypot(self.b[0] - self.a[0], self.b[1] - self.a[1])
+
+    def turn_back(self) -> None:
+        """The same place, walking the other way (``where`` is mirrored about the lane's ends)."""
+        n2 = 2 * self.length
+        if n2 > 0:
+            self.s = (n2 - self.s % n2) % n2
 
     def where(self, s: float | None = None) -> tuple[float, float]:
         s = self.s if s is None else s
@@ -48,13 +59,14 @@ class Movers:
 
     def __init__(self, static: Scene3D, true_static: np.ndarray, known: np.ndarray,
                  avoid: list[tuple[int, int]], count: int = 3, seed: int = 0,
-                 keep_m: float = 0.8) -> None:  # fmt: skip
+                 keep_m: float = 0.8, patience_s: float = 5.0) -> None:  # fmt: skip
         """People pace lanes of 2-4 m between the known obstacles (away from the start and
         the goal); the small unknown obstacles on a lane are cleared, as people keep their
         way free, so ``static`` and ``true_static`` are copied and carved."""
         self.static = static.copy()
         self.true_static = true_static.copy()
         self.keep_m = keep_m
+        self.patience_s = patience_s
         self.people: list[Person] = []
         self._cells: list[tuple[np.ndarray, np.ndarray]] = []
         rng = np.random.default_rng([seed, 7])
@@ -101,12 +113,23 @@ class Movers:
 
     def advance(self, dt: float, user_xy: tuple[float, float]) -> None:
         """Everyone walks ``dt`` seconds on, unless the step would bring them within
-        ``keep_m`` of the user."""
+        ``keep_m`` of the user; one who has waited ``patience_s`` turns back."""
         for p in self.people:
-            nxt = p.s + p.speed * dt
-            x, y = p.where(nxt)
-            if math.hypot(x - user_xy[0], y - user_xy[1]) >= self.keep_m + RADIUS_M:
-                p.s = nxt
+            if not self._step(p, dt, user_xy):
+                p.waited += dt
+                if p.waited >= self.patience_s:
+                    p.turn_back()
+                    p.waited = 0.0
+                    self._step(p, dt, user_xy)
+            else:
+                p.waited = 0.0
+
+    def _step(self, p: Person, dt: float, user_xy: tuple[float, float]) -> bool:
+        x, y = p.where(p.s + p.speed * dt)
+        if math.hypot(x - user_xy[0], y - user_xy[1]) < self.keep_m + RADIUS_M:
+            return False
+        p.s += p.speed * dt
+        return True
 
     def stamp(self, true: np.ndarray) -> None:
         """Draw the people where they are now into ``self.scene`` and ``true`` (in place),

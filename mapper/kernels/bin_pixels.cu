@@ -1,9 +1,10 @@
 // The mapper's per-pixel pass (binning.py's _bin_pixels) as one CUDA kernel, and the pass
-// that reads back, per column bin, the point that won. Keys pack a squared range (float32
+// that reads back, per bearing bin, the point that won. Keys pack a squared range (float32
 // bits: non-negative floats order as their bits) above a pixel index, so one 64-bit
 // atomicMin keeps the nearest obstacle point and, on a tie, the first pixel in raster order,
 // as the CPU loop does; the farthest free point is an atomicMax with the index inverted.
 // P: fx fy cx cy | rot[9] | t[3] | floor_z min_h max_h max_range min_depth cell_m push scale
+//    | yaw_c yaw_s tan_max (binning.bearing_bins)
 
 #ifdef DEPTH_FLOAT
 typedef float D;  // depth in metres
@@ -25,6 +26,9 @@ typedef unsigned short D;  // depth in units of depth_scale (millimetres)
 #define CELL P[21]
 #define PUSH P[22]
 #define SCALE P[23]
+#define YAW_C P[24]
+#define YAW_S P[25]
+#define TAN_MAX P[26]
 
 __device__ bool point_of(const D* depth, int idx, int w, const double* P, double& dx, double& dy,
                          double& pz) {
@@ -38,12 +42,20 @@ __device__ bool point_of(const D* depth, int idx, int w, const double* P, double
     return true;
 }
 
+// binning.bearing_bin: the bin of the point's bearing from the camera's yaw.
+__device__ int bearing_bin(double dx, double dy, const double* P, int bins) {
+    double fwd = dx * YAW_C + dy * YAW_S, side = dy * YAW_C - dx * YAW_S;
+    double t = fwd > 0 ? side / fwd : (side > 0 ? TAN_MAX : -TAN_MAX);
+    int b = (int)((t + TAN_MAX) * (bins / (2.0 * TAN_MAX)));
+    return min(max(b, 0), bins - 1);
+}
+
 __device__ unsigned long long key(float r2, unsigned int low) {
     return ((unsigned long long)__float_as_uint(r2) << 32) | low;
 }
 
 extern "C" __global__ void bin_pixels(const D* depth, int h, int w, const double* P, int r0, int c0,
-                           int side, int map_rows, int cols_per_bin, int* counts,
+                           int side, int map_rows, int bins, int* counts,
                            unsigned long long* hit_key, unsigned long long* far_key, int* valid) {
     int idx = blockIdx.x * blockDim.x + threadIdx.x;
     double dx, dy, pz;
@@ -52,7 +64,7 @@ extern "C" __global__ void bin_pixels(const D* depth, int h, int w, const double
     if ((threadIdx.x & 31) == 0 && mask) atomicAdd(valid, __popc(mask));
     if (!ok) return;
     double r2 = dx * dx + dy * dy, max_r2 = MAX_RANGE * MAX_RANGE, inv = 1.0 / CELL;
-    int b = (idx % w) / cols_per_bin;
+    int b = bearing_bin(dx, dy, P, bins);
     if (r2 > max_r2) {  // past the range: free as far as the range
         atomicMax(far_key + b, key((float)max_r2, 0xffffffffu - idx));
         return;
