@@ -88,10 +88,13 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             nav = _navigator(scenario, name, backend, step)
             residuals: list[float] = []
             filled: list[int] = []
+            passes: list[int] = []
 
-            def note(*_, nav=nav, residuals=residuals, filled=filled) -> None:
-                residuals.append(float(getattr(nav.route.planner, "residual", 0.0)))
-                filled.append(int(getattr(nav.route.planner, "filled", 0)))
+            def note(*_, nav=nav, residuals=residuals, filled=filled, passes=passes) -> None:
+                planner = nav.route.planner
+                residuals.append(float(getattr(planner, "residual", 0.0)))
+                filled.append(int(getattr(planner, "filled", 0)))
+                passes.append(int(getattr(getattr(planner, "engine", None), "fill_passes", 0)))
 
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
                      on_step=note)  # fmt: skip
@@ -107,6 +110,8 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 # Steps that ended with a fill, and the basin cells each filled (every step of
                 # the navigator, the walk's set-up included).
                 "fills": int(np.count_nonzero(filled)), "filled": _pcts(np.array(filled, float)),
+                # The device fill's passes on the steps that ran one (cuda).
+                "fill_passes": _pcts(np.array([p for p in passes if p], float)),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
