@@ -216,10 +216,9 @@ class CudaField:
         self.fill_passes = 0
         if self.pit_count == 0:
             return 0, 0
-        counts = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
-                           self.mark, self.cells)  # fmt: skip
-        n_basin = int(counts[0])
-        self.mark[self.cells[: sum(counts)]] = 0
+        n_basin = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
+                            self.mark, self.cells, False)[0]  # fmt: skip
+        self.mark[self.cells[:n_basin]] = 0
         self.cells_host[:n_basin] = self.cells[:n_basin]
         _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * n_basin, _H2D)
         self.fill_kernel(

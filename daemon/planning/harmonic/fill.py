@@ -94,12 +94,13 @@ def lowest_each(w: np.ndarray, fixed: np.ndarray, width: int, idx: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True)
-def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
-           mark: np.ndarray, cells: np.ndarray) -> tuple[int, int, int]:  # fmt: skip
+def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray, mark: np.ndarray,
+           cells: np.ndarray, rings: bool = True) -> tuple[int, int, int]:  # fmt: skip
     """The pits' basins (back along Idx), then every other cell next to them (the ring the
     flood reads), then the cells next to the ring (the ring's Idx reads them), into
     ``cells``: returns the three counts. ``mark``: scratch of zeros, left marked (1 basin,
-    2 ring, 4 outer ring) for ``flood``, which clears it."""
+    2 ring, 4 outer ring) for ``flood``, which clears it. ``rings`` False: the basins alone
+    (the device's fill reads their neighbours itself), the two rings' counts 0."""
     offs = _offsets(width)
     n = 0
     for p in pits:
@@ -117,6 +118,8 @@ def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray,
                 mark[j] = 1
                 cells[n] = j
                 n += 1
+    if not rings:
+        return n, 0, 0
     ring = _around(cells, 0, n, mark, 2, offs, width, False)
     outer = _around(cells, n, ring, mark, 4, offs, width, True)
     return n, ring - n, outer - ring
