@@ -14,12 +14,14 @@ basins are filled at once, as a hydrologist fills a digital elevation model's de
   falling Idx steps ends at a pit, which would put it in D, or at the goal), and the goal;
 - the flood: lowest seed first (a heap), each cell of D the flood meets takes
   ``max(w, w_from + ε)`` — at least ε above the cell it was reached from — and floods on
-  from there, every cell through the heap.
+  from there; raised cells go through a queue, taken whenever its head is not above the
+  heap's top.
 
 Barnes, Lehman & Mulla, "Priority-Flood: An optimal depression-filling and watershed-labeling
 algorithm for digital elevation models", Computers & Geosciences 62 (2014), the ε variant
-(their Algorithm 2 with ε; not the improved version's queue for raised cells, which let a
-long raised chain outrun a lower seed). Every cell of D ends strictly above the cell it was
+(their Algorithm 2 with ε; the improved version's queue for raised cells, but merged with
+the heap by value: taken ahead of it regardless, it let a long raised chain outrun a lower
+seed). Every cell of D ends strictly above the cell it was
 reached from, whose value was final then; cells outside D are untouched and their Idx still
 falls towards the goal (D only rose). So the field has no pit and every descent reaches the
 goal, whatever the relaxation left: the work is a pass over the basins (``O(|D| log |D|)``),
@@ -195,13 +197,23 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
     offs = _offsets(width)
     keys = np.empty(total, dtype=np.float64)
     items = np.empty(total, dtype=np.int64)
+    queue = np.empty(n_basin, dtype=np.int64)
     size = 0
     for k in range(n_basin, total):
         c = cells[k]
         if w[c] < BLOCKED_W:  # a free cell, or the goal (the only fixed cell below BLOCKED_W)
             size = _push(keys, items, size, w[c], c)
-    while size > 0:
-        c, size = _pop(keys, items, size)
+    head = tail = 0
+    while head < tail or size > 0:
+        # The lower of the queue's head and the heap's top: the queue holds the raised cells
+        # in the order they were raised, each ε above a cell taken in increasing order, so it
+        # is sorted, and the two together give every cell in increasing order (the raised
+        # cells without the heap's log n).
+        if head < tail and (size == 0 or w[queue[head]] <= keys[0]):
+            c = queue[head]
+            head += 1
+        else:
+            c, size = _pop(keys, items, size)
         v = w[c]
         for d in range(9):
             j = c + offs[d]
@@ -210,18 +222,18 @@ def flood(w: np.ndarray, width: int, cells: np.ndarray, n_basin: int, n_ring: in
             mark[j] = 3
             # max(w, v + ε), strictly above v in w's own float type (float32 on the GPU
             # rounds v + ε back to v once ε is below half a unit in the last place); a cell
-            # with no value yet takes v + ε. Through the heap like every other cell: the
-            # raised cells' queue ahead of it (Barnes' improved variant) let a long raised
-            # chain outrun a lower seed (up to 76 log units above the fixed point in a
-            # 22 k-cell basin, 400² courtyard walk).
+            # with no value yet takes v + ε.
             step = eps
             up = v + step
             while up <= v:
                 step *= 2.0
                 up = v + step
-            if w[j] >= BLOCKED_W or w[j] < up:
+            if w[j] < BLOCKED_W and w[j] > up:
+                size = _push(keys, items, size, w[j], j)
+            else:
                 w[j] = up
-            size = _push(keys, items, size, w[j], j)
+                queue[tail] = j
+                tail += 1
     left = 0
     for k in range(n_basin):
         left += mark[cells[k]] != 3
