@@ -90,15 +90,17 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             filled: list[int] = []
             passes: list[int] = []
             searches: list[int] = []
+            cuts: list[int] = []
 
             def note(*_, nav=nav, residuals=residuals, filled=filled, passes=passes,
-                     searches=searches) -> None:  # fmt: skip
+                     searches=searches, cuts=cuts) -> None:  # fmt: skip
                 planner = nav.route.planner
                 residuals.append(float(getattr(planner, "residual", 0.0)))
                 filled.append(int(getattr(planner, "filled", 0)))
                 passes.append(int(getattr(getattr(planner, "engine", None), "fill_passes", 0)))
                 reach = getattr(planner, "reach", None)
                 searches.append(int(getattr(reach, "full_searches", 0)))
+                cuts.append(int(getattr(reach, "cut_searches", 0)))
 
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
                      on_step=note)  # fmt: skip
@@ -118,6 +120,8 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "fill_passes": _pcts(np.array([p for p in passes if p], float)),
                 # The steps (indices into trace) whose reach needed the whole-map search.
                 "full_searches": _new_searches(searches, len(r.changed)),
+                # ... and those whose cut-off cells were found from the change (reach._cut_off).
+                "cut_searches": _new_searches(cuts, len(r.changed)),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m

@@ -59,3 +59,30 @@ def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density)
         # What apply reports changed is what changed (the newly blocked count as lost).
         assert set(gained.tolist()) == set(np.flatnonzero(~before & reach.reach).tolist())
         assert set(np.flatnonzero(before & ~reach.reach).tolist()) <= set(lost.tolist())
+
+
+def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
+    # A ring: its contacts inside and outside do not join in the window round it, and the
+    # pocket inside is found from the ring (both sides searched ~20 cells deep), not by a
+    # search of the map.
+    h = w = 300
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (5, 5)
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    rr, cc = np.mgrid[0:h, 0:w]
+    d = np.maximum(np.abs(rr - 150), np.abs(cc - 150))
+    ring = np.flatnonzero((d == 20).reshape(-1))
+    lost, gained = reach.apply((ring // w + 1) * (w + 2) + ring % w + 1, np.ones(ring.size, bool))
+    blocked.reshape(-1)[ring] = True
+    assert reach.cut_searches == 1 and reach.full_searches == 0
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+    pocket = (d < 20).sum()
+    assert lost.size == ring.size + pocket and gained.size == 0
+    # A wall across the goal's own side of the map leaves the goal's region finite: the
+    # whole-map search follows, and is right.
+    wall = np.flatnonzero((cc == 20).reshape(-1))
+    reach.apply((wall // w + 1) * (w + 2) + wall % w + 1, np.ones(wall.size, bool))
+    blocked.reshape(-1)[wall] = True
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
