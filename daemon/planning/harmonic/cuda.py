@@ -216,10 +216,9 @@ class CudaField:
         self.fill_passes = 0
         if self.pit_count == 0:
             return 0, 0
+        # The basins straight into the pinned int32 list the launch reads (mark left zeroed).
         n_basin = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
-                            self.mark, self.cells, False)[0]  # fmt: skip
-        self.mark[self.cells[:n_basin]] = 0
-        self.cells_host[:n_basin] = self.cells[:n_basin]
+                            self.mark, self.cells_host, False)[0]  # fmt: skip
         _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * n_basin, _H2D)
         self.fill_kernel(
             (self.fill_blocks,), (THREADS,),
@@ -237,9 +236,10 @@ class CudaField:
         return n_basin + more, left
 
     def _pits(self) -> np.ndarray:
+        """The pits the last launch listed (int32; read before the next launch's fetch)."""
         if self.pit_count <= self.pits_host.size:
-            return self.pits_host[: self.pit_count].astype(np.int64)
-        return self.pit_list[: self.pit_count].get().astype(np.int64)
+            return self.pits_host[: self.pit_count]
+        return self.pit_list[: self.pit_count].get()
 
     def _fetch(self) -> None:
         """Idx, the result words and the first pits into pinned memory, then synchronise."""

@@ -102,7 +102,15 @@ def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray, mar
     flood reads), then the cells next to the ring (the ring's Idx reads them), into
     ``cells``: returns the three counts. ``mark``: scratch of zeros, left marked (1 basin,
     2 ring, 4 outer ring) for ``flood``, which clears it. ``rings`` False: the basins alone
-    (the device's fill reads their neighbours itself), the two rings' counts 0."""
+    (the device's fill reads their neighbours itself), the two rings' counts 0, ``mark``
+    left zeroed. ``pits`` and ``cells`` may be int32 (the device's lists, pinned) or int64.
+
+    Idx is a forest (every cell has one Idx step, to a strictly lower cell), so a cell whose
+    step leads into the basin is met once, from the one cell it leads to: only the pits need
+    a mark (one may be a cell with no value yet whose step leads into another pit's basin).
+    The search so reads ``mark`` only where Idx leads back, and the device's fill (rings
+    False) has no mark to clear after it (dev VM, CPU time, the 400² walk's 28 k-cell
+    basin: the basins, the mark cleared and the list narrowed to int32, ~0.31 -> ~0.24 ms)."""
     offs = _offsets(width)
     n = 0
     for p in pits:
@@ -116,11 +124,14 @@ def basins(idx: np.ndarray, fixed: np.ndarray, width: int, pits: np.ndarray, mar
         head += 1
         for d in range(9):
             j = cur - offs[d]  # j's Idx step d leads to cur
-            if mark[j] == 0 and not fixed[j] and idx[j] == d and d != 4:
-                mark[j] = 1
+            if idx[j] == d and d != 4 and not fixed[j] and mark[j] == 0:
+                if rings:
+                    mark[j] = 1
                 cells[n] = j
                 n += 1
     if not rings:
+        for p in pits:
+            mark[p] = 0
         return n, 0, 0
     ring = _around(cells, 0, n, mark, 2, offs, width, False)
     outer = _around(cells, n, ring, mark, 4, offs, width, True)
