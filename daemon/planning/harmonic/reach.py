@@ -167,19 +167,25 @@ def _cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
     while growing > 1 and head < tail and tail <= limit:
         cur = queue[head]
         head += 1
-        a = _root(parent, group[cur])
+        own = group[cur]
+        a = _root(parent, own)
         count[a] -= 1
         for d in range(9):
             j = cur + (d // 3 - 1) * width + d % 3 - 1
-            if blocked[j]:
+            g = group[j]
+            # Most neighbours carry cur's own label or its root's (both groups' cells are
+            # labelled with the root they had when met): no union-find walk for them.
+            if g == own or blocked[j]:
                 continue
-            if group[j] == 0:
+            if g == a:
+                continue
+            if g == 0:
                 group[j] = a
                 count[a] += 1
                 queue[tail] = j
                 tail += 1
                 continue
-            b = _root(parent, group[j])
+            b = _root(parent, g)
             if b != a:  # two growing groups meet (a finished one met every neighbour)
                 parent[b] = a
                 count[a] += count[b]
