@@ -88,10 +88,19 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             nav = _navigator(scenario, name, backend, step)
             residuals: list[float] = []
             filled: list[int] = []
+            passes: list[int] = []
+            searches: list[int] = []
+            cuts: list[int] = []
 
-            def note(*_, nav=nav, residuals=residuals, filled=filled) -> None:
-                residuals.append(float(getattr(nav.route.planner, "residual", 0.0)))
-                filled.append(int(getattr(nav.route.planner, "filled", 0)))
+            def note(*_, nav=nav, residuals=residuals, filled=filled, passes=passes,
+                     searches=searches, cuts=cuts) -> None:  # fmt: skip
+                planner = nav.route.planner
+                residuals.append(float(getattr(planner, "residual", 0.0)))
+                filled.append(int(getattr(planner, "filled", 0)))
+                passes.append(int(getattr(getattr(planner, "engine", None), "fill_passes", 0)))
+                reach = getattr(planner, "reach", None)
+                searches.append(int(getattr(reach, "full_searches", 0)))
+                cuts.append(int(getattr(reach, "cut_searches", 0)))
 
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
                      on_step=note)  # fmt: skip
@@ -107,12 +116,26 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 # Steps that ended with a fill, and the basin cells each filled (every step of
                 # the navigator, the walk's set-up included).
                 "fills": int(np.count_nonzero(filled)), "filled": _pcts(np.array(filled, float)),
+                # The device fill's passes on the steps that ran one (cuda).
+                "fill_passes": _pcts(np.array([p for p in passes if p], float)),
+                # The steps (indices into trace) whose reach needed the whole-map search.
+                "full_searches": _new_searches(searches, len(r.changed)),
+                # ... and those whose cut-off cells were found from the change (reach._cut_off).
+                "cut_searches": _new_searches(cuts, len(r.changed)),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
                           in zip(r.changed, r.iterations, r.step_ms, strict=True)],
             })  # fmt: skip
     return rows
+
+
+def _new_searches(counts: list[int], steps: int) -> list[int]:
+    """The walk steps whose reach ran the whole-map search, from the planner's running count
+    after every navigator step (``counts``; the walk's set-up steps first, which its trace of
+    ``steps`` leaves out)."""
+    skip = len(counts) - steps
+    return [i - skip for i in range(skip, len(counts)) if counts[i] > (counts[i - 1] if i else 0)]
 
 
 def _timed(fn, n: int = 30) -> dict:

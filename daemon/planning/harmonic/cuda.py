@@ -8,8 +8,10 @@ residual and pit checks, and the paper's Idx with the list of pits it leaves —
 of the queued changes before it and, after it, one synchronisation for three copies into
 page-locked host memory: Idx (one byte a cell, the host walks the descent itself), the sweep
 count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
-step's sweeps, when pits are left) fills their basins on the host (``fill.py``) from the
-pits, Idx and the few values of ``w`` it gathers, and scatters the basins' ``w`` back.
+step's sweeps, when pits are left) finds their basins on the host from Idx (``fill.basins``)
+and fills them on the device (``harmonic_fill``: the fixed point ``fill.flood`` reaches by a
+heap, by passes over the basins' cells, then Idx and the pits left, in one more launch);
+the host's flood, from the few values of ``w`` it gathers, only takes what the passes left.
 ``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
 it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
 request.
@@ -38,6 +40,11 @@ THREADS = 256
 FIRST_PITS = 64
 """Pits copied back with every relaxation's result (a step leaves a few: 2–27 measured);
 ``fill`` fetches the rest when there are more."""
+FILL_PASSES = 2048
+"""Passes the device's fill may take before the host's flood fills what they left. The
+passes a basin needs are about its longest chain of cells from where it spills (a numba
+replay of the passes in lockstep on the 400² courtyard walk's fills, CPU: 11–233 passes for
+121–22 363 cells); an uncapped launch could hold the step for as long as the map is wide."""
 _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 """``set``'s (w is BLOCKED_W, fixed) → the kernel's change code (``harmonic.cu``): blocked or
 cut off, newly reachable without a value yet, the goal's fixed zero."""
@@ -149,6 +156,12 @@ class CudaField:
         self.buf = np.empty(n, dtype=np.int64)
         self.kernel = _module(self.real).get_function("harmonic_relax")
         self.blocks = _blocks(self.real, "harmonic_relax")
+        self.fill_kernel = _module(self.real).get_function("harmonic_fill")
+        self.fill_blocks = _blocks(self.real, "harmonic_fill")
+        # The fill's three pass flags and its pit count; each launch clears them as it ends.
+        self.fill_flags = cp.zeros(4, dtype=cp.uint32)
+        self.fill_passes = 0
+        """The last step's device fill passes (0: no fill ran)."""
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         """Set ``cells``' ``w`` and fixedness, on the device at the next ``relax`` (``field``
@@ -189,27 +202,58 @@ class CudaField:
         )  # fmt: skip
         self.n_queued, self.late = 0, False
         self.launches += 1
+        self._fetch()
+        done, bits, settled, self.pit_count = (int(v) for v in self.result_host)
+        return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
+
+    def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
+        """Fill the basins of the pits the last relaxation left: the basins found on the host
+        from Idx (``fill.basins``), their ``w`` filled on the device (``harmonic_fill``, one
+        cooperative launch that also writes Idx and lists the pits left), the host flood
+        (``fill.flood``) only for cells the device's passes did not reach within
+        ``FILL_PASSES``. Returns the basins' cells and those left unfilled (0: no pit)."""
+        self._flush()
+        self.fill_passes = 0
+        if self.pit_count == 0:
+            return 0, 0
+        # The basins straight into the pinned int32 list the launch reads (mark left zeroed).
+        n_basin = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
+                            self.mark, self.cells_host, False)[0]  # fmt: skip
+        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * n_basin, _H2D)
+        self.fill_kernel(
+            (self.fill_blocks,), (THREADS,),
+            (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.io_cells,
+             self.io_vals, np.int32(n_basin), self.dtype.type(eps), np.int32(FILL_PASSES),
+             self.fill_flags, self.result, self.idx, self.pit_list),
+        )  # fmt: skip
+        self.launches += 1
+        self._fetch()
+        self.fill_passes = int(self.result_host[0])
+        self.pit_count = int(self.result_host[3])
+        if self.pit_count == 0:
+            return n_basin, 0
+        more, left = self._fill_host(eps)
+        return n_basin + more, left
+
+    def _pits(self) -> np.ndarray:
+        """The pits the last launch listed (int32; read before the next launch's fetch)."""
+        if self.pit_count <= self.pits_host.size:
+            return self.pits_host[: self.pit_count]
+        return self.pit_list[: self.pit_count].get()
+
+    def _fetch(self) -> None:
+        """Idx, the result words and the first pits into pinned memory, then synchronise."""
         _copy(self.idx_view.ctypes.data, self.idx.data.ptr, self.idx_view.size, _D2H)
         _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
         _copy(self.pits_host.ctypes.data, self.pit_list.data.ptr, 4 * self.pits_host.size, _D2H)
         # The copies wait for the launch; the queued changes' buffer is free again after.
         cp.cuda.get_current_stream().synchronize()
-        done, bits, settled, self.pit_count = (int(v) for v in self.result_host)
-        return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
-    def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
-        """Fill the basins of the pits the last relaxation left (``fill.py``): their ``w`` on
-        the device, their Idx on the host. Returns the basins' cells and those the flood did
-        not reach (0: the field has no pit)."""
-        self._flush()
-        if self.pit_count == 0:
-            return 0, 0
-        if self.pit_count <= self.pits_host.size:
-            pits = self.pits_host[: self.pit_count].astype(np.int64)
-        else:
-            pits = self.pit_list[: self.pit_count].get().astype(np.int64)
-        counts = fl.basins(self.idx_view, self.fixed_host, self.width, pits, self.mark,
-                           self.cells)  # fmt: skip
+    def _fill_host(self, eps: float) -> tuple[int, int]:
+        """``fill.py``'s flood on the host, for the pits the device's passes left: the cells
+        up, their ``w`` down, the flood, the basins' ``w`` up again."""
+        counts = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
+                           self.mark, self.cells)  # fmt: skip
         n_basin, total = counts[0], sum(counts)
         cells = self.cells[:total]
         # Gather: the cells up (int32, pinned), their w down, one synchronisation.

@@ -10,7 +10,8 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   cells, those around it still join up inside a window round the cluster (its bounding box
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
-  Otherwise, one BFS over the whole map.
+  Otherwise the cells cut off are found from where the change happened (``_cut_off``), and
+  only past a budget by one BFS over the whole map.
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
 """
@@ -24,6 +25,8 @@ from .relax import bfs_steps
 
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
+CUT_SHARE = 8
+"""``_cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -55,6 +58,20 @@ def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
     queue[0] = first
     mark[first] = 1
     wanted -= 1
+    # The contacts alone first: round a cluster in the open they form one ring, which joins
+    # them in O(ring) where the window's breadth-first search covers the cluster's area and
+    # more. Then, only if some are still apart, the window from every cell met so far.
+    while head < tail and wanted > 0:
+        cur = queue[head]
+        head += 1
+        for d in range(9):
+            j = cur + (d // 3 - 1) * width + d % 3 - 1
+            if mark[j] == 2:
+                wanted -= 1
+                mark[j] = 1
+                queue[tail] = j
+                tail += 1
+    head = 0
     while head < tail and wanted > 0:
         cur = queue[head]
         head += 1
@@ -77,20 +94,20 @@ def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label) -> bool:
-    """``_joined`` for each 8-connected cluster of the newly blocked cells in its own window.
-    Sound: a path through new obstacles crosses each cluster from one contact to another, and
-    each cluster's contacts still join (in the map with every change applied), so every cell
-    still reaches the goal. One window round all of a step's changes spans the sensor's sweep
-    (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's spans the cluster.
-    ``label``: scratch of zeros, left zeroed."""
+def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, failed) -> int:
+    """``_joined`` for each 8-connected cluster of the newly blocked cells in its own window;
+    the cells of the clusters whose contacts do not join there go into ``failed``, and their
+    count is returned (0: every cluster's contacts join). Sound: a path through new
+    obstacles crosses each cluster from one contact to another, and each joined cluster's
+    contacts still join (in the map with every change applied), so a path that crossed only
+    joined clusters can be rerouted round them. One window round all of a step's changes
+    spans the sensor's sweep (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's
+    spans the cluster. ``label``: scratch of zeros, left zeroed."""
     for i in new:
         label[i] = 1
     group = np.empty(new.size, dtype=np.int64)
-    ok = True
+    n_failed = 0
     for s in new:
-        if not ok:
-            break
         if label[s] != 1:
             continue
         label[s] = 2
@@ -105,10 +122,91 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label)
                     label[j] = 2
                     group[n] = j
                     n += 1
-        ok = _joined(blocked, reach, group[:n], width, height, margin, mark, queue)
+        if not _joined(blocked, reach, group[:n], width, height, margin, mark, queue):
+            failed[n_failed : n_failed + n] = group[:n]
+            n_failed += n
     for i in new:
         label[i] = 0
-    return ok
+    return n_failed
+
+
+@numba.njit(cache=True, nogil=True)
+def _root(parent, a):
+    while parent[a] != a:
+        parent[a] = parent[parent[a]]
+        a = parent[a]
+    return a
+
+
+@numba.njit(cache=True, nogil=True)
+def _cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
+    """The reached cells that the clusters ``new`` (those ``_joined_each`` could not clear)
+    cut off from the goal, into ``out`` and cleared in ``reach``; returns their count, or -1
+    for the whole-map search: past ``limit`` cells searched, or when the goal's region turns
+    out finite (its outside is then unknown). One breadth-first search from many groups at
+    once, each reached free neighbour of ``new`` one; groups that meet merge (union-find),
+    and a group whose frontier runs out is a whole region. A region cut off holds such a
+    neighbour (its paths to the goal crossed these clusters, the others can be rerouted), and
+    so does the goal's region when any was cut off (or else every neighbour is in it). So
+    once at most one group is still growing and the goal is not in a finished one, the
+    growing one is the goal's and every finished one is cut off: the search costs about the
+    groups times the regions cut off, not the map. ``group``: int32 scratch of zeros, left
+    zeroed."""
+    parent = np.empty(9 * new.size + 1, dtype=np.int64)
+    count = np.zeros(9 * new.size + 1, dtype=np.int64)
+    groups = tail = 0
+    for i in new:
+        for d in range(9):
+            j = i + (d // 3 - 1) * width + d % 3 - 1
+            if not blocked[j] and reach[j] and group[j] == 0:
+                groups += 1
+                parent[groups], count[groups], group[j] = groups, 1, groups
+                queue[tail] = j
+                tail += 1
+    growing, head, found = groups, 0, 0
+    while growing > 1 and head < tail and tail <= limit:
+        cur = queue[head]
+        head += 1
+        own = group[cur]
+        a = _root(parent, own)
+        count[a] -= 1
+        for d in range(9):
+            j = cur + (d // 3 - 1) * width + d % 3 - 1
+            g = group[j]
+            # Most neighbours carry cur's own label or its root's (both groups' cells are
+            # labelled with the root they had when met): no union-find walk for them.
+            if g == own or blocked[j]:
+                continue
+            if g == a:
+                continue
+            if g == 0:
+                group[j] = a
+                count[a] += 1
+                queue[tail] = j
+                tail += 1
+                continue
+            b = _root(parent, g)
+            if b != a:  # two growing groups meet (a finished one met every neighbour)
+                parent[b] = a
+                count[a] += count[b]
+                growing -= 1
+        if count[a] == 0:
+            growing -= 1
+            if group[goal] != 0 and _root(parent, group[goal]) == a:
+                break  # the goal's region is finite: the rest of the map is unknown here
+    home = _root(parent, group[goal]) if group[goal] != 0 else 0
+    if growing <= 1 and (home == 0 or count[home] > 0) and tail <= limit:
+        for k in range(tail):
+            c = queue[k]
+            if count[_root(parent, group[c])] == 0 and reach[c]:
+                reach[c] = False
+                out[found] = c
+                found += 1
+    else:
+        found = -1
+    for k in range(tail):
+        group[queue[k]] = 0
+    return found
 
 
 @numba.njit(cache=True, nogil=True)
@@ -148,24 +246,33 @@ def _flood(blocked, reach, width, queue, head, tail) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _flips(blocked, cells, values, mark, out_cells, out_values) -> int:
-    """The cells of a delta whose value differs from ``blocked``, a cell named twice taking
-    its last value (the map's own rule), into ``out_cells``/``out_values``; returns their
-    count. One pass, not a sort (``np.unique`` took ~0.2 ms of a 400² step). ``mark``:
-    scratch of zeros, left zeroed."""
-    n = 0
+def _flips(blocked, reach, cells, values, mark, out, was) -> tuple[int, int]:
+    """Apply a delta to ``blocked``, a cell named twice taking its last value (the map's own
+    rule). The cells whose value flipped: the newly blocked at the front of ``out`` (their
+    old reach in ``was``, then cleared in ``reach``), the freed at its back; returns the two
+    counts. One pass over the delta, not a sort (``np.unique`` took ~0.2 ms of a 400² step)
+    nor numpy's indexing of the flips once per use (~2 ms of the 2000² first sweep's 119 k
+    cells). ``mark``: scratch of zeros, left zeroed."""
+    nb = nf = 0
     for k in range(cells.size - 1, -1, -1):
         c = cells[k]
         if mark[c]:
             continue
         mark[c] = 1
-        if blocked[c] != values[k]:
-            out_cells[n] = c
-            out_values[n] = values[k]
-            n += 1
+        if blocked[c] == values[k]:
+            continue
+        blocked[c] = values[k]
+        if values[k]:
+            out[nb] = c
+            was[nb] = reach[c]
+            reach[c] = False
+            nb += 1
+        else:
+            nf += 1
+            out[out.size - nf] = c
     for k in range(cells.size):
         mark[cells[k]] = 0
-    return n
+    return nb, nf
 
 
 @numba.njit(cache=True, nogil=True)
@@ -194,11 +301,16 @@ class Reach:
         self._queue = np.empty(blocked.size, dtype=np.int64)
         self._mark = np.zeros(blocked.size, dtype=np.int8)
         self._label = np.zeros(blocked.size, dtype=np.int8)
+        self._group = np.zeros(blocked.size, dtype=np.int32)
+        self._failed = np.empty(blocked.size, dtype=np.int64)
         self._out = np.empty(blocked.size, dtype=np.int64)
-        self._flip_cells = np.empty(blocked.size, dtype=np.int64)
-        self._flip_values = np.empty(blocked.size, dtype=np.bool_)
+        self._flips = np.empty(blocked.size, dtype=np.int64)
+        # Only the newly blocked cells' old reach is kept (a whole copy costs ~1 ms at 2000²).
+        self._was = np.empty(blocked.size, dtype=np.bool_)
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
+        self.cut_searches = 0
+        """Changes whose cut-off cells ``_cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
         """8-connected steps from the goal of the map as first given (a plan's first guess);
         not kept up by ``apply``."""
@@ -214,34 +326,40 @@ class Reach:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
         reachability changed (newly blocked cells count as lost; newly freed ones that the goal
         reaches as gained)."""
-        n = _flips(self.blocked, cells, values, self._label, self._flip_cells,
-                   self._flip_values)  # fmt: skip
-        cells, values = self._flip_cells[:n], self._flip_values[:n]
-        if cells.size == 0:
-            return cells, cells
-        now_blocked = cells[values]
-        freed = cells[~values]
-        # Only the newly blocked cells' old reach is needed (a whole copy costs ~1 ms at 2000²).
-        was = self.reach[now_blocked]
-        self.blocked[cells] = values
+        flips = self._flips
+        nb, nf = _flips(self.blocked, self.reach, cells, values, self._label, flips,
+                        self._was)  # fmt: skip
+        if nb + nf == 0:
+            return flips[:0], flips[:0]
+        now_blocked, freed, was = flips[:nb], flips[flips.size - nf :], self._was[:nb]
         if not self.blocked[self.goal] and not self.reach[self.goal]:
             before = self.reach.copy()  # the goal itself freed: everything is found afresh
+            before[now_blocked] = was
             self._full()
             changed = np.flatnonzero(before != self.reach)
             return changed[~self.reach[changed]], changed[self.reach[changed]]
-        if now_blocked.size:
-            self.reach[now_blocked] = False
-            if self.blocked[self.goal] or not _joined_each(
-                self.blocked, self.reach, now_blocked, self.width, self.height, MARGIN,
-                self._mark, self._queue, self._label,
-            ):  # fmt: skip
+        cut = 0
+        failed = 0
+        if nb and not self.blocked[self.goal]:
+            failed = _joined_each(self.blocked, self.reach, now_blocked, self.width, self.height,
+                                  MARGIN, self._mark, self._queue, self._label,
+                                  self._failed)  # fmt: skip
+        if nb and (self.blocked[self.goal] or failed):
+            if not self.blocked[self.goal]:
+                cut = _cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
+                               self.goal, self._group, self._queue, self._out,
+                               self.blocked.size // CUT_SHARE)  # fmt: skip
+            if self.blocked[self.goal] or cut < 0:
                 before = self.reach.copy()
                 before[now_blocked] = was
                 self._full()
                 changed = np.flatnonzero(before != self.reach)
                 return changed[~self.reach[changed]], changed[self.reach[changed]]
+            self.cut_searches += 1
+        lost = now_blocked[was]
+        if cut:
+            lost = np.concatenate((lost, self._out[:cut]))
         gained = self._out[: _grow(self.blocked, self.reach, freed, self.width, self._queue,
                                    self._out)]  # fmt: skip
-        lost = now_blocked[was]
         self.count += gained.size - lost.size
         return lost, gained.copy()

@@ -188,3 +188,60 @@ extern "C" __global__ void harmonic_relax(REAL* w, unsigned char* fixed, REAL* p
         for (int k = 0; k < 4; ++k) pits[k] = 0u;
     }
 }
+
+// A replanning step's fill (fill.py) on the device: the basins' cells `cells[:n]` (the host
+// found them from Idx) take the smallest field W >= w that has, at every basin cell, a
+// neighbour at least eps lower — W(c) = max(w(c), min over neighbours W + eps), a cell with no
+// value yet taking the second term — the fixed point that Planchon & Darboux (2002) reach by
+// iteration and Barnes et al.'s priority-flood by a heap. From W = BLOCKED_W on the basins the
+// passes only lower W and every value stays >= the fixed point; once a pass lowers nothing,
+// W is it (unique: a chain of cells each eps above the next cannot close on itself). A cell
+// with a value is never a pit, even mid-way (its lowest neighbour only went down since): the
+// only pits a pass cap can leave are cells the passes have not reached yet, and write_idx
+// lists them for the host. Three flag slots, as the relaxation's pit check: after pass p's
+// barrier thread 0 clears slot (p + 2) % 3, read before that barrier and written again only
+// after the next one (slot (p + 1) % 3 may already be taking a fast block's flag).
+extern "C" __global__ void harmonic_fill(REAL* w, const unsigned char* fixed, int height,
+                                         int width, const int* cells, REAL* orig, int n,
+                                         REAL eps, int max_passes, unsigned* flags,
+                                         int* result, signed char* idx, int* pit_list) {
+    cg::grid_group grid = cg::this_grid();
+    const long long stride = (long long)gridDim.x * blockDim.x;
+    const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    for (long long k = first; k < n; k += stride) {
+        orig[k] = w[cells[k]];
+        w[cells[k]] = BLOCKED_W;
+    }
+    grid.sync();
+    int passes = 0;
+    while (passes < max_passes) {
+        bool mine = false;
+        for (long long k = first; k < n; k += stride) {
+            const int c = cells[k];
+            REAL m = BLOCKED_W;
+            for (int d = 0; d < 9; ++d)
+                if (d != 4) m = fmin(m, w[c + (d / 3 - 1) * width + d % 3 - 1]);
+            if (m >= BLOCKED_W) continue;
+            // Strictly above m in REAL (float32 rounds m + eps back to m past 2^24 eps).
+            REAL step = eps, v = m + step;
+            while (v <= m) { step *= (REAL)2; v = m + step; }
+            const REAL o = orig[k];
+            if (o < BLOCKED_W && o > v) v = o;
+            if (v < w[c]) { w[c] = v; mine = true; }
+        }
+        unsigned* slot = flags + passes % 3;
+        if (__syncthreads_or(mine) && threadIdx.x == 0) atomicOr(slot, 1u);
+        grid.sync();
+        const bool any = *(volatile unsigned*)slot != 0u;
+        if (first == 0) flags[(passes + 2) % 3] = 0u;
+        ++passes;
+        if (!any) break;
+    }
+    write_idx(w, fixed, idx, height, width, first, stride, pit_list, flags + 3);
+    grid.sync();
+    if (first == 0) {
+        result[0] = passes;
+        result[3] = (int)*(volatile unsigned*)(flags + 3);
+        for (int k = 0; k < 4; ++k) flags[k] = 0u;
+    }
+}

@@ -167,3 +167,48 @@ def test_cuda_changes_queued_for_the_launch_match_the_cpu_engine(maps):
     # Queued and read back without a relaxation: ``field`` applies them first.
     gpu.engine.set(np.array([gpu._flat((20, 20))]), rx.BLOCKED_W, True)
     assert gpu.field()[20, 20] >= rx.BLOCKED_W / 2
+
+
+@pytest.mark.parametrize("passes", [None, 1])
+def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch, passes):
+    # The device's passes (``harmonic_fill``) and the host's heap (``fill.flood``) reach the
+    # same fixed point from the same field; capped at one pass, the cells the passes did not
+    # reach are left to the host's flood, and the step still ends without a pit.
+    from daemon.planning.harmonic import cuda as hc
+    from daemon.planning.harmonic import relax as rx
+    from daemon.planning.harmonic.cpu import CpuField
+
+    if passes is not None:
+        monkeypatch.setattr(hc, "FILL_PASSES", passes)
+    blocked = np.zeros((40, 40), dtype=bool)
+    blocked[20, :] = True
+    blocked[20, 2:4] = blocked[20, 34:38] = False
+    door = 20 * 40 + np.arange(34, 38)
+    gpu = cuda_planner("rb")
+    gpu.plan(blocked, (2, 36))
+    gpu.step_sweeps, gpu.step_cap = 5, 5
+    engine, before = gpu.engine, {}
+    device_fill = engine.fill
+
+    def fill(eps):
+        engine._flush()
+        before["w"], before["fixed"] = engine.w.get(), engine.fixed_host.astype(bool)
+        return device_fill(eps)
+
+    monkeypatch.setattr(engine, "fill", fill)
+    gpu.update(door, True)
+    blocked.reshape(-1)[door] = True
+    assert gpu.filled > 100 and gpu.settled
+    after = engine.w.get()
+    assert not rx.has_pit(after, before["fixed"], engine.width)
+    maps.descents_hold(gpu, blocked, maps.reachable(blocked, (2, 36)), steps=True)
+    if passes is None:
+        assert 1 < engine.fill_passes < hc.FILL_PASSES
+        host = CpuField()
+        host.load(before["fixed"], before["w"].astype(np.float64), engine.width, engine.goal)
+        n_basin, left = host.fill()
+        assert left == 0 and n_basin == gpu.filled
+        free = host.w < rx.BLOCKED_W
+        assert np.abs(host.w[free] - after[free]).max() < GPU_TOL
+    else:
+        assert engine.fill_passes == 1

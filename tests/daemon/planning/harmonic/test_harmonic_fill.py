@@ -145,3 +145,42 @@ def test_a_float32_fill_stays_strictly_above_where_eps_is_below_rounding():
     assert not rx.has_pit(flat, fixed, 7)
     assert (mark == 0).all()
     assert fl.lowest_each(flat, fixed, 7, idx.copy(), pits) == 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_basins_are_the_cells_whose_descent_ends_at_a_pit_in_either_list_type(seed):
+    # A bumpy field (many pits, some cells with no value yet, some fixed): the basins are
+    # exactly the free cells whose Idx chain, through free cells, ends at a pit. The device's
+    # call (int32 pits and cells, no rings) finds the same cells and leaves ``mark`` zeroed.
+    rng = np.random.default_rng(seed)
+    h, width = 30, 41
+    w = rng.random((h, width)) * 5.0
+    w[rng.random((h, width)) < 0.05] = rx.BLOCKED_W  # free, no value yet
+    w[0, :] = w[-1, :] = w[:, 0] = w[:, -1] = rx.BLOCKED_W
+    flat = w.reshape(-1)
+    fixed = flat >= rx.BLOCKED_W
+    fixed[rng.random(flat.size) < 0.1] = True
+    fixed[flat.size // 2] = False
+    idx = np.empty(flat.size, dtype=np.int8)
+    pits = np.empty(flat.size, dtype=np.int64)
+    count = fl.lowest_each(flat, fixed, width, idx, pits)
+    assert count > 10
+    offs = fl._offsets(width)
+    pit_set = set(pits[:count].tolist())
+    expected = set()
+    for i in range(flat.size):
+        c = i
+        while not fixed[c] and c not in pit_set and idx[c] != 4:
+            c += offs[idx[c]]
+        if not fixed[i] and c in pit_set:
+            expected.add(i)
+    mark = np.zeros(flat.size, dtype=np.int8)
+    cells = np.empty(flat.size, dtype=np.int64)
+    n = fl.basins(idx, fixed, width, pits[:count].copy(), mark, cells)[0]
+    assert n == len(expected) and set(cells[:n].tolist()) == expected
+    mark[:] = 0
+    cells32 = np.empty(flat.size, dtype=np.int32)
+    counts = fl.basins(idx, fixed, width, pits[:count].astype(np.int32), mark, cells32, False)
+    assert counts == (n, 0, 0)
+    assert set(cells32[:n].tolist()) == expected
+    assert (mark == 0).all()

@@ -1,0 +1,88 @@
+"""``Reach`` (which free cells the goal reaches, kept up per change) against a fresh search of
+the map after every change: blobs in the open (their contacts join along the ring round them),
+rings that close a pocket off, walls that cut the map in two, and the cells freed again."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from daemon.planning.harmonic.reach import Reach
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def padded(blocked: np.ndarray) -> np.ndarray:
+    out = np.ones((blocked.shape[0] + 2, blocked.shape[1] + 2), dtype=np.bool_)
+    out[1:-1, 1:-1] = blocked
+    return out.reshape(-1)
+
+
+def shape_cells(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
+    """A blob, a ring (the pocket inside it cut off) or a wall across, as map cells."""
+    r, c = int(rng.integers(0, h)), int(rng.integers(0, w))
+    size = int(rng.integers(1, 6))
+    rr, cc = np.mgrid[0:h, 0:w]
+    d = np.maximum(np.abs(rr - r), np.abs(cc - c))
+    kind = int(rng.integers(0, 3))
+    if kind == 0:
+        mask = d <= size
+    elif kind == 1:
+        mask = d == size
+    else:
+        mask = (rr == r) if rng.random() < 0.5 else (cc == c)
+    return np.flatnonzero(mask.reshape(-1))
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(seed=st.integers(0, 2**31), h=st.integers(4, 40), w=st.integers(4, 40),
+       density=st.floats(0.0, 0.3))  # fmt: skip
+def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density):
+    rng = np.random.default_rng(seed)
+    blocked = maps.random_map(rng, h, w, density)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    blocked[goal] = False
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    for _ in range(6):
+        cells = shape_cells(rng, h, w)
+        values = np.full(cells.size, rng.random() < 0.75)
+        before = reach.reach.copy()
+        lost, gained = reach.apply((cells // w + 1) * (w + 2) + cells % w + 1, values)
+        blocked.reshape(-1)[cells] = values
+        fresh = padded(~maps.reachable(blocked, goal) | blocked)
+        assert (reach.reach == ~fresh).all()
+        assert reach.count == int(reach.reach.sum())
+        # What apply reports changed is what changed (the newly blocked count as lost).
+        assert set(gained.tolist()) == set(np.flatnonzero(~before & reach.reach).tolist())
+        assert set(np.flatnonzero(before & ~reach.reach).tolist()) <= set(lost.tolist())
+
+
+def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
+    # A ring: its contacts inside and outside do not join in the window round it, and the
+    # pocket inside is found from the ring (both sides searched ~20 cells deep), not by a
+    # search of the map.
+    h = w = 300
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (5, 5)
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    rr, cc = np.mgrid[0:h, 0:w]
+    d = np.maximum(np.abs(rr - 150), np.abs(cc - 150))
+    ring = np.flatnonzero((d == 20).reshape(-1))
+    lost, gained = reach.apply((ring // w + 1) * (w + 2) + ring % w + 1, np.ones(ring.size, bool))
+    blocked.reshape(-1)[ring] = True
+    assert reach.cut_searches == 1 and reach.full_searches == 0
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+    pocket = (d < 20).sum()
+    assert lost.size == ring.size + pocket and gained.size == 0
+    # A wall across the goal's own side of the map leaves the goal's region finite: the
+    # whole-map search follows, and is right.
+    wall = np.flatnonzero((cc == 20).reshape(-1))
+    reach.apply((wall // w + 1) * (w + 2) + wall % w + 1, np.ones(wall.size, bool))
+    blocked.reshape(-1)[wall] = True
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
