@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import resource
 import time
 from collections.abc import Callable
@@ -70,6 +71,9 @@ class CallLog:
     preempted: list[int] = field(default_factory=list)
     """Per call: the thread's involuntary context switches during its step: a step the OS
     (or the hypervisor's vCPU, which this does not see) took the core from."""
+    waited: list[int] = field(default_factory=list)
+    """Per call: the thread's voluntary context switches during its step: it blocked (the GIL
+    held by another thread, a futex, a sleep), as against ``preempted``."""
     off_cpu_us: list[float] = field(default_factory=list)
     """Per call: its step's wall time less the thread's CPU time in it (µs): time the thread did
     not run (preempted, or the vCPU stolen where the guest accounts steal). A stalled step
@@ -93,6 +97,7 @@ class CallLog:
         self.track.append(0)
         self.faults.append(0)
         self.preempted.append(0)
+        self.waited.append(0)
         self.off_cpu_us.append(0.0)
 
     def routed(
@@ -103,6 +108,7 @@ class CallLog:
         faults: int = 0,
         preempted: int = 0,
         cpu_ms: float | None = None,
+        waited: int = 0,
     ) -> None:
         """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
         recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
@@ -110,7 +116,7 @@ class CallLog:
         self.step_ms[-1] = step_ms
         self.track[-1] = track
         self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
-        self.faults[-1], self.preempted[-1] = faults, preempted
+        self.faults[-1], self.preempted[-1], self.waited[-1] = faults, preempted, waited
         if cpu_ms is not None:
             self.off_cpu_us[-1] = max(0.0, 1e3 * (step_ms - cpu_ms))
 
@@ -124,6 +130,7 @@ class CallLog:
             **{k: getattr(self, k) for k in ("cells", "cut", "rounds", "tiles", "track")},
             "faults": self.faults,
             "preempted": self.preempted,
+            "waited": self.waited,
             "off_cpu_us": np.round(self.off_cpu_us, 2).tolist(),
         }
 
@@ -181,6 +188,7 @@ class CallLog:
                         "track",
                         "faults",
                         "preempted",
+                        "waited",
                         "off_cpu_us",
                     )
                 },
@@ -244,10 +252,10 @@ def recording(log: CallLog) -> Callable[[], None]:
             step_ms = self.report.plan_ms - 1e3 * clock["book"]
             faults = after.ru_minflt - before.ru_minflt
             preempted = after.ru_nivcsw - before.ru_nivcsw
+            waited = after.ru_nvcsw - before.ru_nvcsw
             cpu_ms = 1e3 * cpu - 1e3 * clock["book"]
-            log.routed(
-                step_ms, 1e3 * clock["call"], len(self.track.cells), faults, preempted, cpu_ms
-            )
+            track = len(self.track.cells)
+            log.routed(step_ms, 1e3 * clock["call"], track, faults, preempted, cpu_ms, waited)
         return out
 
     path_from_original = Route.path_from
@@ -263,6 +271,28 @@ def recording(log: CallLog) -> Callable[[], None]:
         gc.callbacks.remove(collector)
 
     return undo
+
+
+def host_clocks() -> dict[str, float]:
+    """CPU ms of each of the process's threads (``comm:tid``) and the machine's stolen ms
+    (``/proc/stat``'s steal): read around a walk, they name the threads that ran beside the
+    stepping one and whether the hypervisor took the vCPUs, what a step's ``off_cpu`` alone
+    cannot say. Empty where ``/proc`` is missing."""
+    tick = 1e3 / os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    try:
+        for tid in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                stat = f.read()
+            comm = stat[stat.index("(") + 1 : stat.rindex(")")]
+            fields = stat[stat.rindex(")") + 2 :].split()
+            out[f"{comm}:{tid}"] = tick * (int(fields[11]) + int(fields[12]))  # utime, stime
+        with open("/proc/stat") as f:
+            cpu = f.readline().split()
+        out["steal"] = tick * int(cpu[8])
+    except (OSError, ValueError, IndexError):
+        pass
+    return out
 
 
 def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
@@ -322,6 +352,7 @@ def main(argv: list[str] | None = None) -> None:
         "track",
         "faults",
         "preempted",
+        "waited",
         "off_cpu_us",
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
@@ -332,13 +363,17 @@ def main(argv: list[str] | None = None) -> None:
             for unknown in (float(v) for v in args.unknown.split(",")):
                 scenario = make_scenario(name, grid, unknown, 0)
                 for mode in modes:
+                    before = host_clocks()
                     log = walk_logged(scenario, mode, args.max_steps)
+                    after = host_clocks()
+                    ran = {k: round(v - before.get(k, 0.0), 1) for k, v in after.items()}
                     s = {
                         "scenario": name,
                         "grid": grid,
                         "unknown": unknown,
                         "mode": mode,
                         **log.summary(),
+                        "threads_ms": {k: v for k, v in ran.items() if v > 0 or k == "steal"},
                     }
                     if args.per_call:
                         s["per_call"] = log.per_call()
@@ -352,6 +387,7 @@ def main(argv: list[str] | None = None) -> None:
                         lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 61
                         row = " ".join(f"{s[part][c]:7.{3 if c == 'ms' else 1}f}" for c in tail)
                         print(f"{label:30} {lead} | {row}")
+                    print(f"{'  threads ms':30} {s['threads_ms']}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
