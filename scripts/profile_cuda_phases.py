@@ -17,6 +17,7 @@ being what ``path_from`` adds to the call.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
 import json
 import os
@@ -75,6 +76,13 @@ class CallLog:
     """Per call: the thread's voluntary context switches during its step: it blocked (the GIL
     held by another thread, a futex, a sleep), as against ``preempted``."""
     off_cpu_us: list[float] = field(default_factory=list)
+    cpu: list[int] = field(default_factory=list)
+    """Per call: the CPU its step started on (``sched_getcpu``, outside the step's clock)."""
+    moved: list[int] = field(default_factory=list)
+    """Per call: 1 when its step started on another CPU than the last step ended on, or ended
+    on another than it started on: the thread was migrated, into a core's cold caches and,
+    in a virtual machine, onto a vCPU that may have idled at a low clock."""
+    ended_on: int = -1
     """Per call: its step's wall time less the thread's CPU time in it (µs): time the thread did
     not run (preempted, or the vCPU stolen where the guest accounts steal). A stalled step
     with none ran slowly on the CPU (caches, TLB) rather than not at all."""
@@ -99,6 +107,8 @@ class CallLog:
         self.preempted.append(0)
         self.waited.append(0)
         self.off_cpu_us.append(0.0)
+        self.cpu.append(-1)
+        self.moved.append(0)
 
     def routed(
         self,
@@ -109,6 +119,7 @@ class CallLog:
         preempted: int = 0,
         cpu_ms: float | None = None,
         waited: int = 0,
+        cpus: tuple[int, int] = (-1, -1),
     ) -> None:
         """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
         recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
@@ -117,6 +128,9 @@ class CallLog:
         self.track[-1] = track
         self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
         self.faults[-1], self.preempted[-1], self.waited[-1] = faults, preempted, waited
+        last = self.ended_on if self.ended_on >= 0 else cpus[0]
+        self.cpu[-1], self.ended_on = cpus
+        self.moved[-1] = int(cpus[0] != last or cpus[1] != cpus[0])
         if cpu_ms is not None:
             self.off_cpu_us[-1] = max(0.0, 1e3 * (step_ms - cpu_ms))
 
@@ -132,6 +146,8 @@ class CallLog:
             "preempted": self.preempted,
             "waited": self.waited,
             "off_cpu_us": np.round(self.off_cpu_us, 2).tolist(),
+            "cpu": self.cpu,
+            "moved": self.moved,
         }
 
     def phases_us(self) -> np.ndarray:
@@ -190,6 +206,7 @@ class CallLog:
                         "preempted",
                         "waited",
                         "off_cpu_us",
+                        "moved",
                     )
                 },
             }
@@ -243,11 +260,13 @@ def recording(log: CallLog) -> Callable[[], None]:
 
     def path_from(self, *args, **kwargs):
         calls = len(log.ms)
+        on = getcpu()
         before = resource.getrusage(resource.RUSAGE_THREAD)
         cpu0 = time.thread_time()  # inside getrusage's reads, outside the step's own clock
         out = path_from_original(self, *args, **kwargs)
         cpu = time.thread_time() - cpu0
         after = resource.getrusage(resource.RUSAGE_THREAD)
+        cpus = (on, getcpu())
         if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
             step_ms = self.report.plan_ms - 1e3 * clock["book"]
             faults = after.ru_minflt - before.ru_minflt
@@ -255,7 +274,7 @@ def recording(log: CallLog) -> Callable[[], None]:
             waited = after.ru_nvcsw - before.ru_nvcsw
             cpu_ms = 1e3 * cpu - 1e3 * clock["book"]
             track = len(self.track.cells)
-            log.routed(step_ms, 1e3 * clock["call"], track, faults, preempted, cpu_ms, waited)
+            log.routed(step_ms, 1e3 * clock["call"], track, faults, preempted, cpu_ms, waited, cpus)
         return out
 
     path_from_original = Route.path_from
@@ -271,6 +290,17 @@ def recording(log: CallLog) -> Callable[[], None]:
         gc.callbacks.remove(collector)
 
     return undo
+
+
+def getcpu() -> int:
+    """The CPU the calling thread runs on (glibc's ``sched_getcpu``, ~0.1 µs); -1 without."""
+    return _GETCPU() if _GETCPU is not None else -1
+
+
+try:
+    _GETCPU = ctypes.CDLL(None).sched_getcpu
+except (OSError, AttributeError):
+    _GETCPU = None
 
 
 def host_clocks() -> dict[str, float]:
@@ -354,6 +384,7 @@ def main(argv: list[str] | None = None) -> None:
         "preempted",
         "waited",
         "off_cpu_us",
+        "moved",
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
     heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)
@@ -363,9 +394,9 @@ def main(argv: list[str] | None = None) -> None:
             for unknown in (float(v) for v in args.unknown.split(",")):
                 scenario = make_scenario(name, grid, unknown, 0)
                 for mode in modes:
-                    before = host_clocks()
+                    before, usage = host_clocks(), resource.getrusage(resource.RUSAGE_THREAD)
                     log = walk_logged(scenario, mode, args.max_steps)
-                    after = host_clocks()
+                    after, used = host_clocks(), resource.getrusage(resource.RUSAGE_THREAD)
                     ran = {k: round(v - before.get(k, 0.0), 1) for k, v in after.items()}
                     s = {
                         "scenario": name,
@@ -374,6 +405,12 @@ def main(argv: list[str] | None = None) -> None:
                         "mode": mode,
                         **log.summary(),
                         "threads_ms": {k: v for k, v in ran.items() if v > 0 or k == "steal"},
+                        # the stepping thread over the whole walk, between steps too
+                        "walk_switches": {
+                            "waited": used.ru_nvcsw - usage.ru_nvcsw,
+                            "preempted": used.ru_nivcsw - usage.ru_nivcsw,
+                            "cpus": sorted(set(log.cpu)),
+                        },
                     }
                     if args.per_call:
                         s["per_call"] = log.per_call()
@@ -387,7 +424,7 @@ def main(argv: list[str] | None = None) -> None:
                         lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 61
                         row = " ".join(f"{s[part][c]:7.{3 if c == 'ms' else 1}f}" for c in tail)
                         print(f"{label:30} {lead} | {row}")
-                    print(f"{'  threads ms':30} {s['threads_ms']}")
+                    print(f"{'  threads ms':30} {s['threads_ms']} {s['walk_switches']}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)

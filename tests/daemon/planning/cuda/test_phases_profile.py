@@ -104,6 +104,12 @@ def test_the_recording_splits_each_step_into_the_call_and_the_route(cuda, monkey
     assert len(calls["step_ms"]) == len(calls["phases_us"]) == len(calls["off_cpu_us"]) == 60
     assert calls["phases_us"][0] == PHASES_US and calls["track"] == log.track
     assert calls["waited"] == log.waited
+    # Every step knows the CPU it ran on; a move is counted only where the CPU changed.
+    assert min(log.cpu) >= 0 and calls["cpu"] == log.cpu
+    assert set(log.moved) <= {0, 1}
+    for i in range(1, len(log.cpu)):
+        if log.cpu[i] != log.cpu[i - 1]:  # moved during the last step or before this one
+            assert log.moved[i - 1] or log.moved[i]
 
 
 @pytest.mark.timeout(30)
