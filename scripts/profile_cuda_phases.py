@@ -83,6 +83,9 @@ class CallLog:
     on another than it started on: the thread was migrated, into a core's cold caches and,
     in a virtual machine, onto a vCPU that may have idled at a low clock."""
     ended_on: int = -1
+    at_s: list[float] = field(default_factory=list)
+    """Per call: when its step ended (``perf_counter``, s): bursts of slow steps placed in
+    time, to set beside the machine's own events."""
     """Per call: its step's wall time less the thread's CPU time in it (µs): time the thread did
     not run (preempted, or the vCPU stolen where the guest accounts steal). A stalled step
     with none ran slowly on the CPU (caches, TLB) rather than not at all."""
@@ -109,6 +112,7 @@ class CallLog:
         self.off_cpu_us.append(0.0)
         self.cpu.append(-1)
         self.moved.append(0)
+        self.at_s.append(time.perf_counter())
 
     def routed(
         self,
@@ -148,6 +152,7 @@ class CallLog:
             "off_cpu_us": np.round(self.off_cpu_us, 2).tolist(),
             "cpu": self.cpu,
             "moved": self.moved,
+            "at_ms": np.round(1e3 * (np.asarray(self.at_s) - self.at_s[0]), 3).tolist(),
         }
 
     def phases_us(self) -> np.ndarray:
