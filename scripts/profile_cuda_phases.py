@@ -43,6 +43,12 @@ the call (``gc.callbacks``); and the navigator's ``Route.path_from`` around the 
 time less the call's): the benchmark's "replanning step" is ``path_from``'s time, so
 ``route`` is what the bench adds to the call's own time."""
 
+COUNTS = (
+    *("cut", "cells", "launches", "raised", "rounds", "tiles", "exit_tiles", "track"),
+    *("faults", "preempted", "waited", "off_cpu_us", "moved"),
+)
+"""Per-call figures the summary averages over each selection of calls."""
+
 
 @dataclass
 class CallLog:
@@ -195,25 +201,8 @@ class CallLog:
                 **{f"{p}_us": float(ph[sel, i].mean()) for i, p in enumerate(STAMP_PHASES)},
                 **{f"{p}_us": float(hs[sel, i].mean()) for i, p in enumerate(HOST_PARTS)},
                 "gc_calls": int((hs[sel, 3] > 0).sum()),
-                **{
-                    k: float(np.asarray(getattr(self, k))[sel].mean())
-                    for k in (
-                        "cut",
-                        "cells",
-                        "launches",
-                        "raised",
-                        "rounds",
-                        "tiles",
-                        "exit_tiles",
-                        "step_ms",
-                        "track",
-                        "faults",
-                        "preempted",
-                        "waited",
-                        "off_cpu_us",
-                        "moved",
-                    )
-                },
+                **{k: float(np.asarray(getattr(self, k))[sel].mean()) for k in COUNTS},
+                "step_ms": float(steps[sel].mean()),
             }
         return out
 
@@ -377,19 +366,7 @@ def main(argv: list[str] | None = None) -> None:
         *(f"{p}_us" for p in STAMP_PHASES),
         *(f"{p}_us" for p in HOST_PARTS),
         "gc_calls",
-        "cut",
-        "cells",
-        "launches",
-        "raised",
-        "rounds",
-        "tiles",
-        "exit_tiles",
-        "track",
-        "faults",
-        "preempted",
-        "waited",
-        "off_cpu_us",
-        "moved",
+        *COUNTS,
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
     heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)
