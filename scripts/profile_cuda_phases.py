@@ -17,8 +17,10 @@ being what ``path_from`` adds to the call.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
 import json
+import os
 import resource
 import time
 from collections.abc import Callable
@@ -40,6 +42,12 @@ the done word seen, the done word to the call's return; the garbage collector's 
 the call (``gc.callbacks``); and the navigator's ``Route.path_from`` around the call (its own
 time less the call's): the benchmark's "replanning step" is ``path_from``'s time, so
 ``route`` is what the bench adds to the call's own time."""
+
+COUNTS = (
+    *("cut", "cells", "launches", "raised", "rounds", "tiles", "exit_tiles", "track"),
+    *("faults", "preempted", "waited", "off_cpu_us", "moved"),
+)
+"""Per-call figures the summary averages over each selection of calls."""
 
 
 @dataclass
@@ -70,7 +78,20 @@ class CallLog:
     preempted: list[int] = field(default_factory=list)
     """Per call: the thread's involuntary context switches during its step: a step the OS
     (or the hypervisor's vCPU, which this does not see) took the core from."""
+    waited: list[int] = field(default_factory=list)
+    """Per call: the thread's voluntary context switches during its step: it blocked (the GIL
+    held by another thread, a futex, a sleep), as against ``preempted``."""
     off_cpu_us: list[float] = field(default_factory=list)
+    cpu: list[int] = field(default_factory=list)
+    """Per call: the CPU its step started on (``sched_getcpu``, outside the step's clock)."""
+    moved: list[int] = field(default_factory=list)
+    """Per call: 1 when its step started on another CPU than the last step ended on, or ended
+    on another than it started on: the thread was migrated, into a core's cold caches and,
+    in a virtual machine, onto a vCPU that may have idled at a low clock."""
+    ended_on: int = -1
+    at_s: list[float] = field(default_factory=list)
+    """Per call: when its step ended (``perf_counter``, s): bursts of slow steps placed in
+    time, to set beside the machine's own events."""
     """Per call: its step's wall time less the thread's CPU time in it (µs): time the thread did
     not run (preempted, or the vCPU stolen where the guest accounts steal). A stalled step
     with none ran slowly on the CPU (caches, TLB) rather than not at all."""
@@ -93,7 +114,11 @@ class CallLog:
         self.track.append(0)
         self.faults.append(0)
         self.preempted.append(0)
+        self.waited.append(0)
         self.off_cpu_us.append(0.0)
+        self.cpu.append(-1)
+        self.moved.append(0)
+        self.at_s.append(time.perf_counter())
 
     def routed(
         self,
@@ -103,6 +128,8 @@ class CallLog:
         faults: int = 0,
         preempted: int = 0,
         cpu_ms: float | None = None,
+        waited: int = 0,
+        cpus: tuple[int, int] = (-1, -1),
     ) -> None:
         """The last call's step: ``step_ms`` as ``Route.path_from`` timed it, less the
         recording's own time inside it; ``call_ms`` the wrapped call's wall time (its own
@@ -110,7 +137,10 @@ class CallLog:
         self.step_ms[-1] = step_ms
         self.track[-1] = track
         self.host_us[-1][4] = 1e3 * (step_ms - call_ms)
-        self.faults[-1], self.preempted[-1] = faults, preempted
+        self.faults[-1], self.preempted[-1], self.waited[-1] = faults, preempted, waited
+        last = self.ended_on if self.ended_on >= 0 else cpus[0]
+        self.cpu[-1], self.ended_on = cpus
+        self.moved[-1] = int(cpus[0] != last or cpus[1] != cpus[0])
         if cpu_ms is not None:
             self.off_cpu_us[-1] = max(0.0, 1e3 * (step_ms - cpu_ms))
 
@@ -124,7 +154,11 @@ class CallLog:
             **{k: getattr(self, k) for k in ("cells", "cut", "rounds", "tiles", "track")},
             "faults": self.faults,
             "preempted": self.preempted,
+            "waited": self.waited,
             "off_cpu_us": np.round(self.off_cpu_us, 2).tolist(),
+            "cpu": self.cpu,
+            "moved": self.moved,
+            "at_ms": np.round(1e3 * (np.asarray(self.at_s) - self.at_s[0]), 3).tolist(),
         }
 
     def phases_us(self) -> np.ndarray:
@@ -167,23 +201,8 @@ class CallLog:
                 **{f"{p}_us": float(ph[sel, i].mean()) for i, p in enumerate(STAMP_PHASES)},
                 **{f"{p}_us": float(hs[sel, i].mean()) for i, p in enumerate(HOST_PARTS)},
                 "gc_calls": int((hs[sel, 3] > 0).sum()),
-                **{
-                    k: float(np.asarray(getattr(self, k))[sel].mean())
-                    for k in (
-                        "cut",
-                        "cells",
-                        "launches",
-                        "raised",
-                        "rounds",
-                        "tiles",
-                        "exit_tiles",
-                        "step_ms",
-                        "track",
-                        "faults",
-                        "preempted",
-                        "off_cpu_us",
-                    )
-                },
+                **{k: float(np.asarray(getattr(self, k))[sel].mean()) for k in COUNTS},
+                "step_ms": float(steps[sel].mean()),
             }
         return out
 
@@ -235,19 +254,21 @@ def recording(log: CallLog) -> Callable[[], None]:
 
     def path_from(self, *args, **kwargs):
         calls = len(log.ms)
+        on = getcpu()
         before = resource.getrusage(resource.RUSAGE_THREAD)
         cpu0 = time.thread_time()  # inside getrusage's reads, outside the step's own clock
         out = path_from_original(self, *args, **kwargs)
         cpu = time.thread_time() - cpu0
         after = resource.getrusage(resource.RUSAGE_THREAD)
+        cpus = (on, getcpu())
         if len(log.ms) == calls + 1:  # the step's call: what the bench records around it
             step_ms = self.report.plan_ms - 1e3 * clock["book"]
             faults = after.ru_minflt - before.ru_minflt
             preempted = after.ru_nivcsw - before.ru_nivcsw
+            waited = after.ru_nvcsw - before.ru_nvcsw
             cpu_ms = 1e3 * cpu - 1e3 * clock["book"]
-            log.routed(
-                step_ms, 1e3 * clock["call"], len(self.track.cells), faults, preempted, cpu_ms
-            )
+            track = len(self.track.cells)
+            log.routed(step_ms, 1e3 * clock["call"], track, faults, preempted, cpu_ms, waited, cpus)
         return out
 
     path_from_original = Route.path_from
@@ -263,6 +284,39 @@ def recording(log: CallLog) -> Callable[[], None]:
         gc.callbacks.remove(collector)
 
     return undo
+
+
+def getcpu() -> int:
+    """The CPU the calling thread runs on (glibc's ``sched_getcpu``, ~0.1 µs); -1 without."""
+    return _GETCPU() if _GETCPU is not None else -1
+
+
+try:
+    _GETCPU = ctypes.CDLL(None).sched_getcpu
+except (OSError, AttributeError):
+    _GETCPU = None
+
+
+def host_clocks() -> dict[str, float]:
+    """CPU ms of each of the process's threads (``comm:tid``) and the machine's stolen ms
+    (``/proc/stat``'s steal): read around a walk, they name the threads that ran beside the
+    stepping one and whether the hypervisor took the vCPUs, what a step's ``off_cpu`` alone
+    cannot say. Empty where ``/proc`` is missing."""
+    tick = 1e3 / os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    try:
+        for tid in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                stat = f.read()
+            comm = stat[stat.index("(") + 1 : stat.rindex(")")]
+            fields = stat[stat.rindex(")") + 2 :].split()
+            out[f"{comm}:{tid}"] = tick * (int(fields[11]) + int(fields[12]))  # utime, stime
+        with open("/proc/stat") as f:
+            cpu = f.readline().split()
+        out["steal"] = tick * int(cpu[8])
+    except (OSError, ValueError, IndexError):
+        pass
+    return out
 
 
 def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
@@ -312,17 +366,7 @@ def main(argv: list[str] | None = None) -> None:
         *(f"{p}_us" for p in STAMP_PHASES),
         *(f"{p}_us" for p in HOST_PARTS),
         "gc_calls",
-        "cut",
-        "cells",
-        "launches",
-        "raised",
-        "rounds",
-        "tiles",
-        "exit_tiles",
-        "track",
-        "faults",
-        "preempted",
-        "off_cpu_us",
+        *COUNTS,
     )
     names = " ".join(f"{c.removesuffix('_us')[:7]:>7}" for c in tail)
     heads = " ".join(f"{c.replace('step_', 's.')[:7]:>7}" for c in cols)
@@ -332,13 +376,23 @@ def main(argv: list[str] | None = None) -> None:
             for unknown in (float(v) for v in args.unknown.split(",")):
                 scenario = make_scenario(name, grid, unknown, 0)
                 for mode in modes:
+                    before, usage = host_clocks(), resource.getrusage(resource.RUSAGE_THREAD)
                     log = walk_logged(scenario, mode, args.max_steps)
+                    after, used = host_clocks(), resource.getrusage(resource.RUSAGE_THREAD)
+                    ran = {k: round(v - before.get(k, 0.0), 1) for k, v in after.items()}
                     s = {
                         "scenario": name,
                         "grid": grid,
                         "unknown": unknown,
                         "mode": mode,
                         **log.summary(),
+                        "threads_ms": {k: v for k, v in ran.items() if v > 0 or k == "steal"},
+                        # the stepping thread over the whole walk, between steps too
+                        "walk_switches": {
+                            "waited": used.ru_nvcsw - usage.ru_nvcsw,
+                            "preempted": used.ru_nivcsw - usage.ru_nivcsw,
+                            "cpus": sorted(set(log.cpu)),
+                        },
                     }
                     if args.per_call:
                         s["per_call"] = log.per_call()
@@ -352,6 +406,7 @@ def main(argv: list[str] | None = None) -> None:
                         lead = f"{s['calls']:5d} {head}" if part == "all" else " " * 61
                         row = " ".join(f"{s[part][c]:7.{3 if c == 'ms' else 1}f}" for c in tail)
                         print(f"{label:30} {lead} | {row}")
+                    print(f"{'  threads ms':30} {s['threads_ms']} {s['walk_switches']}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)

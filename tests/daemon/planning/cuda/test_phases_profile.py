@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -45,13 +47,18 @@ def instant_planner(cuda, shape: tuple[int, int]):
     return planner
 
 
-@pytest.mark.timeout(30)
-def test_the_recording_splits_each_step_into_the_call_and_the_route(cuda, monkeypatch):
+def load_profile(monkeypatch):
     spec = importlib.util.spec_from_file_location("profile_cuda_phases", SCRIPT)
     assert spec is not None and spec.loader is not None
     profile = importlib.util.module_from_spec(spec)
     monkeypatch.setitem(sys.modules, spec.name, profile)  # its dataclass looks itself up
-    spec.loader.exec_module(profile)  # over the stand-in cupy the fixture installed
+    spec.loader.exec_module(profile)  # over the stand-in cupy the ``cuda`` fixture installed
+    return profile
+
+
+@pytest.mark.timeout(30)
+def test_the_recording_splits_each_step_into_the_call_and_the_route(cuda, monkeypatch):
+    profile = load_profile(monkeypatch)
     from daemon.navigation.route import Route
 
     shape = (40, 60)
@@ -89,10 +96,41 @@ def test_the_recording_splits_each_step_into_the_call_and_the_route(cuda, monkey
     assert (steps < np.asarray(timed)).all()
     assert s["step_p99"] >= s["step_median"] > 0
     assert s["all"]["track"] == pytest.approx(np.mean(log.track)) and max(log.track) >= 50
-    assert min(log.faults) >= 0 and min(log.preempted) >= 0
+    assert min(log.faults) >= 0 and min(log.preempted) >= 0 and min(log.waited) >= 0
     # The stand-in's steps run on the CPU throughout: off-CPU time is the exception.
     off = np.asarray(log.off_cpu_us)
     assert off.min() >= 0 and np.median(off) < 0.5 * np.median(1e3 * steps)
     calls = log.per_call()
     assert len(calls["step_ms"]) == len(calls["phases_us"]) == len(calls["off_cpu_us"]) == 60
     assert calls["phases_us"][0] == PHASES_US and calls["track"] == log.track
+    assert calls["waited"] == log.waited
+    # Every step knows the CPU it ran on; a move is counted only where the CPU changed.
+    assert min(log.cpu) >= 0 and calls["cpu"] == log.cpu
+    assert set(log.moved) <= {0, 1}
+    for i in range(1, len(log.cpu)):
+        if log.cpu[i] != log.cpu[i - 1]:  # moved during the last step or before this one
+            assert log.moved[i - 1] or log.moved[i]
+
+
+@pytest.mark.timeout(30)
+def test_the_host_clocks_name_a_thread_that_ran_beside_the_caller(cuda, monkeypatch) -> None:
+    profile = load_profile(monkeypatch)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            pass
+
+    before = profile.host_clocks()
+    other = threading.Thread(target=spin)
+    other.start()
+    try:
+        time.sleep(0.2)
+        after = profile.host_clocks()
+    finally:
+        stop.set()
+        other.join()
+    ran = {k: after[k] - before.get(k, 0.0) for k in after if k != "steal"}
+    spun = [v for k, v in ran.items() if k.endswith(f":{other.native_id}")]
+    assert spun and spun[0] > 0  # 0.2 s of spinning: at least a clock tick of CPU
+    assert after["steal"] >= before["steal"] >= 0
