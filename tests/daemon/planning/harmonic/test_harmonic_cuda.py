@@ -119,7 +119,9 @@ def test_cuda_steps_filled_are_pit_free_and_converge_to_the_cold_field(maps, see
     assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
 
 
-def test_cuda_fills_the_basin_a_wall_leaves(maps):
+def _walled_with_two_doors():
+    """A 40² room cut by a wall with two doors, planned on the GPU with a 5-sweep step; the
+    far door's cells, closing which leaves a basin behind the wall to fill."""
     blocked = np.zeros((40, 40), dtype=bool)
     blocked[20, :] = True
     blocked[20, 2:4] = blocked[20, 34:38] = False
@@ -127,6 +129,11 @@ def test_cuda_fills_the_basin_a_wall_leaves(maps):
     gpu = cuda_planner("rb")
     gpu.plan(blocked, (2, 36))
     gpu.step_sweeps, gpu.step_cap = 5, 5
+    return blocked, door, gpu
+
+
+def test_cuda_fills_the_basin_a_wall_leaves(maps):
+    blocked, door, gpu = _walled_with_two_doors()
     stats = gpu.update(door, True)
     blocked.reshape(-1)[door] = True
     assert stats.iterations <= 5 and gpu.filled > 100 and gpu.settled
@@ -180,13 +187,7 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
 
     if passes is not None:
         monkeypatch.setattr(hc, "FILL_PASSES", passes)
-    blocked = np.zeros((40, 40), dtype=bool)
-    blocked[20, :] = True
-    blocked[20, 2:4] = blocked[20, 34:38] = False
-    door = 20 * 40 + np.arange(34, 38)
-    gpu = cuda_planner("rb")
-    gpu.plan(blocked, (2, 36))
-    gpu.step_sweeps, gpu.step_cap = 5, 5
+    blocked, door, gpu = _walled_with_two_doors()
     engine, before = gpu.engine, {}
     device_fill = engine.fill
 
