@@ -12,14 +12,16 @@ Frames are rendered first (the simulated RGB-D camera walking the courtyard's ro
 noise and missing pixels; ``--cache`` keeps them in a file for the next run: rendering 300
 frames takes half a minute of a device call), then each is timed from the call that takes
 it to the delta encoded and put on a zenoh publisher (loopback session): floor fit, the
-per-pixel pass, ray clearing, merge, proximity, encoding, put. Seed 000's mapper: 7.56 fps
-on the TX2.
+per-pixel pass, ray clearing, merge, proximity, encoding, put. Each row also counts the
+frames the interpreter's collector ran in, and marks the five slowest frames that had one.
+Seed 000's mapper: 7.56 fps on the TX2.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import gc
 import json
 import math
 import pickle
@@ -117,26 +119,37 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     if node is not None:
         node.mapper = mapper
     feed = node.feed if node is not None else mapper.process
-    ms, parts = [], {}
+    ms, parts, collected = [], {}, []
+    # Which frames the interpreter's collector ran in: tells a slow frame the collector took
+    # from one the host took (preempted, woken late).
+    runs = [0]
+
+    def count(phase: str, info: dict) -> None:
+        runs[0] += phase == "start"
+
+    gc.callbacks.append(count)
     period = 1.0 / fps if fps > 0 else 0.0
     due = time.perf_counter()
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
             time.sleep(min(due - t, 0.002))
-        t = time.perf_counter()
+        t, before = time.perf_counter(), runs[0]
         r = feed(f)
         ms.append((time.perf_counter() - t) * 1e3)
+        collected.append(runs[0] > before)
         if node is None:
             mapper.fit_pending_floor()  # as the node does once the frame is out
         due = t + period
         if r is not None:
             for k, v in r.ms.items():
                 parts.setdefault(k, []).append(v)
+    gc.callbacks.remove(count)
     if node is not None:
         node.close()
     mapper.close()
     ms = np.array(ms)
+    slowest = np.argsort(ms)[::-1][:5]
     return {
         "backend": mapper.backend, "floor_every": floor_every, "floor_async": floor_async,
         "fps": fps, "frames": len(ms),
@@ -146,6 +159,8 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
         "fps_median": round(1e3 / float(np.median(ms)), 1),
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
+        "frames_collected": int(sum(collected)),
+        "slowest_ms_collected": [[round(float(ms[i]), 3), collected[i]] for i in slowest],
     }  # fmt: skip
 
 
