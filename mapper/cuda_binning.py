@@ -20,7 +20,6 @@ uploaded parameters, so the captured graph stays valid.
 
 from __future__ import annotations
 
-import ctypes
 from pathlib import Path
 
 import cupy as cp
@@ -44,10 +43,6 @@ def _functions(dtype: np.dtype) -> tuple[cp.RawKernel, cp.RawKernel]:
         mod = cp.RawModule(code=KERNEL.read_text(), options=options)
         _MODULES[name] = (mod.get_function("bin_pixels"), mod.get_function("read_bins"))
     return _MODULES[name]
-
-
-def _host(a: np.ndarray) -> ctypes.c_void_p:
-    return ctypes.c_void_p(a.ctypes.data)
 
 
 class FramePass:
@@ -74,14 +69,18 @@ class FramePass:
         self.n = n
         self.stream = cp.cuda.Stream(non_blocking=True)  # capture needs a stream of its own
         bin_pixels, read_bins = _functions(np.dtype(dtype))  # loaded before the capture
-        s = self.stream
+        s, rt = self.stream, cp.cuda.runtime
+        # The copies and resets through the runtime itself: CuPy's own copy methods refuse
+        # any host transfer while a stream captures (they cannot tell page-locked memory).
         s.begin_capture()
         try:
-            params.data.copy_from_host_async(_host(self.params), params.nbytes, s)
-            depth.data.copy_from_host_async(_host(self.depth), depth.nbytes, s)
-            out.data.memset_async(0, 4 * (n + 1), s)
-            hit_key.data.memset_async(0xFF, hit_key.nbytes, s)  # every key at uint64's max
-            far_key.data.memset_async(0, far_key.nbytes, s)
+            rt.memcpyAsync(params.data.ptr, self.params.ctypes.data, params.nbytes,
+                           rt.memcpyHostToDevice, s.ptr)  # fmt: skip
+            rt.memcpyAsync(depth.data.ptr, self.depth.ctypes.data, depth.nbytes,
+                           rt.memcpyHostToDevice, s.ptr)  # fmt: skip
+            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 1), s.ptr)
+            rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
+            rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
             bin_pixels(
                 ((h * w + THREADS - 1) // THREADS,), (THREADS,),
                 (depth, np.int32(h), np.int32(w), params, np.int32(side),
@@ -94,7 +93,8 @@ class FramePass:
                  out[n + 2 : n + 2 + 6 * bins].view(cp.float64),
                  out[n + 2 + 6 * bins :].view(cp.float64)), stream=s,
             )  # fmt: skip
-            out.data.copy_to_host_async(_host(self.host), out.nbytes, s)
+            rt.memcpyAsync(self.host.ctypes.data, out.data.ptr, out.nbytes,
+                           rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
         finally:
             self.graph = s.end_capture()
         self._device = (out, hit_key, far_key, params, depth)  # alive as long as the graph

@@ -115,7 +115,10 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     for f in frames[:3]:  # compile / warm the device, then start over
         feed(f)
     mapper.close()
-    mapper = OccupancyMapper(settings)
+    warm, mapper = mapper, OccupancyMapper(settings)
+    # The warmed pass carries over (on cuda its graph, captured on a mapper's first frame
+    # of a size, a one-off at start-up): the rows time the frames that follow it.
+    mapper.binner = warm.binner
     if node is not None:
         node.mapper = mapper
     feed = node.feed if node is not None else mapper.process
