@@ -1,6 +1,6 @@
 """Which backend runs the per-pixel pass: chosen here and nowhere else.
 
-``cpu`` is the numba loop of ``binning.py``; ``cuda`` the CuPy pass of ``cuda_binning.py``
+``cpu`` is the numba loop of ``binning.py``; ``cuda`` the CUDA graph of ``cuda_binning.py``
 (``cupy`` is optional: imported only when asked for, or when ``auto`` finds a device).
 Both take the same arguments and return the same ``Binned``, so the mapper never knows
 which one ran. ``auto`` takes cuda when a device answers, else cpu, as the planner does.
@@ -37,7 +37,7 @@ def make_binner(name: str = "auto") -> Binner:
     if name not in BACKENDS:
         raise ValueError(f"mapper backend must be one of {BACKENDS}, not {name!r}")
     if name == "cuda" or (name == "auto" and cuda_usable()):
-        from .cuda_binning import bin_frame_cuda
+        from .cuda_binning import CudaBinner
 
-        return Binner("cuda", bin_frame_cuda)
+        return Binner("cuda", CudaBinner())  # its own buffers and graph, one per mapper
     return Binner("cpu", bin_frame_cpu)

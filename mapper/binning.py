@@ -47,7 +47,8 @@ class Window:
 
 @dataclass
 class Binned:
-    """What one frame says, in its window and per bearing bin."""
+    """What one frame says, in its window and per bearing bin. From the cuda pass the arrays
+    are its page-locked read-back, valid until that binner's next frame: merge them first."""
 
     counts: np.ndarray
     """``(2, side, side)`` int32: obstacle points ([0]) and floor points ([1]) per cell."""

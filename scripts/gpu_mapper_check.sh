@@ -2,7 +2,8 @@
 # The mapper's GPU machine check in one device call (run with the wheels carried: .whl):
 #   1. pytest -m gpu tests/mapper: the CUDA kernel against the numba pass (cells, rays, map);
 #   2. scripts/mapper_bench.py: a 640x480 frame → published delta, 300 frames, on cuda, the
-#      floor refitted every 4th frame on the frame's path or off it (--floor-async), the
+#      floor refitted every frame (the shipped `guidebelt mapper`'s default) or every 4th, on
+#      the frame's path or off it (--floor-async), the
 #      frames back to back and at a camera's 30 fps; the pass's GPU vs host time (--split);
 #      a table of the rows (the CPU's figures are the dev VM's);
 #   3. only if PARTS names it: the camera-in-the-loop table, 20 seeds, WALKS_PARALLEL at a
@@ -27,7 +28,7 @@ if has tests; then
         | tee "$OUT_DIR/pytest.log" | tail -n 40
 fi
 if has bench; then
-    timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 4 --floor-async \
+    timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 1 4 --floor-async \
         --fps 0 30 --split "$OUT_DIR/split.json" --frames "$FRAMES" --json "$OUT_DIR/bench.json" \
         >/dev/null
     python3 - "$OUT_DIR/bench.json" <<'PY'

@@ -2,23 +2,29 @@
 
 Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
        [--floor-async] [--fps 0 30] [--split F.json] [--frames 200] [--json out/mapper_bench.json]
+       [--cache frames.pickle]
 Each backend x floor-refit interval (x floor fit on / off the frame's path, with
 ``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
 feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
 back); ``--split``
 adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
-noise and missing pixels), then each is timed from the call that takes it to the delta
-encoded and put on a zenoh publisher (loopback session): floor fit, the per-pixel pass,
-ray clearing, merge, proximity, encoding, put. Seed 000's mapper: 7.56 fps on the TX2.
+noise and missing pixels; ``--cache`` keeps them in a file for the next run: rendering 300
+frames takes half a minute of a device call), then each is timed from the call that takes
+it to the delta encoded and put on a zenoh publisher (loopback session): floor fit, the
+per-pixel pass, ray clearing, merge, proximity, encoding, put. Each row also counts the
+frames the interpreter's collector ran in, and marks the five slowest frames that had one.
+Seed 000's mapper: 7.56 fps on the TX2.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import gc
 import json
 import math
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -62,9 +68,15 @@ def main() -> None:
     ap.add_argument("--fps", type=float, nargs="+", default=[0.0], help="0: back to back.")
     ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--cache", type=Path, help="Rendered frames: read if there, else written.")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    frames = route_frames(args.frames)
+    if args.cache is not None and args.cache.exists():
+        frames = pickle.loads(args.cache.read_bytes())[: args.frames]
+    else:
+        frames = route_frames(args.frames)
+        if args.cache is not None:
+            args.cache.write_bytes(pickle.dumps(frames, protocol=pickle.HIGHEST_PROTOCOL))
     render_s = time.perf_counter() - t0
     try:  # the published delta: encoded and put on zenoh, where zenoh is installed
         from protocol.session import ZenohSettings, open_session
@@ -103,30 +115,44 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     for f in frames[:3]:  # compile / warm the device, then start over
         feed(f)
     mapper.close()
-    mapper = OccupancyMapper(settings)
+    warm, mapper = mapper, OccupancyMapper(settings)
+    # The warmed pass carries over (on cuda its graph, captured on a mapper's first frame
+    # of a size, a one-off at start-up): the rows time the frames that follow it.
+    mapper.binner = warm.binner
     if node is not None:
         node.mapper = mapper
     feed = node.feed if node is not None else mapper.process
-    ms, parts = [], {}
+    ms, parts, collected = [], {}, []
+    # Which frames the interpreter's collector ran in: tells a slow frame the collector took
+    # from one the host took (preempted, woken late).
+    runs = [0]
+
+    def count(phase: str, info: dict) -> None:
+        runs[0] += phase == "start"
+
+    gc.callbacks.append(count)
     period = 1.0 / fps if fps > 0 else 0.0
     due = time.perf_counter()
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
             time.sleep(min(due - t, 0.002))
-        t = time.perf_counter()
+        t, before = time.perf_counter(), runs[0]
         r = feed(f)
         ms.append((time.perf_counter() - t) * 1e3)
+        collected.append(runs[0] > before)
         if node is None:
             mapper.fit_pending_floor()  # as the node does once the frame is out
         due = t + period
         if r is not None:
             for k, v in r.ms.items():
                 parts.setdefault(k, []).append(v)
+    gc.callbacks.remove(count)
     if node is not None:
         node.close()
     mapper.close()
     ms = np.array(ms)
+    slowest = np.argsort(ms)[::-1][:5]
     return {
         "backend": mapper.backend, "floor_every": floor_every, "floor_async": floor_async,
         "fps": fps, "frames": len(ms),
@@ -136,13 +162,16 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
         "fps_median": round(1e3 / float(np.median(ms)), 1),
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
+        "frames_collected": int(sum(collected)),
+        "slowest_ms_collected": [[round(float(ms[i]), 3), collected[i]] for i in slowest],
     }  # fmt: skip
 
 
 def split(frame) -> dict:
-    """The cuda per-pixel pass of one frame, 200 times: host time of the whole call (upload,
-    launches, read-back) against the GPU time between events around it, and the two kernels
-    alone on the uploaded frame (``cupyx.profiler.benchmark``)."""
+    """The cuda per-pixel pass of one frame, 200 times: host time of the whole call (staging,
+    the graph's launch, the wait) against the GPU time between events around it, and the
+    graph alone on the staged frame (``cupyx.profiler.benchmark``, its events on the pass's
+    own stream)."""
     from cupyx.profiler import benchmark
 
     from mapper import cuda_binning
@@ -154,9 +183,11 @@ def split(frame) -> dict:
     win = m.window(cam[0], cam[1])
     args = (frame.depth, intr.depth_scale, intr, rot, cam, 0.0, win, s.min_height_m,
             s.max_height_m, s.max_range_m, s.cols_per_bin, s.stride)  # fmt: skip
-    whole = benchmark(cuda_binning.bin_frame_cuda, args, n_repeat=200, n_warmup=20)
-    launch = cuda_binning.launcher(*args)
-    kernels = benchmark(launch, (), n_repeat=200, n_warmup=20)
+    binner = cuda_binning.CudaBinner()
+    graph = binner.prepare(*args)
+    with graph.stream:
+        whole = benchmark(binner.__call__, args, n_repeat=200, n_warmup=20)
+        alone = benchmark(graph.launch, (), n_repeat=200, n_warmup=20)
 
     def us(x) -> dict:
         x = np.asarray(x).ravel() * 1e6
@@ -166,7 +197,7 @@ def split(frame) -> dict:
     return {
         "split": "cuda per-pixel pass, one 640x480 frame, 200 calls",
         "call_host": us(whole.cpu_times), "call_gpu": us(whole.gpu_times),
-        "kernels_host": us(kernels.cpu_times), "kernels_gpu": us(kernels.gpu_times),
+        "graph_host": us(alone.cpu_times), "graph_gpu": us(alone.gpu_times),
     }  # fmt: skip
 
 

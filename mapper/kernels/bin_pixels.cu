@@ -4,7 +4,8 @@
 // atomicMin keeps the nearest obstacle point and, on a tie, the first pixel in raster order,
 // as the CPU loop does; the farthest free point is an atomicMax with the index inverted.
 // P: fx fy cx cy | rot[9] | t[3] | floor_z min_h max_h max_range min_depth cell_m push scale
-//    | yaw_c yaw_s tan_max (binning.bearing_bins)
+//    | yaw_c yaw_s tan_max (binning.bearing_bins) | r0 c0 (the window's corner, whole numbers:
+//    a parameter, not an argument, so a captured graph serves every window)
 
 #ifdef DEPTH_FLOAT
 typedef float D;  // depth in metres
@@ -29,6 +30,8 @@ typedef unsigned short D;  // depth in units of depth_scale (millimetres)
 #define YAW_C P[24]
 #define YAW_S P[25]
 #define TAN_MAX P[26]
+#define R0 ((int)P[27])
+#define C0 ((int)P[28])
 
 __device__ bool point_of(const D* depth, int idx, int w, const double* P, double& dx, double& dy,
                          double& pz) {
@@ -54,8 +57,8 @@ __device__ unsigned long long key(float r2, unsigned int low) {
     return ((unsigned long long)__float_as_uint(r2) << 32) | low;
 }
 
-extern "C" __global__ void bin_pixels(const D* depth, int h, int w, const double* P, int r0, int c0,
-                           int side, int map_rows, int bins, int* counts,
+extern "C" __global__ void bin_pixels(const D* depth, int h, int w, const double* P, int side,
+                           int map_rows, int bins, int* counts,
                            unsigned long long* hit_key, unsigned long long* far_key, int* valid) {
     int idx = blockIdx.x * blockDim.x + threadIdx.x;
     double dx, dy, pz;
@@ -69,7 +72,7 @@ extern "C" __global__ void bin_pixels(const D* depth, int h, int w, const double
         atomicMax(far_key + b, key((float)max_r2, 0xffffffffu - idx));
         return;
     }
-    int top = map_rows - 1 - r0;
+    int top = map_rows - 1 - R0, c0 = C0;
     if (pz < MIN_H) {
         atomicMax(far_key + b, key((float)r2, 0xffffffffu - idx));
         int row = top - (int)floor((T(1) + dy) * inv), col = (int)floor((T(0) + dx) * inv) - c0;
