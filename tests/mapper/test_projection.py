@@ -61,7 +61,7 @@ def test_a_kept_floor_fit_follows_the_camera_as_it_turns():
     headings = [NORTH + a for a in (0.0, 0.25, -0.25, 0.15)]
     frames = [frame(box_scene(), 1.0 + i, heading=h, pitch=42.0, reported_pitch=30.0)
               for i, h in enumerate(headings)]  # fmt: skip
-    every, kept = mapper(), mapper(floor_every=4)
+    every, kept = mapper(floor_every=1), mapper(floor_every=4)
     fits = []
     for f in frames:
         every.process(f)
