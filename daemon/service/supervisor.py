@@ -23,7 +23,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import os
 import signal
 import subprocess
 import threading
@@ -44,7 +43,7 @@ from .embedded import free_port
 from .queries import say_who_may_connect
 from .sdnotify import Notifier
 from .state_db import StateDB
-from .workers import Worker, owner_of
+from .workers import Worker, owner_of, worker_config
 
 log = logging.getLogger("guidebelt.supervisor")
 
@@ -69,23 +68,6 @@ HANDOVER_S = 0.5
 """A user no worker reported serving yet has at most one sample handed over this often."""
 FORGET_FIRST = 10_000
 """Keys remembered for ``HANDOVER_S``: past this many the memory is cleared (junk names)."""
-
-
-def worker_config(config: DaemonConfig, endpoint: str) -> str:
-    """A worker's config: the daemon's, connected to the parent's private endpoint; its step
-    slots and its maps' memory its share of the daemon's. ``max_users`` stays each worker's
-    (users are not spread evenly by name): at most ``workers`` × as many sessions."""
-    share = max(1, (os.cpu_count() or 1) // config.workers)
-    # Under TLS the worker presents the daemon's certificate: the router's rules for it
-    # (``protocol.access.WORKER``) are what it may do there. It enforces nothing itself.
-    zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint], tls=config.zenoh.tls)
-    update = {
-        "zenoh": zenoh_cfg,
-        "workers": 0,
-        "step_workers": config.step_workers or share,
-        "memory_budget_mb": config.memory_budget_mb / config.workers,
-    }
-    return config.model_copy(update=update).model_dump_json()
 
 
 def private_endpoint(settings: wire.ZenohSettings) -> str:

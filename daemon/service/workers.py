@@ -36,6 +36,8 @@ from protocol import topics as T
 from protocol.messages import Health
 from protocol.topics import Topic
 
+from .config import DaemonConfig
+
 
 class Served(Protocol):
     """The daemon, as its role sees it (the daemon imports this module, not the reverse)."""
@@ -196,3 +198,20 @@ class Worker:
 
     def users(self) -> list[str]:
         return list(self.health.get("users", [])) if self.health else []
+
+
+def worker_config(config: DaemonConfig, endpoint: str) -> str:
+    """A worker's config: the daemon's, connected to the parent's private endpoint; its step
+    slots and its maps' memory its share of the daemon's. ``max_users`` stays each worker's
+    (users are not spread evenly by name): at most ``workers`` × as many sessions."""
+    share = max(1, (os.cpu_count() or 1) // config.workers)
+    # Under TLS the worker presents the daemon's certificate: the router's rules for it
+    # (``protocol.access.WORKER``) are what it may do there. It enforces nothing itself.
+    zenoh_cfg = wire.ZenohSettings(mode="client", connect=[endpoint], tls=config.zenoh.tls)
+    update = {
+        "zenoh": zenoh_cfg,
+        "workers": 0,
+        "step_workers": config.step_workers or share,
+        "memory_budget_mb": config.memory_budget_mb / config.workers,
+    }
+    return config.model_copy(update=update).model_dump_json()
