@@ -17,10 +17,8 @@ being what ``path_from`` adds to the call.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import gc
 import json
-import os
 import resource
 import time
 from collections.abc import Callable
@@ -29,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from daemon.planning.cuda import abi, planner, resident
+from sim.thread_clocks import getcpu, host_clocks
 
 STAMP_PHASES = ("take", "delta", "raise", "reset", "relax", "exits", "hops", "walk")
 """The phases between stamps 8, 0, 1, ..., 7: the loop's block 0 takes the posted delta from
@@ -284,39 +283,6 @@ def recording(log: CallLog) -> Callable[[], None]:
         gc.callbacks.remove(collector)
 
     return undo
-
-
-def getcpu() -> int:
-    """The CPU the calling thread runs on (glibc's ``sched_getcpu``, ~0.1 µs); -1 without."""
-    return _GETCPU() if _GETCPU is not None else -1
-
-
-try:
-    _GETCPU = ctypes.CDLL(None).sched_getcpu
-except (OSError, AttributeError):
-    _GETCPU = None
-
-
-def host_clocks() -> dict[str, float]:
-    """CPU ms of each of the process's threads (``comm:tid``) and the machine's stolen ms
-    (``/proc/stat``'s steal): read around a walk, they name the threads that ran beside the
-    stepping one and whether the hypervisor took the vCPUs, what a step's ``off_cpu`` alone
-    cannot say. Empty where ``/proc`` is missing."""
-    tick = 1e3 / os.sysconf("SC_CLK_TCK")
-    out: dict[str, float] = {}
-    try:
-        for tid in os.listdir("/proc/self/task"):
-            with open(f"/proc/self/task/{tid}/stat") as f:
-                stat = f.read()
-            comm = stat[stat.index("(") + 1 : stat.rindex(")")]
-            fields = stat[stat.rindex(")") + 2 :].split()
-            out[f"{comm}:{tid}"] = tick * (int(fields[11]) + int(fields[12]))  # utime, stime
-        with open("/proc/stat") as f:
-            cpu = f.readline().split()
-        out["steal"] = tick * int(cpu[8])
-    except (OSError, ValueError, IndexError):
-        pass
-    return out
 
 
 def walk_logged(scenario, mode: str, max_steps: int | None) -> CallLog:
