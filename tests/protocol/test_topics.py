@@ -137,7 +137,7 @@ def test_no_key_is_spelled_and_no_session_opened_outside_protocol():
         # present one): these tests open zenoh on a config of their own.
         raw_open_allowed = rel.as_posix() in (
             "tests/daemon/service/test_tls_access.py",
-            "tests/daemon/service/test_workers.py",
+            "tests/daemon/service/test_workers_tls_walk.py",
         )
         if spelled.search(text) or ("zenoh.open(" in text and not raw_open_allowed):
             offenders.append(str(rel))
