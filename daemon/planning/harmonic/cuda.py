@@ -10,7 +10,8 @@ page-locked host memory: Idx (one byte a cell, the host walks the descent itself
 count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
 step's sweeps, when pits are left) finds their basins on the host from Idx (``fill.basins``)
 and fills them on the device (``harmonic_fill``: the fixed point ``fill.flood`` reaches by a
-heap, by passes over the basins' cells, then Idx and the pits left, in one more launch);
+heap, by passes over tiles of the basins, each iterated in shared memory until stable, then
+Idx and the pits left, in one more launch);
 the host's flood, from the few values of ``w`` it gathers, only takes what the passes left.
 ``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
 it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
@@ -41,10 +42,12 @@ FIRST_PITS = 64
 """Pits copied back with every relaxation's result (a step leaves a few: 2–27 measured);
 ``fill`` fetches the rest when there are more."""
 FILL_PASSES = 2048
-"""Passes the device's fill may take before the host's flood fills what they left. The
-passes a basin needs are about its longest chain of cells from where it spills (a numba
-replay of the passes in lockstep on the 400² courtyard walk's fills, CPU: 11–233 passes for
-121–22 363 cells); an uncapped launch could hold the step for as long as the map is wide."""
+"""Passes the device's fill may take before the host's flood fills what they left. A pass
+carries a value across a tile (``FILL_TILE``), so the passes a basin needs are about its
+longest chain of tiles from where it spills; an uncapped launch could hold the step for as
+long as the map is wide."""
+FILL_TILE = 32
+"""The fill's tile side (``harmonic.cu``'s ``FILL_TILE``): its tile marks are sized by it."""
 _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 """``set``'s (w is BLOCKED_W, fixed) → the kernel's change code (``harmonic.cu``): blocked or
 cut off, newly reachable without a value yet, the goal's fixed zero."""
@@ -158,8 +161,14 @@ class CudaField:
         self.blocks = _blocks(self.real, "harmonic_relax")
         self.fill_kernel = _module(self.real).get_function("harmonic_fill")
         self.fill_blocks = _blocks(self.real, "harmonic_fill")
-        # The fill's three pass flags and its pit count; each launch clears them as it ends.
+        # The fill's three pass flags and its pit count; each launch clears them as it ends,
+        # and leaves its map-sized lift (-1 off the basins) and its tiles' marks as it found
+        # them.
         self.fill_flags = cp.zeros(4, dtype=cp.uint32)
+        self.lift = cp.full(n, -1, dtype=self.dtype)
+        tiles = -(-self.height // FILL_TILE) * -(-self.width // FILL_TILE)
+        self.tile_active = cp.zeros(tiles, dtype=cp.uint8)
+        self.tile_stamp = cp.full(tiles, -2, dtype=cp.int32)
         self.fill_passes = 0
         """The last step's device fill passes (0: no fill ran)."""
 
@@ -223,8 +232,9 @@ class CudaField:
         self.fill_kernel(
             (self.fill_blocks,), (THREADS,),
             (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.io_cells,
-             self.io_vals, np.int32(n_basin), self.dtype.type(eps), np.int32(FILL_PASSES),
-             self.fill_flags, self.result, self.idx, self.pit_list),
+             self.lift, np.int32(n_basin), self.dtype.type(eps), np.int32(FILL_PASSES),
+             self.fill_flags, self.result, self.idx, self.pit_list, self.tile_active,
+             self.tile_stamp),
         )  # fmt: skip
         self.launches += 1
         self._fetch()
