@@ -236,12 +236,12 @@ __device__ bool fill_tile(REAL* w, const REAL* lift, int height, int width, int 
     }
     const int tx = threadIdx.x % FILL_TILE, ty = threadIdx.x / FILL_TILE;
     REAL lifted[FILL_ROWS], loaded[FILL_ROWS];
+    __syncthreads();
     for (int j = 0; j < FILL_ROWS; ++j) {
         const int r = r0 + 1 + ty + 8 * j, c = c0 + 1 + tx;
         lifted[j] = r < height && c < width ? lift[r * width + c] : (REAL)-1;
-        loaded[j] = s[(ty + 8 * j + 1) * FILL_SPAN + tx + 1];
+        loaded[j] = s[(ty + 8 * j + 1) * FILL_SPAN + tx + 1];  // what the tile held
     }
-    __syncthreads();
     bool any = false;
     while (true) {
         // In place: a neighbour read mid-update is its old value or its new, lower one, both
