@@ -169,6 +169,15 @@ class CudaField:
         tiles = -(-self.height // FILL_TILE) * -(-self.width // FILL_TILE)
         self.tile_active = cp.zeros(tiles, dtype=cp.uint8)
         self.tile_stamp = cp.full(tiles, -2, dtype=cp.int32)
+        # The whole-map reach search's map, mask before the change, result and changed cells.
+        self.blocked_dev = cp.empty(n, dtype=cp.uint8)
+        self.before_dev = cp.empty(n, dtype=cp.uint8)
+        self.reach_dev = cp.empty(n, dtype=cp.uint8)
+        self.changed_dev = cp.empty(n, dtype=cp.int32)
+        self.reach_kernel = _module(self.real).get_function("harmonic_reach")
+        self.reach_blocks = _blocks(self.real, "harmonic_reach")
+        self.reach_passes = 0
+        """The last whole-map reach search's device passes."""
         self.fill_passes = 0
         """The last step's device fill passes (0: no fill ran)."""
 
@@ -244,6 +253,28 @@ class CudaField:
             return n_basin, 0
         more, left = self._fill_host(eps)
         return n_basin + more, left
+
+    def reach_search(self, blocked: np.ndarray, before: np.ndarray, goal: int) -> np.ndarray:
+        """``Reach``'s whole-map search on the device (``harmonic_reach``): the padded flat
+        cells (sorted, int64) whose reach by the goal in ``blocked`` differs from ``before``
+        (both bool, the host's). One launch, the two masks up and the changed cells back: the
+        host's breadth-first search over the map took 1.4 ms of a 400² step and 55 ms of a
+        2000² one (H100 host, the bench walk)."""
+        self.blocked_dev.set(blocked.view(np.uint8))
+        self.before_dev.set(before.view(np.uint8))
+        self.reach_kernel(
+            (self.reach_blocks,), (THREADS,),
+            (self.blocked_dev, self.before_dev, self.reach_dev, np.int32(self.height),
+             np.int32(self.width), np.int32(goal), self.fill_flags, self.result,
+             self.changed_dev, self.tile_stamp),
+        )  # fmt: skip
+        self.launches += 1
+        _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
+        cp.cuda.get_current_stream().synchronize()
+        self.reach_passes = int(self.result_host[0])
+        changed = self.changed_dev[: int(self.result_host[3])].get().astype(np.int64)
+        changed.sort()
+        return changed
 
     def _pits(self) -> np.ndarray:
         """The pits the last launch listed (int32; read before the next launch's fetch)."""

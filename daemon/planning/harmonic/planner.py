@@ -145,6 +145,8 @@ class HarmonicPlanner(GlobalPlanner):
             w0[g] = 0.0
             fixed[g] = True
         self.engine.load(fixed, w0, w + 2, g)
+        # The GPU engine searches the whole map on the device when a change may cut cells off.
+        self.reach.search = getattr(self.engine, "reach_search", None)
         return self._relax(t0, COLD_SWEEPS)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:

@@ -18,6 +18,8 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba
 import numpy as np
 
@@ -27,6 +29,9 @@ MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
 CUT_SHARE = 8
 """``_cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+CUT_CELLS_BESIDE_SEARCH = 1 << 16
+"""... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
+is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -309,6 +314,10 @@ class Reach:
         self._was = np.empty(blocked.size, dtype=np.bool_)
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
+        self.search: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
+        """The whole-map search elsewhere (the GPU engine's ``reach_search``): given the map,
+        the reach before the change and the goal, the cells whose reach changed (sorted);
+        None: the host's breadth-first search."""
         self.cut_searches = 0
         """Changes whose cut-off cells ``_cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
@@ -318,9 +327,23 @@ class Reach:
         self.count = int(self.reach.sum())
         """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
 
-    def _full(self) -> None:
-        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+    def _afresh(self, now_blocked: np.ndarray, was: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every reached cell found afresh (a change may have cut some off): ``(lost,
+        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``)."""
         self.full_searches += 1
+        if self.search is not None:
+            self.reach[now_blocked] = was  # the reach before the change
+            changed = self.search(self.blocked, self.reach, self.goal)
+            lost = self.reach[changed]
+            self.reach[changed] = ~lost
+            n_lost = int(np.count_nonzero(lost))
+            self.count += changed.size - 2 * n_lost
+            return changed[lost], changed[~lost]
+        before = self.reach.copy()
+        before[now_blocked] = was
+        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+        changed = np.flatnonzero(before != self.reach)
+        return changed[~self.reach[changed]], changed[self.reach[changed]]
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
@@ -333,11 +356,7 @@ class Reach:
             return flips[:0], flips[:0]
         now_blocked, freed, was = flips[:nb], flips[flips.size - nf :], self._was[:nb]
         if not self.blocked[self.goal] and not self.reach[self.goal]:
-            before = self.reach.copy()  # the goal itself freed: everything is found afresh
-            before[now_blocked] = was
-            self._full()
-            changed = np.flatnonzero(before != self.reach)
-            return changed[~self.reach[changed]], changed[self.reach[changed]]
+            return self._afresh(now_blocked, was)  # the goal itself freed
         cut = 0
         failed = 0
         if nb and not self.blocked[self.goal]:
@@ -346,15 +365,13 @@ class Reach:
                                   self._failed)  # fmt: skip
         if nb and (self.blocked[self.goal] or failed):
             if not self.blocked[self.goal]:
+                limit = self.blocked.size // CUT_SHARE
+                if self.search is not None:
+                    limit = min(limit, CUT_CELLS_BESIDE_SEARCH)
                 cut = _cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
-                               self.goal, self._group, self._queue, self._out,
-                               self.blocked.size // CUT_SHARE)  # fmt: skip
+                               self.goal, self._group, self._queue, self._out, limit)  # fmt: skip
             if self.blocked[self.goal] or cut < 0:
-                before = self.reach.copy()
-                before[now_blocked] = was
-                self._full()
-                changed = np.flatnonzero(before != self.reach)
-                return changed[~self.reach[changed]], changed[self.reach[changed]]
+                return self._afresh(now_blocked, was)
             self.cut_searches += 1
         lost = now_blocked[was]
         if cut:

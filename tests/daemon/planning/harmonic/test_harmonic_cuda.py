@@ -300,3 +300,28 @@ def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
         assert not rx.has_pit(engine.w.get(), engine.fixed_host.astype(bool), engine.width)
         maps.descents_hold(gpu, blocked, maps.reachable(blocked, goal), steps=True)
     assert max(tiles for tiles, _ in seen) >= 4 and all(passes >= 2 for _, passes in seen)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cuda_reach_search_is_the_host_search(maps, seed):
+    # ``harmonic_reach`` (tiles grown from the goal) against the host's breadth-first search
+    # of the same padded map, the goal blocked once: the cells whose reach changed.
+    from daemon.planning.harmonic.reach import _reached
+
+    rng = np.random.default_rng(300 + seed)
+    h, w = int(rng.integers(60, 200)), int(rng.integers(60, 200))
+    blocked = maps.random_map(rng, h, w, 0.3 + 0.05 * seed)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    blocked[goal] = seed == 3
+    gpu = cuda_planner("rb")
+    gpu.plan(np.zeros((h, w), dtype=bool), (0, 0))
+    flat = np.ones((h + 2, w + 2), dtype=np.bool_)
+    flat[1:-1, 1:-1] = blocked
+    flat = flat.reshape(-1)
+    g = (goal[0] + 1) * (w + 2) + goal[1] + 1
+    before = rng.random(flat.size) < 0.5
+    fresh = np.zeros(flat.size, dtype=np.bool_)
+    count = _reached(flat, g, w + 2, fresh, np.empty(flat.size, dtype=np.int64))
+    got = gpu.engine.reach_search(flat, before, g)
+    assert np.array_equal(got, np.flatnonzero(fresh != before))
+    assert (count > 0) == (seed != 3) and gpu.engine.reach_passes >= 1

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.harmonic.reach import Reach
+from daemon.planning.harmonic.reach import Reach, _reached
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -36,17 +36,29 @@ def shape_cells(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     return np.flatnonzero(mask.reshape(-1))
 
 
+def host_search(blocked: np.ndarray, before: np.ndarray, goal: int, width: int) -> np.ndarray:
+    """A ``Reach.search`` as the GPU engine's answers: the cells whose reach differs from
+    ``before`` in a fresh search of ``blocked``, sorted."""
+    fresh = np.zeros(blocked.size, dtype=np.bool_)
+    _reached(blocked, goal, width, fresh, np.empty(blocked.size, dtype=np.int64))
+    return np.flatnonzero(fresh != before)
+
+
 @settings(
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(seed=st.integers(0, 2**31), h=st.integers(4, 40), w=st.integers(4, 40),
-       density=st.floats(0.0, 0.3))  # fmt: skip
-def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density):
+       density=st.floats(0.0, 0.3), elsewhere=st.booleans())  # fmt: skip
+def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density, elsewhere):
+    # elsewhere: the whole-map search handed to ``Reach.search`` (the GPU engine's), whose
+    # changed cells ``apply`` turns into the same mask, count, lost and gained.
     rng = np.random.default_rng(seed)
     blocked = maps.random_map(rng, h, w, density)
     goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
     blocked[goal] = False
     reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    if elsewhere:
+        reach.search = lambda b, before, g: host_search(b, before, g, w + 2)
     for _ in range(6):
         cells = shape_cells(rng, h, w)
         values = np.full(cells.size, rng.random() < 0.75)
