@@ -189,8 +189,9 @@ extern "C" __global__ void harmonic_relax(REAL* w, unsigned char* fixed, REAL* p
     }
 }
 
-// A replanning step's fill (fill.py) on the device: the basins' cells `cells[:n]` (the host
-// found them from Idx) take the smallest field W >= w that has, at every basin cell, a
+// A replanning step's fill (fill.py) on the device: the pits' basins (the free cells whose
+// Idx chain ends at a pit, found here by pointer jumping) take the smallest field W >= w that
+// has, at every basin cell, a
 // neighbour at least eps lower — W(c) = max(w(c), min over neighbours W + eps), a cell with no
 // value yet taking the second term — the fixed point that Planchon & Darboux (2002) reach by
 // iteration and Barnes et al.'s priority-flood by a heap. From W = BLOCKED_W on the basins the
@@ -271,22 +272,60 @@ __device__ bool fill_tile(REAL* w, const REAL* lift, int height, int width, int 
 }
 
 extern "C" __global__ void __launch_bounds__(256)
-harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, const int* cells,
-              REAL* lift, int n, REAL eps, int max_passes, unsigned* flags, int* result,
+harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, int* down,
+              REAL* lift, REAL eps, int max_passes, unsigned* flags, int* result,
               signed char* idx, int* pit_list, unsigned char* active, int* stamp) {
     cg::grid_group grid = cg::this_grid();
     __shared__ REAL s[FILL_SPAN * FILL_SPAN];
+    __shared__ unsigned s_count;
     const long long stride = (long long)gridDim.x * blockDim.x;
     const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    const long long n = (long long)height * width;
     const int tiles_x = (width + FILL_TILE - 1) / FILL_TILE;
     const int tiles = tiles_x * ((height + FILL_TILE - 1) / FILL_TILE);
+    // The basins (fill.basins on the host): down[i] = (the cell i's Idx chain has reached so
+    // far) << 1 | (a pit is on it). A pit (write_idx's: free, Idx 4 or no value yet) ends
+    // its chain flagged; a fixed cell or Idx 4 ends it unflagged. Pointer jumping halves every
+    // chain's rest a round (log2 of the longest chain rounds, not one per cell). One word a
+    // cell, so a read mid-update is a consistent pair, and any pair is on the cell's chain.
     for (long long k = first; k < n; k += stride) {
-        const int c = cells[k], t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
+        const int i = (int)k, d = idx[i];
+        const bool pit = !fixed[i] && (d == 4 || w[i] >= BLOCKED_W);
+        const int to = fixed[i] || d == 4 ? i : i + (d / 3 - 1) * width + d % 3 - 1;
+        down[i] = pit ? (i << 1 | 1) : (to << 1);
+    }
+    grid.sync();
+    for (int round = 0;; ++round) {
+        bool mine = false;
+        for (long long k = first; k < n; k += stride) {
+            const int v = __ldcg(down + k), j = v >> 1;
+            if ((v & 1) || j == (int)k) continue;
+            const int u = __ldcg(down + j);
+            if (u != v) { down[k] = u; mine = true; }
+        }
+        unsigned* slot = flags + round % 3;
+        if (__syncthreads_or(mine) && threadIdx.x == 0) atomicOr(slot, 1u);
+        grid.sync();
+        const bool any = *(volatile unsigned*)slot != 0u;
+        if (first == 0) flags[(round + 2) % 3] = 0u;
+        if (!any) break;
+    }
+    if (threadIdx.x == 0) s_count = 0u;
+    __syncthreads();
+    for (long long k = first; k < n; k += stride) {
+        if (!(__ldcg(down + k) & 1)) continue;
+        const int c = (int)k, t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
         lift[c] = w[c];
         w[c] = BLOCKED_W;
         active[t] = 1;
         stamp[t] = -1;  // changed "before pass 0": every basin tile runs first
+        atomicAdd(&s_count, 1u);
     }
+    __syncthreads();
+    if (threadIdx.x == 0 && s_count) atomicAdd(flags + 4, s_count);
+    // The passes' slots start clear: the rounds' clears and these are all done by the
+    // barrier after them.
+    if (first == 0) flags[0] = flags[1] = flags[2] = 0u;
     grid.sync();
     int passes = 0;
     while (passes < max_passes) {
@@ -317,7 +356,8 @@ harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, const 
         if (!any) break;
     }
     for (long long k = first; k < n; k += stride) {
-        const int c = cells[k], t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
+        if (!(__ldcg(down + k) & 1)) continue;
+        const int c = (int)k, t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
         lift[c] = (REAL)-1;
         active[t] = 0;
         stamp[t] = -2;
@@ -326,8 +366,9 @@ harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, const 
     grid.sync();
     if (first == 0) {
         result[0] = passes;
+        result[1] = (int)*(volatile unsigned*)(flags + 4);
         result[3] = (int)*(volatile unsigned*)(flags + 3);
-        for (int k = 0; k < 4; ++k) flags[k] = 0u;
+        for (int k = 0; k < 5; ++k) flags[k] = 0u;
     }
 }
 

@@ -246,9 +246,10 @@ def _fixed_point_f32(w: np.ndarray, cells: np.ndarray, width: int, eps: float) -
 
 @pytest.mark.parametrize("seed", range(3))
 def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
-    # ``harmonic_fill`` iterates tiles in shared memory between grid barriers: its result must
-    # be the same fixed point the passes cell by cell reach, on basins across many tiles (a
-    # wall across a 130² map, its door nearest the goal closed, then random blocks).
+    # ``harmonic_fill`` finds the basins by pointer jumping along Idx and iterates tiles in
+    # shared memory between grid barriers: the same basins as the host's search, and the same
+    # fixed point the passes cell by cell reach, on basins across many tiles (a wall across a
+    # 130² map, its door nearest the goal closed, then random blocks).
     from daemon.planning.harmonic import fill as fl
     from daemon.planning.harmonic import relax as rx
 
@@ -278,6 +279,7 @@ def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
             want = _fixed_point_f32(engine.w.get(), cells[:n], engine.width, eps)
         out = device_fill(eps)
         if out[0]:
+            assert out[0] == n  # the device's basins (pointer jumping) are the host's
             assert engine.pit_count == 0  # the device filled it all: no host flood after
             assert np.array_equal(engine.w.get(), want)
             rows, cols = np.divmod(cells[:n], engine.width)
