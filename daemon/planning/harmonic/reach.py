@@ -10,7 +10,7 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   cells, those around it still join up inside a window round the cluster (its bounding box
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
-  Otherwise the cells cut off are found from where the change happened (``_cut_off``), and
+  Otherwise the cells cut off are found from where the change happened (``cut_off``), and
   only past a budget by one BFS over the whole map.
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
@@ -23,30 +23,23 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from .cut_off import cut_off, neighbour_offsets
 from .relax import bfs_steps
 
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
 CUT_SHARE = 8
-"""``_cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
 CUT_CELLS_BESIDE_SEARCH = 1 << 16
 """... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
 is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
 
 
 @numba.njit(cache=True, nogil=True)
-def _around(width):
-    """The 8 neighbours' offsets in the padded flat map. The searches' inner loops step
-    through these rather than work ``(d // 3 - 1) * width + d % 3 - 1`` out for d in 0..8 and
-    skip the cell itself: a third of ``_cut_off``'s CPU time on the 400² bench walk's tries."""
-    return np.array([-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1])
-
-
-@numba.njit(cache=True, nogil=True)
 def _joined(blocked, reach, new, width, height, margin, mark, queue, around) -> bool:
     """True when the reached free neighbours of the newly blocked cells ``new`` all connect
     inside the window around them (``mark``: scratch of zeros, left zeroed; ``around``:
-    ``_around(width)``)."""
+    ``neighbour_offsets(width)``)."""
     first = -1
     wanted = 0
     for i in new:
@@ -123,7 +116,7 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
     spans the sensor's sweep (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's
     spans the cluster. ``label``: scratch of zeros, left zeroed; ``group``: scratch as long
     as ``new`` (allocated here, its fresh pages cost the 2000² first sweep ~1 ms)."""
-    around = _around(width)
+    around = neighbour_offsets(width)
     for i in new:
         label[i] = 1
     n_failed = 0
@@ -151,89 +144,9 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
 
 
 @numba.njit(cache=True, nogil=True)
-def _root(parent, a):
-    while parent[a] != a:
-        parent[a] = parent[parent[a]]
-        a = parent[a]
-    return a
-
-
-@numba.njit(cache=True, nogil=True)
-def _cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
-    """The reached cells that the clusters ``new`` (those ``_joined_each`` could not clear)
-    cut off from the goal, into ``out`` and cleared in ``reach``; returns their count, or -1
-    for the whole-map search: past ``limit`` cells searched, or when the goal's region turns
-    out finite (its outside is then unknown). One breadth-first search from many groups at
-    once, each reached free neighbour of ``new`` one; groups that meet merge (union-find),
-    and a group whose frontier runs out is a whole region. A region cut off holds such a
-    neighbour (its paths to the goal crossed these clusters, the others can be rerouted), and
-    so does the goal's region when any was cut off (or else every neighbour is in it). So
-    once at most one group is still growing and the goal is not in a finished one, the
-    growing one is the goal's and every finished one is cut off: the search costs about the
-    groups times the regions cut off, not the map. ``group``: int32 scratch of zeros, left
-    zeroed."""
-    parent = np.empty(9 * new.size + 1, dtype=np.int64)
-    count = np.zeros(9 * new.size + 1, dtype=np.int64)
-    around = _around(width)
-    groups = tail = 0
-    for i in new:
-        for o in around:
-            j = i + o
-            if not blocked[j] and reach[j] and group[j] == 0:
-                groups += 1
-                parent[groups], count[groups], group[j] = groups, 1, groups
-                queue[tail] = j
-                tail += 1
-    growing, head, found = groups, 0, 0
-    while growing > 1 and head < tail and tail <= limit:
-        cur = queue[head]
-        head += 1
-        own = group[cur]
-        a = _root(parent, own)
-        count[a] -= 1
-        for o in around:
-            j = cur + o
-            g = group[j]
-            # Most neighbours carry cur's own label or its root's (both groups' cells are
-            # labelled with the root they had when met): no union-find walk for them.
-            if g == own:
-                continue
-            if g == a or blocked[j]:
-                continue
-            if g == 0:
-                group[j] = a
-                count[a] += 1
-                queue[tail] = j
-                tail += 1
-                continue
-            b = _root(parent, g)
-            if b != a:  # two growing groups meet (a finished one met every neighbour)
-                parent[b] = a
-                count[a] += count[b]
-                growing -= 1
-        if count[a] == 0:
-            growing -= 1
-            if group[goal] != 0 and _root(parent, group[goal]) == a:
-                break  # the goal's region is finite: the rest of the map is unknown here
-    home = _root(parent, group[goal]) if group[goal] != 0 else 0
-    if growing <= 1 and (home == 0 or count[home] > 0) and tail <= limit:
-        for k in range(tail):
-            c = queue[k]
-            if count[_root(parent, group[c])] == 0 and reach[c]:
-                reach[c] = False
-                out[found] = c
-                found += 1
-    else:
-        found = -1
-    for k in range(tail):
-        group[queue[k]] = 0
-    return found
-
-
-@numba.njit(cache=True, nogil=True)
 def _grow(blocked, reach, freed, width, queue, out) -> int:
     """Cells newly reached through the freed cells; written to ``out``, count returned."""
-    around = _around(width)
+    around = neighbour_offsets(width)
     tail = 0
     for i in freed:
         if blocked[i] or reach[i]:
@@ -255,7 +168,7 @@ def _flood(blocked, reach, width, queue, head, tail) -> int:
     """Breadth-first from ``queue[head:tail]`` (already marked in ``reach``) over the free
     cells (8-connected, padded flat map); every cell reached is marked and queued. Returns
     the new tail."""
-    around = _around(width)
+    around = neighbour_offsets(width)
     while head < tail:
         cur = queue[head]
         head += 1
@@ -343,7 +256,7 @@ class Reach:
         the reach before the change and the goal, the cells whose reach changed (sorted);
         None: the host's breadth-first search."""
         self.cut_searches = 0
-        """Changes whose cut-off cells ``_cut_off`` found without it."""
+        """Changes whose cut-off cells ``cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
         """8-connected steps from the goal of the map as first given (a plan's first guess);
         not kept up by ``apply``."""
@@ -392,7 +305,7 @@ class Reach:
                 limit = self.blocked.size // CUT_SHARE
                 if self.search is not None:
                     limit = min(limit, CUT_CELLS_BESIDE_SEARCH)
-                cut = _cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
+                cut = cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
                                self.goal, self._group, self._queue, self._out, limit)  # fmt: skip
             if self.blocked[self.goal] or cut < 0:
                 return self._afresh(now_blocked, was)
