@@ -36,20 +36,11 @@ is at hand: a host search that runs on into 1/8 of a 2000² map costs more than 
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined(blocked, reach, new, width, height, margin, mark, queue, around) -> bool:
+def _joined(blocked, new, width, height, margin, mark, queue, around, first, wanted) -> bool:
     """True when the reached free neighbours of the newly blocked cells ``new`` all connect
-    inside the window around them (``mark``: scratch of zeros, left zeroed; ``around``:
-    ``neighbour_offsets(width)``)."""
-    first = -1
-    wanted = 0
-    for i in new:
-        for o in around:
-            j = i + o
-            if not blocked[j] and reach[j] and mark[j] == 0:
-                mark[j] = 2  # a contact, still to be met by the search
-                wanted += 1
-                if first < 0:
-                    first = j
+    inside the window around them. ``_joined_each`` met them as it gathered ``new``: the
+    ``wanted`` of them are marked 2 in ``mark`` (scratch of zeros, left zeroed), ``first``
+    the first met (-1: none). ``around``: ``neighbour_offsets(width)``."""
     if wanted <= 1:
         if first >= 0:
             mark[first] = 0
@@ -126,6 +117,10 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
         label[s] = 2
         group[0] = s
         head, n = 0, 1
+        # The cluster's contacts (reached free neighbours) are met in the same pass that
+        # gathers it, in the order a second pass over its cells would meet them (that pass
+        # was ~1 ms of this function's ~3.8 on the 2000² first sweep, dev VM CPU time).
+        first, wanted = -1, 0
         while head < n:
             cur = group[head]
             head += 1
@@ -135,7 +130,13 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
                     label[j] = 2
                     group[n] = j
                     n += 1
-        if not _joined(blocked, reach, group[:n], width, height, margin, mark, queue, around):
+                elif not blocked[j] and reach[j] and mark[j] == 0:
+                    mark[j] = 2  # a contact, still to be met by _joined's search
+                    wanted += 1
+                    if first < 0:
+                        first = j
+        if not _joined(blocked, group[:n], width, height, margin, mark, queue, around, first,
+                       wanted):  # fmt: skip
             failed[n_failed : n_failed + n] = group[:n]
             n_failed += n
     for i in new:
