@@ -40,19 +40,28 @@ def cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
     once at most one group is still growing and the goal is not in a finished one, the
     growing one is the goal's and every finished one is cut off: the search costs about the
     groups times the regions cut off, not the map. ``group``: int32 scratch of zeros, left
-    zeroed."""
-    parent = np.empty(9 * new.size + 1, dtype=np.int64)
-    count = np.zeros(9 * new.size + 1, dtype=np.int64)
+    zeroed.
+
+    Seeds past ``limit`` end the try before it searches: it could only give up later. So the
+    groups' tables hold at most ``limit`` + 1 seeds, not 9 per cell of ``new``: on the 2000²
+    137 k-cell reveal those were two tables of ~1.2 M words, fresh pages each try."""
+    size = min(9 * new.size, limit + 1) + 1
+    parent = np.empty(size, dtype=np.int64)
+    count = np.zeros(size, dtype=np.int64)
     around = neighbour_offsets(width)
     groups = tail = 0
     for i in new:
         for o in around:
             j = i + o
-            if not blocked[j] and reach[j] and group[j] == 0:
+            if not blocked[j] and reach[j] and group[j] == 0 and tail <= limit:
                 groups += 1
                 parent[groups], count[groups], group[j] = groups, 1, groups
                 queue[tail] = j
                 tail += 1
+        if tail > limit:
+            for k in range(tail):
+                group[queue[k]] = 0
+            return -1
     growing, head, found = groups, 0, 0
     while growing > 1 and head < tail and tail <= limit:
         cur = queue[head]

@@ -98,3 +98,28 @@ def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
     blocked.reshape(-1)[wall] = True
     fresh = padded(~maps.reachable(blocked, goal) | blocked)
     assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+
+
+def test_a_try_with_more_seeds_than_its_budget_gives_up_before_it_searches(maps):
+    # 16 rings at once on a 120² map: ~3 000 contacts, past the cut-off search's budget
+    # (1/8 of the padded map, 1 860 cells). The try ends after its seeds, leaves its scratch
+    # zeroed, and the whole-map search finds the 16 pockets.
+    h = w = 120
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (0, 0)
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    rr, cc = np.mgrid[0:h, 0:w]
+    rings = np.zeros((h, w), dtype=bool)
+    for r in range(15, h, 30):
+        for c in range(15, w, 30):
+            rings |= np.maximum(np.abs(rr - r), np.abs(cc - c)) == 12
+    cells = np.flatnonzero(rings.reshape(-1))
+    lost, gained = reach.apply(
+        (cells // w + 1) * (w + 2) + cells % w + 1, np.ones(cells.size, bool)
+    )
+    blocked |= rings
+    assert reach.full_searches == 1 and reach.cut_searches == 0
+    assert not reach._group.any()
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+    assert lost.size == cells.size + 16 * 23 * 23 and gained.size == 0
