@@ -244,12 +244,6 @@ class Reach:
         self._flips = np.empty(blocked.size, dtype=np.int64)
         # Only the newly blocked cells' old reach is kept (a whole copy costs ~1 ms at 2000²).
         self._was = np.empty(blocked.size, dtype=np.bool_)
-        # Every scratch page written once now, in the cold plan: a step's first touch of a
-        # fresh page costs a page fault, ~850 of them (~2 ms CPU, dev VM) on the 2000² first
-        # sweep; writing them all here costs ~55 ms beside a cold plan of ~2.5 s.
-        for scratch in (self._queue, self._mark, self._label, self._group, self._failed,
-                        self._out, self._flips, self._was):  # fmt: skip
-            scratch.fill(0)
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
         self.search: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
