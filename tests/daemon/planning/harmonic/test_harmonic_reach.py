@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.harmonic.reach import Reach
+from daemon.planning.harmonic.reach import Reach, _reached
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -36,17 +36,29 @@ def shape_cells(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     return np.flatnonzero(mask.reshape(-1))
 
 
+def host_search(blocked: np.ndarray, before: np.ndarray, goal: int, width: int) -> np.ndarray:
+    """A ``Reach.search`` as the GPU engine's answers: the cells whose reach differs from
+    ``before`` in a fresh search of ``blocked``, sorted."""
+    fresh = np.zeros(blocked.size, dtype=np.bool_)
+    _reached(blocked, goal, width, fresh, np.empty(blocked.size, dtype=np.int64))
+    return np.flatnonzero(fresh != before)
+
+
 @settings(
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(seed=st.integers(0, 2**31), h=st.integers(4, 40), w=st.integers(4, 40),
-       density=st.floats(0.0, 0.3))  # fmt: skip
-def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density):
+       density=st.floats(0.0, 0.3), elsewhere=st.booleans())  # fmt: skip
+def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density, elsewhere):
+    # elsewhere: the whole-map search handed to ``Reach.search`` (the GPU engine's), whose
+    # changed cells ``apply`` turns into the same mask, count, lost and gained.
     rng = np.random.default_rng(seed)
     blocked = maps.random_map(rng, h, w, density)
     goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
     blocked[goal] = False
     reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    if elsewhere:
+        reach.search = lambda b, before, g: host_search(b, before, g, w + 2)
     for _ in range(6):
         cells = shape_cells(rng, h, w)
         values = np.full(cells.size, rng.random() < 0.75)
@@ -86,3 +98,28 @@ def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
     blocked.reshape(-1)[wall] = True
     fresh = padded(~maps.reachable(blocked, goal) | blocked)
     assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+
+
+def test_a_try_with_more_seeds_than_its_budget_gives_up_before_it_searches(maps):
+    # 16 rings at once on a 120² map: ~3 000 contacts, past the cut-off search's budget
+    # (1/8 of the padded map, 1 860 cells). The try ends after its seeds, leaves its scratch
+    # zeroed, and the whole-map search finds the 16 pockets.
+    h = w = 120
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (0, 0)
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    rr, cc = np.mgrid[0:h, 0:w]
+    rings = np.zeros((h, w), dtype=bool)
+    for r in range(15, h, 30):
+        for c in range(15, w, 30):
+            rings |= np.maximum(np.abs(rr - r), np.abs(cc - c)) == 12
+    cells = np.flatnonzero(rings.reshape(-1))
+    lost, gained = reach.apply(
+        (cells // w + 1) * (w + 2) + cells % w + 1, np.ones(cells.size, bool)
+    )
+    blocked |= rings
+    assert reach.full_searches == 1 and reach.cut_searches == 0
+    assert not reach._group.any()
+    fresh = padded(~maps.reachable(blocked, goal) | blocked)
+    assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+    assert lost.size == cells.size + 16 * 23 * 23 and gained.size == 0
