@@ -31,7 +31,16 @@ from .backends import make_binner
 from .binning import Window
 from .camera_model import Intrinsics
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
-from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
+from .frame import (
+    DepthFrame,
+    FrameLimits,
+    FrameRejected,
+    Refusal,
+    check_depth,
+    check_frame,
+    check_header,
+    check_motion,
+)
 from .merge import merge_frame
 from .proximity import Proximity
 
@@ -193,19 +202,28 @@ class OccupancyMapper:
     def _process(self, frame: DepthFrame) -> FrameResult:
         s = self.settings
         t0 = time.perf_counter()
-        intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
+        late = self.binner.counts_valid  # the pass counts the pixels: check those after it
+        if late:
+            intr, pose = check_header(frame, self.last_stamp)
+        else:
+            intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
         depth = frame.depth
         scale = intr.depth_scale if depth.dtype == np.uint16 else 1.0
         rot = pose.world_from_optical()
         cam = np.asarray(pose.position, np.float64)
         t1 = time.perf_counter()
-        fit, floor_rot, floor_z, refit = self._floor_for(depth, scale, intr, rot, cam)
+        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam)
         t2 = time.perf_counter()
         win = self.window(cam[0], cam[1])
         binned = self.binner(depth, scale, intr, floor_rot, cam, floor_z, win,
                              s.min_height_m, s.max_height_m, s.max_range_m, s.cols_per_bin,
                              s.stride)  # fmt: skip
         t3 = time.perf_counter()
+        if late:  # check_frame's last two rules, in its order; nothing was kept of the frame yet
+            assert binned.present is not None
+            check_depth(binned.present, depth.size, s.limits)
+            check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
+        t3b = time.perf_counter()
         forget_before = -math.inf
         if s.forget_s > 0 and frame.stamp - self._forgot_at >= 1.0:  # the whole map, once a second
             forget_before = frame.stamp - s.forget_s
@@ -222,6 +240,8 @@ class OccupancyMapper:
                          frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
+        if arrived is not None:  # the fit that ran off the path, taken by this frame
+            self._floor, self._floor_job = arrived, None
         if isinstance(refit, Sample):
             self._floor_due, self._floor_age = refit, 0
         elif refit is not None:
@@ -229,36 +249,38 @@ class OccupancyMapper:
         self._floor_age += 1
         self.frames += 1
         ms = {
-            "check": (t1 - t0) * 1e3, "floor": (t2 - t1) * 1e3, "bin": (t3 - t2) * 1e3,
-            "merge": (t4 - t3) * 1e3, "total": (t4 - t0) * 1e3,
+            "check": (t1 - t0 + t3b - t3) * 1e3, "floor": (t2 - t1) * 1e3,
+            "bin": (t3 - t2) * 1e3, "merge": (t4 - t3b) * 1e3, "total": (t4 - t0) * 1e3,
         }  # fmt: skip
         return FrameResult(cells, values, prox, fit, binned.valid, ms)
 
     def _floor_for(
         self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray
-    ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None]:
+    ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None, tuple | None]:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
         in the camera's frame. Returns the new fit to keep (or, ``floor_async``, the sample
-        to fit once the frame is out), or None, applied by the caller only once the frame is
-        merged (a refused frame changes nothing)."""
+        to fit once the frame is out), or None, and the fit that arrived from the worker
+        thread, or None: both applied by the caller only once the frame is merged (a refused
+        frame changes nothing, also one refused after this, on cuda)."""
         s = self.settings
         if not s.floor_ransac:
-            return NOMINAL, rot, 0.0, None
+            return NOMINAL, rot, 0.0, None, None
+        arrived = None
         if self._floor_job is not None and self._floor_job.done():
-            self._floor, self._floor_job = self._floor_job.result(), None  # applied on arrival
-        last = self._floor
+            arrived = self._floor_job.result()
+        last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
                or float(np.hypot(*(cam[:2] - last[2][:2]))) > s.floor_refit_m)  # fmt: skip
         sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
                         scale, intr, rot, cam.copy()) if due else None  # fmt: skip
         if sample is not None and (last is None or not s.floor_async):
             keep = self._fit(sample)
-            return keep[0], keep[0].rotation @ rot, keep[0].floor_z, keep
+            return keep[0], keep[0].rotation @ rot, keep[0].floor_z, keep, arrived
         # The floor itself does not move: its height is kept as it was fitted.
         assert last is not None
         fit, in_cam, _ = last
-        return fit, rot @ in_cam, fit.floor_z, sample
+        return fit, rot @ in_cam, fit.floor_z, sample, arrived
 
     def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, np.ndarray]:
         """The fit of one frame's sample, to keep: the fit, the camera's own tilt and where
