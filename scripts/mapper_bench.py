@@ -6,9 +6,10 @@ Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor
 Each backend x floor-refit interval (x floor fit on / off the frame's path, with
 ``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
 feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
-back), the loop sleeping in 2 ms pieces until the next frame is due (``--sleep chunks``) or
-in one sleep as ``guidebelt mapper --rate`` does (``whole``); each such row gives how late the
-loop woke (``wake_late_ms``): a frame that starts after a sleep pays the wake-up. ``--split``
+back), the loop sleeping in 2 ms pieces until the next frame is due (``--sleep chunks``), in
+one sleep as ``guidebelt mapper --rate`` does (``whole``), or spinning on the clock (``spin``:
+the host never idles, the GPU still does); each such row gives how late the loop woke
+(``wake_late_ms``): a frame that starts after a sleep pays the wake-up. ``--split``
 adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
 noise and missing pixels; ``--cache`` keeps them in a file for the next run: rendering 300
@@ -149,7 +150,8 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
         if sleep == "whole":
             time.sleep(max(0.0, due - time.perf_counter()))
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
-            time.sleep(min(due - t, 0.002))
+            if sleep != "spin":
+                time.sleep(min(due - t, 0.002))
         t, before = time.perf_counter(), runs[0]
         late.append((t - due) * 1e3)
         r = feed(f)

@@ -44,10 +44,12 @@ __device__ bool point_of(D raw, int idx, int w, const double* P, double& dx, dou
     return true;
 }
 
-// A pixel the frame check (frame.count_valid) counts: non-zero, or finite and positive.
+// A pixel the frame check (frame.count_valid) counts: non-zero, or finite and positive. On
+// the bits, for floats: a compare flushes subnormals to zero here (seen on the H100: 18 071
+// pixels of 1e-40 not counted), and numpy on the host counts them.
 __device__ bool present(D raw) {
 #ifdef DEPTH_FLOAT
-    return raw > 0.0f && isfinite(raw);
+    return __float_as_uint(raw) - 1u < 0x7f7fffffu;  // 0x00000001 (tiniest) .. 0x7f7fffff (max)
 #else
     return raw != 0;
 #endif
