@@ -72,9 +72,10 @@ def main() -> None:
     ap.add_argument(
         "--sleep",
         nargs="+",
-        choices=("chunks", "whole"),
+        choices=("chunks", "whole", "spin"),
         default=["chunks"],
-        help="At --fps > 0: sleep in 2 ms pieces, or once (as the CLI's --rate).",
+        help="At --fps > 0: sleep in 2 ms pieces, once (as the CLI's --rate), or not at all "
+        "(spin: the host never idles; the wake-up's cost is the difference).",
     )
     ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
