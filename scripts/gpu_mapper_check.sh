@@ -5,7 +5,8 @@
 #      published delta, 300 frames, on cuda, as `guidebelt mapper` ships (the floor refitted
 #      every 4th frame, on the frame's path), the frames back to back and at a camera's 30 fps,
 #      the loop sleeping in 2 ms pieces, in one sleep as the CLI's --rate does, or spinning
-#      (the wake-up's cost is the difference); the first run
+#      (the wake-up's cost is the difference) or sleeping to 2 ms before the frame and
+#      spinning from there; the first run
 #      also the pass's GPU vs host time (--split); a table of the rows with the parts' p99 and
 #      how late the loop woke (the CPU's figures are the dev VM's);
 #   3. only if PARTS names it: the camera-in-the-loop table, 20 seeds, WALKS_PARALLEL at a
@@ -35,7 +36,7 @@ if has bench; then
         split=()
         [ "$i" -eq 1 ] && split=(--split "$OUT_DIR/split.json")
         timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 4 --fps 0 30 \
-            --sleep chunks whole spin "${split[@]}" --frames "$FRAMES" --cache /tmp/mapper_frames.pickle \
+            --sleep chunks whole spin spin2 "${split[@]}" --frames "$FRAMES" --cache /tmp/mapper_frames.pickle \
             --json "$OUT_DIR/bench$i.json" >/dev/null
     done
     python3 - "$OUT_DIR"/bench*.json <<'PY'

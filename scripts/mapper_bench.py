@@ -7,8 +7,9 @@ Each backend x floor-refit interval (x floor fit on / off the frame's path, with
 ``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
 feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
 back), the loop sleeping in 2 ms pieces until the next frame is due (``--sleep chunks``), in
-one sleep as ``guidebelt mapper --rate`` does (``whole``), or spinning on the clock (``spin``:
-the host never idles, the GPU still does); each such row gives how late the loop woke
+one sleep as ``guidebelt mapper --rate`` does (``whole``), spinning on the clock (``spin``:
+the host never idles, the GPU still does), or sleeping once to 2 ms before the frame and
+spinning from there (``spin2``); each such row gives how late the loop woke
 (``wake_late_ms``): a frame that starts after a sleep pays the wake-up. ``--split``
 adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
@@ -72,10 +73,11 @@ def main() -> None:
     ap.add_argument(
         "--sleep",
         nargs="+",
-        choices=("chunks", "whole", "spin"),
+        choices=("chunks", "whole", "spin", "spin2"),
         default=["chunks"],
-        help="At --fps > 0: sleep in 2 ms pieces, once (as the CLI's --rate), or not at all "
-        "(spin: the host never idles; the wake-up's cost is the difference).",
+        help="At --fps > 0: sleep in 2 ms pieces, once (as the CLI's --rate), not at all "
+        "(spin: the host never idles; the wake-up's cost is the difference), or once to 2 ms "
+        "before the frame and spin from there (spin2).",
     )
     ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
@@ -148,10 +150,10 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     late = []
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
-        if sleep == "whole":
-            time.sleep(max(0.0, due - time.perf_counter()))
+        if sleep in ("whole", "spin2"):
+            time.sleep(max(0.0, due - (0.002 if sleep == "spin2" else 0.0) - time.perf_counter()))
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
-            if sleep != "spin":
+            if sleep in ("chunks", "whole"):
                 time.sleep(min(due - t, 0.002))
         t, before = time.perf_counter(), runs[0]
         late.append((t - due) * 1e3)
