@@ -1,6 +1,8 @@
 """The mapper proper: one frame in, the changed cells of the global map and proximity out.
 
-``OccupancyMapper.process`` checks the frame (``frame.check_frame``), fits the floor
+``OccupancyMapper.process`` checks the frame (``frame.check_frame``; where the pass counts
+the frame's pixels itself, on cuda, the depth and motion rules are checked once it is back,
+in the same order, before anything is kept), fits the floor
 (``floor.fit_floor``), runs the per-pixel pass on the chosen backend (``backends``), clears
 along the rays, and fuses the frame into the global map by per-cell log-odds (the
 occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, ch. 9:
