@@ -82,12 +82,16 @@ class MapperSettings:
     last fit, or a relocalisation, refits at once. The fit on the frame's path is 0.23–0.40 ms of a
     frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
     floor_refit_m: float = 0.5
-    floor_async: bool = False
-    """Fit a due floor off the frame's path: the frame keeps the last fit, and the fit runs
-    on a worker thread once the frame's delta is out (``fit_pending_floor``, which the node
-    calls after publishing), to be taken by the first frame after it is done. Only the
-    first fit, and the one after a relocalisation, are made on the frame's path. At a
-    camera's 30 fps the fit (~1 ms) is done long before the next frame comes."""
+    floor_async: bool = True
+    """Fit a due floor off the frame's path: the frame that leaves a fit due keeps the last
+    fit, the fit of its sample runs on a worker thread once its delta is out
+    (``fit_pending_floor``, which the node calls after publishing), and the NEXT frame takes
+    it, waiting for it if it is not done (made there on the path if nobody started it). Which
+    frame uses which fit is then fixed by the frames alone, not by the thread's timing: the
+    map is the same on every run and on every backend. At a camera's 30 fps the fit (~1 ms
+    on the dev VM) is done long before the next frame comes; back to back the next frame
+    waits about what a fit on the path costs. Only the first fit, and the one after a
+    relocalisation, are made on the frame's path of the frame that needs them."""
     max_tilt_deg: float = 25.0
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
@@ -197,8 +201,9 @@ class OccupancyMapper:
             self.refused[exc.refusal] += 1
             if exc.refusal is Refusal.POSE_JUMP:
                 self._jumps += 1
-                if self._jumps >= JUMPS_TO_RELOCALISE:
+                if self._jumps >= JUMPS_TO_RELOCALISE:  # a fit due from the old place, too
                     self.last_xy, self._jumps, self._floor = None, 0, None
+                    self._floor_due, self._floor_job = None, None
             raise
 
     def _process(self, frame: DepthFrame) -> FrameResult:
@@ -242,8 +247,8 @@ class OccupancyMapper:
                          frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
-        if arrived is not None:  # the fit that ran off the path, taken by this frame
-            self._floor, self._floor_job = arrived, None
+        if arrived is not None:  # the fit the last frame left due, taken by this frame
+            self._floor, self._floor_job, self._floor_due = arrived, None, None
         if isinstance(refit, Sample):
             self._floor_due, self._floor_age = refit, 0
         elif refit is not None:
@@ -262,15 +267,13 @@ class OccupancyMapper:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
         in the camera's frame. Returns the new fit to keep (or, ``floor_async``, the sample
-        to fit once the frame is out), or None, and the fit that arrived from the worker
-        thread, or None: both applied by the caller only once the frame is merged (a refused
-        frame changes nothing, also one refused after this, on cuda)."""
+        to fit once the frame is out), or None, and the fit the last merged frame left due
+        (``_pending_fit``), or None: both applied by the caller only once the frame is merged
+        (a refused frame changes nothing, also one refused after this, on cuda)."""
         s = self.settings
         if not s.floor_ransac:
             return NOMINAL, rot, 0.0, None, None
-        arrived = None
-        if self._floor_job is not None and self._floor_job.done():
-            arrived = self._floor_job.result()
+        arrived = self._pending_fit()
         last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
                or float(np.hypot(*(cam[:2] - last[2][:2]))) > s.floor_refit_m)  # fmt: skip
@@ -294,10 +297,22 @@ class OccupancyMapper:
         fit = fit_floor(pts, sample.cam, max_tilt_deg=s.max_tilt_deg)
         return fit, rot.T @ fit.rotation @ rot, sample.cam
 
+    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, np.ndarray] | None:
+        """The fit the last merged frame left due (``floor_async``), for this frame: waited
+        for if the worker has not finished it, made here if nobody started it (a caller that
+        never calls ``fit_pending_floor``), so the frame that takes it never depends on the
+        thread's timing. None when none is due."""
+        if self._floor_job is not None:
+            return self._floor_job.result()
+        if self._floor_due is not None:
+            return self._fit(self._floor_due)
+        return None
+
     def fit_pending_floor(self) -> bool:
         """Start the floor fit a frame left due (``floor_async``) on the worker thread; the
-        node calls this once the frame's delta is out. False when none is due, or one is
-        still running (the due one then waits for the next call)."""
+        node calls this once the frame's delta is out, and the next merged frame takes it.
+        False when none is due, or the one started is not taken yet (a refused frame
+        between them)."""
         if self._floor_due is None or self._floor_job is not None:
             return False
         if self._fitter is None:
