@@ -108,6 +108,10 @@ def test_a_frame_is_refused_on_cuda_as_on_the_cpu():
             assert np.array_equal(gpu.logodds, before)
         assert (cpu.last_stamp, cpu.frames, cpu._floor_age) == (gpu.last_stamp, gpu.frames,
                                                                  gpu._floor_age)  # fmt: skip
+        # The fits are made on the host from the same samples: the same floor, to the bit.
+        assert cpu._floor is not None and gpu._floor is not None
+        assert cpu._floor[0].floor_z == gpu._floor[0].floor_z
+        assert np.array_equal(cpu._floor[1], gpu._floor[1])
     assert cpu.refused == gpu.refused
     assert sum(gpu.refused.values()) == len(seq) - 5
     assert (cpu.occupancy != gpu.occupancy).sum() <= 2
