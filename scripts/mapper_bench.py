@@ -1,10 +1,11 @@
 """Mapper speed: a 640 x 480 depth frame to a published ``MapDelta``, per frame.
 
 Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
-       [--floor-async] [--fps 0 30] [--sleep chunks whole] [--split F.json] [--frames 200]
+       [--floor next path] [--fps 0 30] [--sleep chunks whole] [--split F.json] [--frames 200]
        [--json out/mapper_bench.json] [--cache frames.pickle]
-Each backend x floor-refit interval (x floor fit on / off the frame's path, with
-``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
+Each backend x floor-refit interval (x where a due fit runs: ``next``, off the frame's path
+and taken by the next frame, as shipped, or ``path``, on the frame's own path; x each
+``--fps``) is one row, on the same rendered frames. ``--fps``
 feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
 back), the loop sleeping in 2 ms pieces until the next frame is due (``--sleep chunks``), in
 one sleep as ``guidebelt mapper --rate`` does (``whole``), spinning on the clock (``spin``:
@@ -68,7 +69,14 @@ def main() -> None:
     ap.add_argument("--backend", nargs="+", default=["cpu"])
     ap.add_argument("--floor-every", type=int, nargs="+", default=[1])
     ap.add_argument("--frames", type=int, default=200)
-    ap.add_argument("--floor-async", action="store_true", help="Fit off the path too.")
+    ap.add_argument(
+        "--floor",
+        nargs="+",
+        choices=("next", "path"),
+        default=["next" if MapperSettings().floor_async else "path"],
+        help="A due floor fit off the path, taken by the next frame (next), or on the frame's "
+        "own path (path); default: as shipped.",
+    )
     ap.add_argument("--fps", type=float, nargs="+", default=[0.0], help="0: back to back.")
     ap.add_argument(
         "--sleep",
@@ -97,7 +105,7 @@ def main() -> None:
         session = open_session(ZenohSettings(connect=[], multicast_scouting=False))
     except ImportError:
         session = None
-    modes = (False, True) if args.floor_async else (False,)
+    modes = [m == "next" for m in args.floor]
     rows = [bench(session, frames, b, k, a, fps, sleep) for b in args.backend
             for k in args.floor_every for a in modes for fps in args.fps
             for sleep in (args.sleep if fps > 0 else ["-"])]  # fmt: skip
@@ -116,7 +124,7 @@ def main() -> None:
         session.close()
 
 
-def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = False,
+def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = True,
           fps: float = 0.0, sleep: str = "chunks") -> dict:  # fmt: skip
     settings = MapperSettings(backend=backend, floor_every=floor_every, floor_async=floor_async)
     mapper = OccupancyMapper(settings)
@@ -148,6 +156,7 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     period = 1.0 / fps if fps > 0 else 0.0
     due = time.perf_counter()
     late = []
+    started_at = time.time()  # wall clock, to match samples taken beside (GPU clocks)
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
         if sleep in ("whole", "spin2"):
@@ -182,6 +191,7 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
         "frames_collected": int(sum(collected)),
+        "started_at": round(started_at, 3), "ended_at": round(time.time(), 3),
         # How long after the frame was due the loop took it (0 back to back: never slept).
         "wake_late_ms": {"median": round(float(np.median(late[1:])), 3),
                          "p99": round(float(np.percentile(late[1:], 99)), 3)} if fps > 0 else None,
