@@ -6,7 +6,8 @@
 #      every 4th frame off the frame's path, taken by the next frame: FLOOR=next; "next path"
 #      adds the fit on the path), the frames back to back and at a camera's 30 fps, the loop
 #      sleeping as SLEEPS says (default whole: one sleep, as the CLI's --rate; also chunks,
-#      spin, spin2: see the bench); the first run also the pass's GPU vs host time (--split);
+#      spin, spin2: see the bench); the first run also the pass's GPU vs host time (--split,
+#      unless SPLIT=0);
 #      the GPU's SM clock sampled every 100 ms meanwhile (clocks.csv), summed per row; a table
 #      of the rows with the parts' p99 and how late the loop woke (the CPU's figures are the
 #      dev VM's);
@@ -23,6 +24,7 @@ FRAMES=${FRAMES:-300}
 RUNS=${RUNS:-2}
 SLEEPS=${SLEEPS:-whole}
 FLOOR=${FLOOR:-next}
+SPLIT=${SPLIT:-1}
 WALKS_PARALLEL=${WALKS_PARALLEL:-10}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
 mkdir -p "$OUT_DIR"
@@ -41,7 +43,7 @@ if has bench; then
     clocks=$!
     for i in $(seq 1 "$RUNS"); do
         split=()
-        [ "$i" -eq 1 ] && split=(--split "$OUT_DIR/split.json")
+        [ "$i" -eq 1 ] && [ "$SPLIT" = 1 ] && split=(--split "$OUT_DIR/split.json")
         # shellcheck disable=SC2086  # SLEEPS and FLOOR are word lists
         timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 4 --fps 0 30 \
             --floor $FLOOR --sleep $SLEEPS "${split[@]}" --frames "$FRAMES" \
@@ -71,7 +73,7 @@ for i, name in enumerate(sys.argv[2:], 1):
               f"{r['median_ms']} | {r['p99_ms']} | {r['max_ms']} | {p['check']} / {p['floor']} / "
               f"{p['bin']} / {p['merge']} | {late.get('p99', '-')} | {mhz} |")
 PY
-    cat "$OUT_DIR/split.json"
+    [ -f "$OUT_DIR/split.json" ] && cat "$OUT_DIR/split.json"
 fi
 if has walks; then
     rm -f "$OUT_DIR/walks.jsonl"
