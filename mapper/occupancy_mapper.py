@@ -79,8 +79,9 @@ class MapperSettings:
     an H100 under 1 ms p99, where every frame's fit put it at 0.98–1.06 ms). Between fits the
     last fit is kept as a tilt of the camera (a chest camera's slip moves with the camera, not
     the world), so turning does not spoil it; a step of more than ``floor_refit_m`` since the
-    last fit, or a relocalisation, refits at once. The fit on the frame's path is 0.23–0.40 ms of a
-    frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
+    last fit leaves a fit due at once (taken by the next frame, ``floor_async``), and a
+    relocalisation fits on its first frame's path. On the frame's path the fit was 0.23–0.50 ms
+    of a frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
     floor_refit_m: float = 0.5
     floor_async: bool = True
     """Fit a due floor off the frame's path: the frame that leaves a fit due keeps the last
