@@ -83,8 +83,7 @@ C_KEEP = 6
 C_EXITS = 7
 """Tiles whose path exits were recomputed."""
 C_ROUNDS = 8
-"""EDS: 1 for the raise (when a cell was newly blocked), 1 for the reset round or 2 for the
-cut-over; plus, in both modes, the relaxation's longest chain of tile visits."""
+"""Grid-wide rounds, plus the relaxation's longest chain of tile visits."""
 C_TILES = 9
 """Tile visits, all phases."""
 C_SWEEPS = 10
@@ -101,6 +100,10 @@ C_STAMP = 16
 """Nine words: the global timer (ns, low 32 bits) at the call's phase boundaries, written by
 block 0 (``STAMP_PHASES`` in ``scripts/profile_cuda_phases.py``), then when the loop saw the
 call's post: the phases' device time per call."""
+C_RAISE_RING = 25
+"""EDS: three rotating sums of the cells raised in a round (beside ``C_CNT``'s, zeroed with
+them): every block adds them up after each barrier to decide the cut-over, so no visit waits
+for an atomic's return to compare the running total with the limit."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 P_SEG = 40
@@ -150,7 +153,7 @@ _WORDS = (
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_RELEASE", "P_SEG", "P_NSEGS",
     "C_GO", "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",
     "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",

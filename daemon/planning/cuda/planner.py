@@ -20,8 +20,8 @@ superset); then raised and newly freed cells are re-seeded from their neighbours
 everything is relaxed until nothing changes. Every value is an integer path cost, so the
 fixpoint is the exact field, equal to the CPU's cell for cell whatever the order of relaxation.
 As on the CPU, ``fast``'s repair gives up once it has raised more than ``cut_over`` cells (a
-wall across the route raises the whole shadow behind it): the device decides once its raise
-stops, with no host round trip (``fast.cu``), and the same call keeps every cell whose
+wall across the route raises the whole shadow behind it): the device decides at the end of a
+raise round, with no host round trip (``fast.cu``), and the same call keeps every cell whose
 old g lies below the least g the change can reach and relaxes the rest from there
 (``kernels/cut_over.cuh``, LPA*'s rule), instead of from the goal; ``cut_cells`` tells
 whether the last call gave up.
@@ -90,9 +90,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     """EDS (``dss=False``) or DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
 
     Calls are serialised on the device (``device.DEVICE_LOCK``): the resident loop needs every
-    block resident. ``UpdateStats.iterations`` of ``fast``: EDS's raise and reset phases (1 each,
-    2 for a cut-over) plus the longest chain of tile visits of the relaxation, the rounds it
-    stands in for.
+    block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
+    reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
     ``cut_over`` (``fast``): the cells an EDS repair may raise per row and column of the map
     before the call gives the repair up and relaxes from below the change (default ``CUT_OVER``;
     ``math.inf``: never). ``focused`` (``fast`` EDS, default ``FOCUSED``): a walking step's

@@ -35,8 +35,8 @@
 #pragma once
 #include "rounds.cuh"
 
-// Every block of the call's group, after the raise that passed the limit. delta/ndelta:
-// the call's delta (cell * 2 + blocked). left: the flags the raise left; dirty, cnt:
+// Every block of the call's group, after the raise round that passed the limit. delta/ndelta:
+// the call's delta (cell * 2 + blocked). left: the flags the last raise round left; dirty, cnt:
 // the flags the relaxation takes and their count (zero); seeds: the tiles of the changed
 // cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words. Two
 // group barriers: the level, then the reset.

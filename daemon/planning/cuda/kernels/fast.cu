@@ -13,16 +13,17 @@
 //
 // The relaxation has no rounds: block b of the call's GSIZE owns tiles b, b + GSIZE, ... and
 // relaxes each as soon as it is flagged, so the wave moves at the pace of one tile instead of
-// a grid-wide round. The EDS raise runs the same way (rounds.cuh, raise_async); the reset is
-// one grid-wide round.
+// a grid-wide round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
-// whole shadow behind it) gives up the repair: raising and re-lowering that many cells costs
-// more than a plan from the goal (the CPU's rule, cpu/dial.py). It keeps every cell whose old
-// g lies below the least g the change can reach and relaxes from there (cut_over.cuh), not
-// from the goal. The raised cells are counted as they are raised; a block stops raising once
-// it reads the count past the limit, and every block decides from the final count after the
-// raise's barrier, the same in every block, with no host round trip.
+// whole shadow behind it) gives up the repair at the end of that round: raising and
+// re-lowering that many cells costs more than a plan from the goal (the CPU's rule,
+// cpu/dial.py). It keeps every cell whose old g lies below the least g the change can reach
+// and relaxes from there (cut_over.cuh), not from the goal. The raised cells are counted as
+// they are raised, into the round's word of a ring beside the flag counts (rounds.cuh,
+// count_raised); every block reads it with the round's flag count after the round's barrier
+// and adds it to its running total, so the decision is the same in every block and costs no
+// extra barrier, no host round trip, and no visit a wait for an atomic's return.
 //
 // Focused repair (focus >= 0, the user's cell; LPA*'s and D* Lite's keys, Koenig and Likhachev
 // 2002, per tile). A visit that lowers cells on edge/corner k of its tile bounds every value the
@@ -63,10 +64,12 @@
 
 #include "tile_relax.cuh"
 #include "path_exits.cuh"
-#include "rounds.cuh"  // the EDS step's raise and reset
+#include "rounds.cuh"  // the EDS step's grid-wide rounds
 #include "cut_over.cuh"
 
 // ctrl and io words: abi.cuh (generated from cuda/abi.py).
+
+#define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
 
 // The relaxation without rounds. *work is the sum of the flags' counts, set or taken
 // by a visit under way (a block uncounts what it took after its visits have flagged their
@@ -170,6 +173,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     __shared__ int s_list[THREADS];
     __shared__ int s_n;
     __shared__ int s_params[PARAM_USED];
+    __shared__ unsigned s_raised;  // EDS: the cells raised so far (round_pending)
     Grid G;
     G.h = h; G.w = w;
     G.tiles_x = (w + TILE - 1) / TILE;
@@ -184,6 +188,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     int* lb = (int*)(flags + 6 * G.ntiles);
     int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
+    if (threadIdx.x == 0) s_raised = 0;
     __syncthreads();
     const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
     const int start = s_params[PARAM_START], goal = s_params[PARAM_GOAL];
@@ -242,8 +247,8 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
                     }
                 }
             }
-            // One flag per distinct tile of the warp (the raise reads only whether a tile
-            // is flagged; cnt1 sums the counts, which the raise takes back as it visits).
+            // One flag per distinct tile of the warp (the raise round reads only whether a
+            // tile is flagged, and the count only whether it is 0).
 #pragma unroll
             for (int k = 0; k < 4; ++k) {
                 unsigned same = __match_any_sync(FULL, near[k]);
@@ -258,49 +263,45 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         mine = __reduce_add_sync(FULL, mine);
         flagged = __reduce_add_sync(FULL, flagged);
         if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
-        if (lane == 0 && mine) atomicAdd(ctrl + C_RAISED, mine);  // the cut-over's count
+        if (lane == 0 && mine) count_raised(ctrl, mine, 0);
     }
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 1);
+    unsigned pending = round_pending(ctrl, 0, limit, &s_raised);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
     if (mode == MODE_EDS) {
-        // The raise from round 0's flags, which exist exactly when round 0 raised a newly
-        // blocked cell: a count that nothing moves unless it is not 0, so every block reads
-        // the same answer here, however late. (The flag count would not do: the raise's
-        // visits take it back to 0.) The relaxation's flags are then ping, counted in
-        // C_CNT + 2 (r = 2 below), which round 0 left zero.
-        bool cut = false;
-        if (((volatile const unsigned*)ctrl)[C_RAISED] != 0u) {
-            raise_async(G, pong, cnt1, seeds, ctrl, g, raised, gs, rs, s_list, &s_n, limit);
-            if (tid == 0) atomicAdd(ctrl + C_ROUNDS, 1u);
-            grid_barrier(ctrl, &bar);
-            // Every block reads the final count after the barrier: the same decision in all
-            // (keep_below_change zeroes the word only after its own first barrier).
-            cut = ((volatile const unsigned*)ctrl)[C_RAISED] > limit;
+        while (pending && !(pending & CUT_PENDING)) {
+            pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                &s_raised);
+            ++r;
         }
         stamp(ctrl, 2);
-        unsigned* cnt2 = ctrl + C_CNT + 2;
-        if (cut) {
-            // pong: the flags a raise left when its blocks stopped at the limit.
-            keep_below_change(G, g, raised, delta, ndelta, pong, ping, cnt2, seeds, stale,
+        if (pending & CUT_PENDING) {
+            keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
+                              (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
                               deferred, lb, ctrl, &bar);
         } else {
-            // The focus's g after the reset: the raise is over (its barrier) and the reset
-            // round lowers nothing. Both words at once (one round trip, not two); g is read
-            // even where the focus was raised, and then not used.
+            // The focus's g after the reset: the raise is over (its last barrier) and the
+            // reset round lowers nothing. Both words at once (one round trip, not two); g is
+            // read even where the focus was raised, and then not used.
             int g_focus = INF;
             if (focus >= 0) {
                 const unsigned char focus_raised = __ldcg(raised + focus);
                 const int g_old = __ldcg(g + focus);
                 if (!focus_raised) g_focus = g_old;
             }
-            reset_round(G, seeds, ping, cnt2, stale, ctrl, g, raised, s_list, &s_n, &bar,
-                        deferred, lb, g_focus, fy, fx);
+            pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
+                                g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                nullptr, deferred, lb, g_focus, fy, fx);
         }
-        r = 2;
+        ++r;
     }
-    // The flags and the count the relaxation takes: (r & 1) ? pong : ping, C_CNT + r % 3.
+    // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
+    // Every block enters, even with nothing pending: a block that is late to read `pending`
+    // may find the count already changed by the others' visits.
+    (void)pending;
     stamp(ctrl, 3);
     relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
                 bs, s_list, &s_n, focus, fy, fx, deferred, lb);
@@ -349,7 +350,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         }
         __syncthreads();  // every word is copied before it is zeroed
         if (threadIdx.x == 0) {
-            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
+            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = ctrl[C_RAISE_RING + i] = 0;
             ctrl[C_EXITS] = 0;
             ctrl[C_CUT] = 0;
             ctrl[C_KEEP] = 0;
