@@ -80,6 +80,13 @@ __device__ __forceinline__ int halo_g(const Grid& G, const int* g, int oy, int o
     return (y >= 0 && x >= 0 && y < G.h && x < G.w) ? __ldcg(g + y * G.w + x) : INF;
 }
 
+// The raised byte at halo-tile index i of the tile at (oy, ox); 0 outside.
+__device__ __forceinline__ unsigned char halo_raised(const Grid& G, const unsigned char* raised,
+                                                     int oy, int ox, int i) {
+    int y = oy + i / HT - 1, x = ox + i % HT - 1;
+    return (y >= 0 && x >= 0 && y < G.h && x < G.w) ? __ldcg(raised + y * G.w + x) : 0;
+}
+
 // Load g of the tile and its halo into gs (cells outside the map read INF). HT * HT = 1156
 // cells for 1024 threads: both loads of a thread are issued before either is stored, so a
 // visit waits for one L2 round trip here, not two.
@@ -200,13 +207,23 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
     const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
     const bool inside = c.inside;
     if (threadIdx.x == 0) { s_bits = 0; s_any = 0; }
-    load_tile_g(G, g, oy, ox, gs);
-    for (int i = threadIdx.x; i < HT * HT; i += THREADS) {
-        int sy = i / HT, sx = i % HT;
-        int yy = oy + sy - 1, xx = ox + sx - 1;
-        unsigned char v = 0;
-        if (yy >= 0 && xx >= 0 && yy < G.h && xx < G.w) v = __ldcg(raised + yy * G.w + xx);
-        rs[sy][sx] = v;
+    {
+        // The tile's g and raised bytes with their halo, two cells a thread (HT * HT = 1156
+        // for 1024 threads): all four loads issued before any store, so the visit waits for
+        // one L2 round trip. As load_tile_g then a loop over the bytes, ptxas stored each
+        // value before it issued the next load (sm_90 SASS): four round trips one behind
+        // another for the threads that hold two cells, on every raise visit's path.
+        const int i0 = threadIdx.x, i1 = threadIdx.x + THREADS;
+        const bool two = i1 < HT * HT;
+        const int g0 = halo_g(G, g, oy, ox, i0), g1 = two ? halo_g(G, g, oy, ox, i1) : INF;
+        const unsigned char r0 = halo_raised(G, raised, oy, ox, i0);
+        const unsigned char r1 = two ? halo_raised(G, raised, oy, ox, i1) : 0;
+        gs[i0 / HT][i0 % HT] = g0;
+        rs[i0 / HT][i0 % HT] = r0;
+        if (two) {
+            gs[i1 / HT][i1 % HT] = g1;
+            rs[i1 / HT][i1 % HT] = r1;
+        }
     }
     __syncthreads();
     int gv = gs[y + 1][x + 1];
