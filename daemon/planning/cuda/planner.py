@@ -396,7 +396,10 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
                 # A call with no change: the loop extracts the path, no launch.
                 cell = start[0] * self._shape[1] + start[1]
                 self._call_fast(True, None, None, cell, focus=cell if self.focused else -1)
-                return self._path_locked(start, fused=True)
+                path = self._path_locked(start, fused=True)
+                if self.focused and self._result[R_STATUS] == abi.PATH_DONE:
+                    self._last_path = self._seq  # as a step's (user_bound.cuh)
+                return path
             return self._path_locked(start)
 
     def device_bytes(self) -> int:

@@ -238,9 +238,9 @@ def test_a_new_map_has_room_for_large_deltas_and_a_larger_one_grows_it(cuda, mon
 @pytest.mark.parametrize("dss", [False, True], ids=["eds", "dss"])
 def test_a_step_names_the_last_path_only_when_no_call_ran_since(cuda, dss):
     """``PARAM_LAST_PATH`` (the user's bound, ``user_bound.cuh``): a focused step names the
-    seq of the step just before it when that step read its path whole from the loop's
-    buffer; 0 after any other call (``plan``, ``update``, ``path``, a settle), after a step
-    with no path, and always for DSS, which is never focused."""
+    seq of the call just before it when that call (a step or a ``path`` query) read its path
+    whole from the loop's buffer; 0 after any other call (``plan``, ``update``, a settle),
+    after a call with no path, and always for DSS, which is never focused."""
     _, blocked, goal = world(5)
     p, model = made(cuda, dss=dss)
     p.plan(blocked, goal)
@@ -259,9 +259,9 @@ def test_a_step_names_the_last_path_only_when_no_call_ran_since(cuda, dss):
     p.update(*none)
     assert step() == 0
     p.path(user)
-    assert step() == 0
+    assert step() == (0 if dss else p._seq - 1)  # the query's seq: the step's is one more
     p.costs()  # settles in a call of its own when the steps deferred anything
-    step()
+    assert step() == 0
     seq = p._seq
     assert step() == (0 if dss else seq)
     step((-1, -1))  # off the map: no path read
