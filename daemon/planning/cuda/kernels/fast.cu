@@ -302,7 +302,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         if (pending & CUT_PENDING) {
             keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
                               (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
-                              deferred, lb, ctrl, &bar);
+                              deferred, lb, ctrl, &bar, fy, fx, bound);
         } else {
             // The focus's g after the reset: the raise is over (its last barrier) and the
             // reset round lowers nothing. Both words at once (one round trip, not two); g is

@@ -30,8 +30,9 @@
 //   would not be the reference path.
 // - What it buys. Every threshold is min(g(focus), B). After a cut-over the focus's g is
 //   usually reset to INF (keep_below_change), so with g alone the relaxation defers nothing
-//   until the wave reaches the user and floods the map beyond the level; with B it defers
-//   from its first visit.
+//   until the wave reaches the user and floods the map beyond the level; with B the cut-over
+//   puts aside the tiles whose key level + h exceeds B instead of flagging them
+//   (cut_over.cuh, (4)), and the relaxation defers from its first visit.
 #pragma once
 #include "abi.cuh"
 
