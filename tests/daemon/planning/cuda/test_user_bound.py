@@ -107,7 +107,7 @@ def ahead_delta(data, truth: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, 
 
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize("cut_over", [None, 0.0], ids=["default", "always_cut"])
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_a_walk_along_its_paths_reads_the_reference_path_at_every_step(cut_over, data):
     """The user walks a few cells along each path read, with no other call between steps
@@ -117,7 +117,7 @@ def test_a_walk_along_its_paths_reads_the_reference_path_at_every_step(cut_over,
     ``always_cut``: nearly every raising step cuts over, where the bound matters most."""
     from daemon.planning.cuda.planner import CudaPlanner
 
-    h, w = data.draw(st.integers(64, 192), label="h"), data.draw(st.integers(64, 192), label="w")
+    h, w = data.draw(st.integers(64, 128), label="h"), data.draw(st.integers(64, 128), label="w")
     rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1), label="seed"))
     truth = rng.random((h, w)) < data.draw(st.sampled_from([0.0, 0.1, 0.2]), label="density")
     goal = (data.draw(st.integers(0, h - 1)), data.draw(st.integers(0, w - 1)))
@@ -126,7 +126,7 @@ def test_a_walk_along_its_paths_reads_the_reference_path_at_every_step(cut_over,
     eds = CudaPlanner("fast", cut_over=cut_over)
     eds.plan(truth, goal)
     path = np.empty((0, 2), np.int32)
-    for _ in range(data.draw(st.integers(2, 10), label="steps")):
+    for _ in range(data.draw(st.integers(2, 8), label="steps")):
         cells, values = ahead_delta(data, truth, path)
         values[(cells == goal[0] * w + goal[1]) | (cells == user[0] * w + user[1])] = False
         truth.reshape(-1)[cells] = values
