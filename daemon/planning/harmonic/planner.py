@@ -153,7 +153,7 @@ class HarmonicPlanner(GlobalPlanner):
         self.engine.load(fixed, w0, w + 2, g)
         # The GPU engine searches the whole map on the device when a change may cut cells off,
         # on maps large enough for that to pay.
-        search = getattr(self.engine, "reach_search", None)
+        search = getattr(self.engine, "reach_search_start", None)
         self.reach.search = search if flat.size >= DEVICE_SEARCH_CELLS else None
         return self._relax(t0, COLD_SWEEPS)
 

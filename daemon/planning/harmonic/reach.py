@@ -11,7 +11,7 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
   Otherwise the cells cut off are found from where the change happened (``cut_off``), and
-  only past a budget by one BFS over the whole map.
+  only past a budget by one search of the whole map (``floods.reached``, or the device's).
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
 """
@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from .cut_off import cut_off, neighbour_offsets
+from .floods import flood, reached
 from .relax import bfs_steps
 
 MARGIN = 16
@@ -33,6 +34,10 @@ CUT_SHARE = 8
 CUT_CELLS_BESIDE_SEARCH = 1 << 16
 """... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
 is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
+FIRST_TRY_SHARE = 16
+"""Beside ``Reach.search``, ``cut_off`` first tries 1/FIRST_TRY_SHARE of its budget; past
+that the device's search is started, and the try goes on to its whole budget while the
+device works (the 2000² bench walk's reveal: a try that fails, then the device's search)."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,10 +80,15 @@ def _joined(blocked, new, width, height, margin, mark, queue, around, first, wan
     while head < tail and wanted > 0:
         cur = queue[head]
         head += 1
-        for o in around:
-            j = cur + o
-            r, c = j // width, j % width
-            if blocked[j] or mark[j] == 1 or r < r0 or r > r1 or c < c0 or c > c1:
+        # The window's bounds from the cell's own row and column, one division a cell, not
+        # two for each of its 8 neighbours: on a 2000² delta of 143 walls whose windows all
+        # fail, ``_joined_each`` 55 → 30 ms (dev VM, CPU time, median of 6).
+        r, c = cur // width, cur % width
+        for d in range(8):
+            j = cur + around[d]
+            e = d + (d >= 4)  # around skips the cell itself: e is the 3×3 block's index
+            rr, cc = r + e // 3 - 1, c + e % 3 - 1
+            if blocked[j] or mark[j] == 1 or rr < r0 or rr > r1 or cc < c0 or cc > c1:
                 continue
             if mark[j] == 2:
                 wanted -= 1
@@ -159,26 +169,8 @@ def _grow(blocked, reach, freed, width, queue, out) -> int:
                 queue[tail] = i
                 tail += 1
                 break
-    tail = _flood(blocked, reach, width, queue, 0, tail)
+    tail = flood(blocked, reach, width, queue, 0, tail)
     out[:tail] = queue[:tail]
-    return tail
-
-
-@numba.njit(cache=True, nogil=True)
-def _flood(blocked, reach, width, queue, head, tail) -> int:
-    """Breadth-first from ``queue[head:tail]`` (already marked in ``reach``) over the free
-    cells (8-connected, padded flat map); every cell reached is marked and queued. Returns
-    the new tail."""
-    around = neighbour_offsets(width)
-    while head < tail:
-        cur = queue[head]
-        head += 1
-        for o in around:
-            nxt = cur + o
-            if not reach[nxt] and not blocked[nxt]:
-                reach[nxt] = True
-                queue[tail] = nxt
-                tail += 1
     return tail
 
 
@@ -189,13 +181,21 @@ def _flips(blocked, reach, cells, values, mark, out, was) -> tuple[int, int]:
     old reach in ``was``, then cleared in ``reach``), the freed at its back; returns the two
     counts. One pass over the delta, not a sort (``np.unique`` took ~0.2 ms of a 400² step)
     nor numpy's indexing of the flips once per use (~2 ms of the 2000² first sweep's 119 k
-    cells). ``mark``: scratch of zeros, left zeroed."""
+    cells). ``mark``: scratch of zeros, left zeroed; only a delta not strictly increasing
+    needs it (the navigator's flipped cells are, so no cell is named twice): its two passes
+    of scattered writes were ~0.4 of this function's time on the 2000² first sweep."""
+    ordered = True
+    for k in range(1, cells.size):
+        if cells[k] <= cells[k - 1]:
+            ordered = False
+            break
     nb = nf = 0
     for k in range(cells.size - 1, -1, -1):
         c = cells[k]
-        if mark[c]:
-            continue
-        mark[c] = 1
+        if not ordered:
+            if mark[c]:
+                continue
+            mark[c] = 1
         if blocked[c] == values[k]:
             continue
         blocked[c] = values[k]
@@ -207,23 +207,32 @@ def _flips(blocked, reach, cells, values, mark, out, was) -> tuple[int, int]:
         else:
             nf += 1
             out[out.size - nf] = c
-    for k in range(cells.size):
-        mark[cells[k]] = 0
+    if not ordered:
+        for k in range(cells.size):
+            mark[cells[k]] = 0
     return nb, nf
 
 
 @numba.njit(cache=True, nogil=True)
-def _reached(blocked, goal, width, reach, queue) -> int:
-    """Every free cell the goal reaches (8-connected) into ``reach``; returns their count. The
-    whole-map search of a change that may have cut cells off: ``bfs_steps`` also counts steps
-    (int64, a plan's first guess, not needed here) into a queue it allocates, 32 MB at 2000²
-    (dev VM, CPU time, an open 2000² map: 70–83 ms against 37 ms)."""
-    reach[:] = False
-    if blocked[goal]:
-        return 0
-    reach[goal] = True
-    queue[0] = goal
-    return _flood(blocked, reach, width, queue, 0, 1)
+def _answered(reach, changed, now_blocked, was, lost, gained) -> tuple[int, int]:
+    """The whole-map search's answer (``changed``: the cells whose reach differs from the
+    reach before the change) applied to ``reach``, which holds the reach after ``_flips``
+    (``now_blocked`` cleared; their old reach ``was``): the cells lost and gained, in
+    ``changed``'s order, into ``lost`` and ``gained``; returns the two counts. One pass, not
+    numpy's six scatters and gathers of up to ~137 k cells on the 2000² walk's reveal."""
+    for k in range(now_blocked.size):
+        reach[now_blocked[k]] = was[k]
+    n_lost = n_gained = 0
+    for c in changed:
+        if reach[c]:
+            reach[c] = False
+            lost[n_lost] = c
+            n_lost += 1
+        else:
+            reach[c] = True
+            gained[n_gained] = c
+            n_gained += 1
+    return n_lost, n_gained
 
 
 class Reach:
@@ -246,10 +255,11 @@ class Reach:
         self._was = np.empty(blocked.size, dtype=np.bool_)
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
-        self.search: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
-        """The whole-map search elsewhere (the GPU engine's ``reach_search``): given the map,
-        the reach before the change and the goal, the cells whose reach changed (sorted);
-        None: the host's breadth-first search."""
+        self.search: Callable[[np.ndarray, np.ndarray, int], Callable[[], np.ndarray]] | None = None
+        """The whole-map search elsewhere (the GPU engine's ``reach_search_start``): given the
+        map, the reach before the change and the goal (both read before it returns), it
+        starts the search and returns what waits for its answer, the cells whose reach
+        changed (in any order); None: the host's (``floods.reached``)."""
         self.cut_searches = 0
         """Changes whose cut-off cells ``cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
@@ -259,23 +269,37 @@ class Reach:
         self.count = int(self.reach.sum())
         """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
 
-    def _afresh(self, now_blocked: np.ndarray, was: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _start(self, now_blocked: np.ndarray, was: np.ndarray) -> Callable[[], np.ndarray]:
+        """``search`` started on the reach before the change; ``reach`` is left as it was."""
+        assert self.search is not None
+        self.reach[now_blocked] = was
+        wait = self.search(self.blocked, self.reach, self.goal)
+        self.reach[now_blocked] = False
+        return wait
+
+    def _afresh(
+        self, now_blocked: np.ndarray, was: np.ndarray, wait: Callable[[], np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Every reached cell found afresh (a change may have cut some off): ``(lost,
-        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``)."""
+        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``);
+        ``wait``: the answer of a ``search`` already started."""
         self.full_searches += 1
         if self.search is not None:
-            self.reach[now_blocked] = was  # the reach before the change
-            changed = self.search(self.blocked, self.reach, self.goal)
-            lost = self.reach[changed]
-            self.reach[changed] = ~lost
-            n_lost = int(np.count_nonzero(lost))
-            self.count += changed.size - 2 * n_lost
-            return changed[lost], changed[~lost]
+            if wait is None:
+                wait = self._start(now_blocked, was)
+            n_lost, n_gained = _answered(self.reach, wait(), now_blocked, was, self._out,
+                                         self._failed)  # fmt: skip
+            self.count += n_gained - n_lost
+            return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
         before = self.reach.copy()
         before[now_blocked] = was
-        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+        self.count = reached(self.blocked, self.goal, self.width, self.reach, self._queue)
         changed = np.flatnonzero(before != self.reach)
         return changed[~self.reach[changed]], changed[self.reach[changed]]
+
+    def _cut_off(self, failed: int, limit: int) -> int:
+        return cut_off(self.blocked, self.reach, self._failed[:failed], self.width, self.goal,
+                       self._group, self._queue, self._out, limit)  # fmt: skip
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
@@ -296,14 +320,22 @@ class Reach:
                                   MARGIN, self._mark, self._queue, self._label,
                                   self._failed, self._out)  # fmt: skip
         if nb and (self.blocked[self.goal] or failed):
+            wait = None
             if not self.blocked[self.goal]:
                 limit = self.blocked.size // CUT_SHARE
                 if self.search is not None:
+                    # A short try first; if it gives up, the device's search starts, and the
+                    # try goes on to the whole budget meanwhile (each try is the same search,
+                    # so it ends as the one try with the whole budget would: the same cuts).
                     limit = min(limit, CUT_CELLS_BESIDE_SEARCH)
-                cut = cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
-                               self.goal, self._group, self._queue, self._out, limit)  # fmt: skip
+                    cut = self._cut_off(failed, limit // FIRST_TRY_SHARE)
+                    if cut < 0:
+                        wait = self._start(now_blocked, was)
+                        cut = self._cut_off(failed, limit)
+                else:
+                    cut = self._cut_off(failed, limit)
             if self.blocked[self.goal] or cut < 0:
-                return self._afresh(now_blocked, was)
+                return self._afresh(now_blocked, was, wait)
             self.cut_searches += 1
         lost = now_blocked[was]
         if cut:

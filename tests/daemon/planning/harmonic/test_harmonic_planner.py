@@ -197,21 +197,23 @@ def test_a_cell_named_twice_in_one_delta_takes_its_last_value():
 
 
 def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
-    # An engine with ``reach_search`` (the GPU's) takes the reach's whole-map searches on a map
-    # past DEVICE_SEARCH_CELLS: the same reach, field and descents as the host's own search.
+    # An engine with ``reach_search_start`` (the GPU's) takes the reach's whole-map searches
+    # on a map past DEVICE_SEARCH_CELLS: the same reach, field and descents as the host's.
     from daemon.planning.harmonic import HarmonicPlanner
     from daemon.planning.harmonic import planner as hp
     from daemon.planning.harmonic.cpu import CpuField
-    from daemon.planning.harmonic.reach import _reached
+    from daemon.planning.harmonic.floods import reached
 
     calls = []
 
     class Searching(CpuField):
-        def reach_search(self, blocked, before, goal):
+        def reach_search_start(self, blocked, before, goal):
+            # Answered as the device does: from the masks as they were when it started.
             calls.append(goal)
             fresh = np.zeros(blocked.size, dtype=np.bool_)
-            _reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
-            return np.flatnonzero(fresh != before)
+            reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
+            changed = np.flatnonzero(fresh != before)
+            return lambda: changed
 
     monkeypatch.setattr(hp, "DEVICE_SEARCH_CELLS", 0)
     blocked = np.zeros((30, 30), dtype=bool)
