@@ -161,7 +161,9 @@ class HarmonicPlanner(GlobalPlanner):
         t0 = time.perf_counter()
         cells, values = checked_update_input(self._shape, cells, blocked)
         w = self._shape[1]
-        padded = (cells // w + 1) * (w + 2) + cells % w + 1
+        # (r + 1)(w + 2) + c + 1 for cell r·w + c, with one division, not two and a product:
+        # 137 k cells (the 2000² walk's step 36) 0.96 -> 0.32 ms (dev VM, CPU time).
+        padded = cells + 2 * (cells // w) + w + 3
         lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
         if lost.size == 0 and gained.size == 0:
             return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
