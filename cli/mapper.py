@@ -20,8 +20,12 @@ def mapper(
         int, typer.Option(min=1, help="Refit the floor every N frames (4 keeps cuda under 1 ms).")
     ] = 4,
     floor_async: Annotated[
-        bool, typer.Option(help="Fit a due floor on a worker thread, after the frame is out.")
-    ] = False,
+        bool,
+        typer.Option(
+            help="Fit a due floor on a worker thread once the frame is out, taken by the "
+            "next frame (--no-floor-async: on the frame's path)."
+        ),
+    ] = True,
     birdseye: Annotated[
         bool,
         typer.Option(

@@ -17,8 +17,11 @@ BACKENDS = ("auto", "cpu", "cuda")
 
 
 class Binner:
-    def __init__(self, name: str, fn: Callable[..., Binned]) -> None:
+    def __init__(self, name: str, fn: Callable[..., Binned], counts_valid: bool = False) -> None:
         self.name, self._fn = name, fn
+        self.counts_valid = counts_valid
+        """The pass also counts the pixels the frame check counts (``Binned.present``): the
+        mapper then checks the depth and the motion once the pass is back, not before."""
 
     def __call__(self, *args: Any) -> Binned:
         return self._fn(*args)
@@ -39,5 +42,5 @@ def make_binner(name: str = "auto") -> Binner:
     if name == "cuda" or (name == "auto" and cuda_usable()):
         from .cuda_binning import CudaBinner
 
-        return Binner("cuda", CudaBinner())  # its own buffers and graph, one per mapper
+        return Binner("cuda", CudaBinner(), counts_valid=True)  # its own buffers and graph
     return Binner("cpu", bin_frame_cpu)

@@ -59,20 +59,27 @@ class Binned:
     """``(bins, 3)``: squared range, x, y of the farthest free point (-1: none)."""
     valid: int
     """Pixels with a usable depth."""
+    present: int | None = None
+    """Pixels the frame check counts (``frame.count_valid``) where the pass counted them
+    (cuda, ``Binner.counts_valid``); None where the mapper counts on the host."""
 
 
 def bearing_bins(rot: np.ndarray, intr, width: int, height: int) -> tuple[float, float, float]:
     """How a point's bearing picks its bin: the camera's yaw (cos, sin) and the largest
     |tan| of a pixel's bearing from it, at the image's corners (the edges of a pinhole
-    image bound its bearings). Bin = (tan + tan_max) / (2 tan_max) of the bins."""
-    rot = np.asarray(rot, np.float64)
-    yaw = math.atan2(rot[1, 2], rot[0, 2])  # the optical axis, seen from above
-    c, s = math.cos(yaw), math.sin(yaw)
+    image bound its bearings). Bin = (tan + tan_max) / (2 tan_max) of the bins. Plain float
+    arithmetic, as the cuda pass does the same on the device (``kernels/bin_pixels.cu``)."""
+    r = np.asarray(rot, np.float64).tolist()
+    ax, ay = r[0][2], r[1][2]  # the optical axis, seen from above
+    n = math.sqrt(ax * ax + ay * ay)
+    c, s = (ax / n, ay / n) if n > 0 else (1.0, 0.0)
     tan_max = 1e-3
     for u in (0.0, width - 1.0):
         for v in (0.0, height - 1.0):
-            ray = rot @ np.array([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, 1.0])
-            fwd, side = ray[0] * c + ray[1] * s, -ray[0] * s + ray[1] * c
+            rx, ry = (u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy
+            x = r[0][0] * rx + r[0][1] * ry + r[0][2]
+            y = r[1][0] * rx + r[1][1] * ry + r[1][2]
+            fwd, side = x * c + y * s, -x * s + y * c
             tan_max = max(tan_max, abs(side) / fwd if fwd > 0 else TAN_LIMIT)
     return c, s, min(tan_max, TAN_LIMIT) * (1.0 + 1e-6)
 

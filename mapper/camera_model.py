@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -99,19 +100,26 @@ class CameraPose:
     def __post_init__(self) -> None:
         if len(self.position) != 3 or not all(math.isfinite(v) for v in self.position):
             raise ValueError("position must be three finite numbers")
-        rotation_of(self.orientation)  # refuses a non-unit or non-finite quaternion
+        self._rotation  # refuses a non-unit or non-finite quaternion  # noqa: B018
 
     @classmethod
     def level(cls, x: float, y: float, z: float, heading: float, pitch: float = 0.0,
               roll: float = 0.0) -> CameraPose:  # fmt: skip
         return cls((x, y, z), quaternion_from_ypr(heading, pitch, roll))
 
+    @cached_property
+    def _rotation(self) -> np.ndarray:
+        """``rotation_of(orientation)``, made once (a frozen pose never turns): the check
+        needs it, and the mapper reads it twice a frame (``world_from_optical``,
+        ``heading``). A pose pickled before it existed makes it on first use."""
+        return rotation_of(self.orientation)
+
     def world_from_optical(self) -> np.ndarray:
         """3x3 rotation taking optical-frame vectors into the world."""
-        return rotation_of(self.orientation) @ OPTICAL_TO_BODY
+        return self._rotation @ OPTICAL_TO_BODY
 
     @property
     def heading(self) -> float:
         """Yaw of the body's forward axis: the direction the wearer walks."""
-        r = rotation_of(self.orientation)
+        r = self._rotation
         return math.atan2(r[1, 0], r[0, 0])

@@ -7,10 +7,14 @@ are 64-bit ``atomicMin``/``atomicMax`` of (squared range, pixel index) keys, and
 tiny kernel reads back the winning points.
 
 A frame's whole device work is one CUDA graph, captured once per image size, window and
-bin count (``CudaBinner``): the frame's parameters and depth go up from page-locked host
-buffers, the outputs are reset, the two kernels run, and the window's counts and the
-per-bin points (a few tens of kB, all the merge reads) come back into a page-locked buffer.
-Per frame the host fills the two upload buffers, launches the graph and waits once: one
+bin count (``CudaBinner``): the frame's parameters and depth go up in one copy from one
+page-locked host buffer, the outputs are reset, the two kernels run, and the window's counts
+and the per-bin points (a few tens of kB, all the merge reads) come back into a page-locked
+buffer. The kernel also counts the pixels the frame check counts (``frame.count_valid``, a
+70 µs pass over the image on the H100's host) and works out the bearing bins' yaw and span
+from the uploaded pose (``binning.bearing_bins``, 12-25 µs of numpy there), so neither is
+host work on the frame's path any more. Per frame the host fills the upload buffer (one
+numpy call for the parameters, one copy of the depth), launches the graph and waits once: one
 launch and one wait instead of the eight calls through CuPy (three memsets, two uploads,
 two launches, a read-back, each with its Python wrapping) that were most of the pass's
 0.25 ms on the host, and whose tail (p99 1.16 ms in an H100 call) was the frame's.
@@ -26,12 +30,15 @@ import cupy as cp
 import cupyx
 import numpy as np
 
-from .binning import MIN_DEPTH_M, PUSH_M, Binned, Window, bearing_bins
+from .binning import MIN_DEPTH_M, PUSH_M, TAN_LIMIT, Binned, Window
+from .frame import count_valid
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
-PARAMS = 29
+PARAMS = 27
 """The kernel's double parameters (``kernels/bin_pixels.cu``'s P)."""
+HEAD = 256
+"""Bytes the parameters take ahead of the depth in the one upload (keeps the depth aligned)."""
 _MODULES: dict[str, tuple] = {}
 
 
@@ -52,20 +59,24 @@ class FramePass:
     def __init__(self, side: int, bins: int, h: int, w: int, map_rows: int,
                  dtype: np.dtype) -> None:  # fmt: skip
         n = 2 * side * side
-        # counts | valid, pad | hit, far (doubles). The pad keeps the doubles 8-byte aligned:
-        # n is even, so they start at an even int32 offset (n + 1 gave misaligned writes).
+        # counts | valid, present | hit, far (doubles). n is even, so the doubles start at
+        # an even int32 offset: 8-byte aligned.
         size = n + 2 + 6 * bins * 2
+        depth_bytes = h * w * np.dtype(dtype).itemsize
         out = cp.empty(size, cp.int32)
         hit_key, far_key = cp.empty(bins, cp.uint64), cp.empty(bins, cp.uint64)
-        params, depth = cp.empty(PARAMS, cp.float64), cp.empty((h, w), dtype)
+        up = cp.empty(HEAD + depth_bytes, cp.uint8)  # parameters, then the depth: one copy
+        params, depth = up[:HEAD].view(cp.float64), up[HEAD:].view(dtype).reshape(h, w)
         self.host = cupyx.empty_pinned(size, np.int32)
-        self.params = cupyx.empty_pinned(PARAMS, np.float64)
-        self.depth = cupyx.empty_pinned((h, w), dtype)
-        # The merge's views of the read-back, made once: a frame's Binned holds these, so it
-        # is valid until this pass's next frame (the mapper merges it at once).
-        self.counts = self.host[:n].reshape(2, side, side)
-        self.hit = self.host[n + 2 : n + 2 + 6 * bins].view(np.float64).reshape(bins, 3)
-        self.far = self.host[n + 2 + 6 * bins :].view(np.float64).reshape(bins, 3)
+        self.up = cupyx.empty_pinned(HEAD + depth_bytes, np.uint8)
+        self.params = self.up[:HEAD].view(np.float64)
+        self.params[PARAMS - 1] = TAN_LIMIT  # the one constant: set once, uploaded with each frame
+        self.depth = self.up[HEAD:].view(dtype).reshape(h, w)
+        # The merge's views of the read-back, made once, and the one Binned that holds them
+        # (valid until this pass's next frame: the mapper merges it at once).
+        hit = self.host[n + 2 : n + 2 + 6 * bins].view(np.float64).reshape(bins, 3)
+        far = self.host[n + 2 + 6 * bins :].view(np.float64).reshape(bins, 3)
+        self.binned = Binned(self.host[:n].reshape(2, side, side), hit, far, 0, 0)
         self.n = n
         self.stream = cp.cuda.Stream(non_blocking=True)  # capture needs a stream of its own
         bin_pixels, read_bins = _functions(np.dtype(dtype))  # loaded before the capture
@@ -74,18 +85,16 @@ class FramePass:
         # any host transfer while a stream captures (they cannot tell page-locked memory).
         s.begin_capture()
         try:
-            rt.memcpyAsync(params.data.ptr, self.params.ctypes.data, params.nbytes,
-                           rt.memcpyHostToDevice, s.ptr)  # fmt: skip
-            rt.memcpyAsync(depth.data.ptr, self.depth.ctypes.data, depth.nbytes,
-                           rt.memcpyHostToDevice, s.ptr)  # fmt: skip
-            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 1), s.ptr)
+            rt.memcpyAsync(up.data.ptr, self.up.ctypes.data, up.nbytes, rt.memcpyHostToDevice,
+                           s.ptr)  # fmt: skip
+            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
             rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
             rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
             bin_pixels(
                 ((h * w + THREADS - 1) // THREADS,), (THREADS,),
                 (depth, np.int32(h), np.int32(w), params, np.int32(side),
                  np.int32(map_rows), np.int32(bins), out[:n], hit_key, far_key,
-                 out[n : n + 1]), stream=s,
+                 out[n : n + 1], out[n + 1 : n + 2]), stream=s,
             )  # fmt: skip
             read_bins(
                 ((bins + 63) // 64,), (64,),
@@ -97,34 +106,35 @@ class FramePass:
                            rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
         finally:
             self.graph = s.end_capture()
-        self._device = (out, hit_key, far_key, params, depth)  # alive as long as the graph
+        self._device = (out, hit_key, far_key, up)  # alive as long as the graph
 
     def stage(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
               floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
               min_depth: float) -> None:  # fmt: skip
-        """The frame's parameters and depth into the page-locked upload buffers (the last
-        frame's graph has finished with them: its read-back was waited for)."""
-        h, w = depth.shape
-        p = self.params
-        p[:4] = (intr.fx, intr.fy, intr.cx, intr.cy)
-        p[4:13] = np.ravel(rot)
-        p[13:16] = t
-        p[16:24] = (floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale)
-        p[24:27] = bearing_bins(rot, intr, w, h)
-        p[27:29] = (win.r0, win.c0)
-        np.copyto(self.depth, depth)
+        """The frame's parameters and depth into the page-locked upload buffer (the last
+        frame's graph has finished with it: its read-back was waited for). One numpy call
+        for the parameters; the depth is cast on the way in where it is float64."""
+        self.params[: PARAMS - 1] = [
+            intr.fx, intr.fy, intr.cx, intr.cy, *np.ravel(rot).tolist(), *np.ravel(t).tolist(),
+            floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale,
+            win.r0, win.c0,
+        ]  # fmt: skip
+        np.copyto(self.depth, depth, casting="same_kind")
 
     def launch(self) -> None:
         self.graph.launch(self.stream)
 
     def read(self) -> Binned:
         self.stream.synchronize()  # the frame's one wait on the device
-        return Binned(self.counts, self.hit, self.far, int(self.host[self.n]))
+        b = self.binned
+        b.valid, b.present = int(self.host[self.n]), int(self.host[self.n + 1])
+        return b
 
 
 class CudaBinner:
     """``bin_frame_cpu``'s call on the GPU; each instance (one per mapper) owns its passes,
-    so two mappers never share buffers."""
+    so two mappers never share buffers. It also counts the pixels the frame check counts
+    (``Binned.present``), so that count is no pass over the image on the host."""
 
     def __init__(self) -> None:
         self._passes: dict[tuple, FramePass] = {}
@@ -138,14 +148,13 @@ class CudaBinner:
         if stride != 1:
             depth = depth[::stride, ::stride]
             intr = intr.scaled(1.0 / stride)
-        if depth.dtype == np.float64:
-            depth = depth.astype(np.float32)
         h, w = depth.shape
         bins = (w + cols_per_bin - 1) // cols_per_bin
-        key = (win.side, bins, h, w, win.map_rows, depth.dtype.str)
+        dtype = np.dtype(np.float32) if depth.dtype == np.float64 else depth.dtype
+        key = (win.side, bins, h, w, win.map_rows, dtype)
         fp = self._passes.get(key)
         if fp is None:
-            fp = self._passes[key] = FramePass(win.side, bins, h, w, win.map_rows, depth.dtype)
+            fp = self._passes[key] = FramePass(win.side, bins, h, w, win.map_rows, dtype)
         fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth)
         return fp
 
@@ -154,4 +163,9 @@ class CudaBinner:
         its next call."""
         fp = self.prepare(*args)
         fp.launch()
-        return fp.read()
+        b = fp.read()
+        depth, stride = args[0], args[11]
+        if stride != 1 or depth.dtype == np.float64:
+            # The device saw a subsampled or float32 copy: the check's count is the original's.
+            b.present = count_valid(depth)
+        return b

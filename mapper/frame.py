@@ -58,6 +58,17 @@ class FrameLimits:
 def check_frame(frame: DepthFrame, limits: FrameLimits, last_stamp: float | None,
                 last_xy: tuple[float, float] | None) -> tuple[Intrinsics, CameraPose]:  # fmt: skip
     """The frame's intrinsics and pose, or ``FrameRejected`` saying why it cannot be used."""
+    intr, pose = check_header(frame, last_stamp)
+    check_depth(count_valid(frame.depth), frame.depth.size, limits)
+    check_motion(pose, frame.stamp, limits, last_stamp, last_xy)
+    return intr, pose
+
+
+def check_header(frame: DepthFrame,
+                 last_stamp: float | None) -> tuple[Intrinsics, CameraPose]:  # fmt: skip
+    """``check_frame``'s rules that read no pixel: intrinsics, pose, the depth's type and
+    size, the stamp. A mapper whose GPU pass counts the pixels (``backends``) checks these
+    first and the rest, in the same order, once the pass is back."""
     intr, pose = frame.intrinsics, frame.pose
     if intr is None:
         raise FrameRejected(Refusal.NO_INTRINSICS, "the frame has no intrinsics")
@@ -76,17 +87,27 @@ def check_frame(frame: DepthFrame, limits: FrameLimits, last_stamp: float | None
     if last_stamp is not None and frame.stamp <= last_stamp:
         why = f"stamp {frame.stamp:.3f} is not after the last frame's {last_stamp:.3f}"
         raise FrameRejected(Refusal.STALE, why)
+    return intr, pose
+
+
+def count_valid(depth: np.ndarray) -> int:
+    """Pixels that hold a depth: non-zero (uint16), or finite and positive (float). The cuda
+    pass counts by the same rule (``kernels/bin_pixels.cu``'s ``present``)."""
     if depth.dtype == np.uint16:
-        valid = int(np.count_nonzero(depth))
-    else:
-        valid = int(np.count_nonzero(np.isfinite(depth) & (depth > 0)))
-    if valid < limits.min_valid_share * depth.size:
-        why = f"{valid} of {depth.size} pixels have a depth"
-        raise FrameRejected(Refusal.NO_DEPTH, why)
+        return int(np.count_nonzero(depth))
+    return int(np.count_nonzero(np.isfinite(depth) & (depth > 0)))
+
+
+def check_depth(valid: int, size: int, limits: FrameLimits) -> None:
+    if valid < limits.min_valid_share * size:
+        raise FrameRejected(Refusal.NO_DEPTH, f"{valid} of {size} pixels have a depth")
+
+
+def check_motion(pose: CameraPose, stamp: float, limits: FrameLimits, last_stamp: float | None,
+                 last_xy: tuple[float, float] | None) -> None:  # fmt: skip
     if last_xy is not None and last_stamp is not None:
         moved = math.hypot(pose.position[0] - last_xy[0], pose.position[1] - last_xy[1])
-        allowed = limits.max_speed_mps * (frame.stamp - last_stamp) + limits.jump_margin_m
+        allowed = limits.max_speed_mps * (stamp - last_stamp) + limits.jump_margin_m
         if moved > allowed:
-            why = f"the camera moved {moved:.2f} m in {frame.stamp - last_stamp:.3f} s"
+            why = f"the camera moved {moved:.2f} m in {stamp - last_stamp:.3f} s"
             raise FrameRejected(Refusal.POSE_JUMP, why)
-    return intr, pose

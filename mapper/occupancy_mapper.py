@@ -1,6 +1,8 @@
 """The mapper proper: one frame in, the changed cells of the global map and proximity out.
 
-``OccupancyMapper.process`` checks the frame (``frame.check_frame``), fits the floor
+``OccupancyMapper.process`` checks the frame (``frame.check_frame``; where the pass counts
+the frame's pixels itself, on cuda, the depth and motion rules are checked once it is back,
+in the same order, before anything is kept), fits the floor
 (``floor.fit_floor``), runs the per-pixel pass on the chosen backend (``backends``), clears
 along the rays, and fuses the frame into the global map by per-cell log-odds (the
 occupancy-grid update of Thrun, Burgard & Fox, *Probabilistic Robotics*, 2005, ch. 9:
@@ -31,7 +33,16 @@ from .backends import make_binner
 from .binning import Window
 from .camera_model import Intrinsics
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
-from .frame import DepthFrame, FrameLimits, FrameRejected, Refusal, check_frame
+from .frame import (
+    DepthFrame,
+    FrameLimits,
+    FrameRejected,
+    Refusal,
+    check_depth,
+    check_frame,
+    check_header,
+    check_motion,
+)
 from .merge import merge_frame
 from .proximity import Proximity
 
@@ -68,15 +79,20 @@ class MapperSettings:
     an H100 under 1 ms p99, where every frame's fit put it at 0.98–1.06 ms). Between fits the
     last fit is kept as a tilt of the camera (a chest camera's slip moves with the camera, not
     the world), so turning does not spoil it; a step of more than ``floor_refit_m`` since the
-    last fit, or a relocalisation, refits at once. The fit on the frame's path is 0.23–0.40 ms of a
-    frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
+    last fit leaves a fit due at once (taken by the next frame, ``floor_async``), and a
+    relocalisation fits on its first frame's path. On the frame's path the fit was 0.23–0.50 ms
+    of a frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
     floor_refit_m: float = 0.5
-    floor_async: bool = False
-    """Fit a due floor off the frame's path: the frame keeps the last fit, and the fit runs
-    on a worker thread once the frame's delta is out (``fit_pending_floor``, which the node
-    calls after publishing), to be taken by the first frame after it is done. Only the
-    first fit, and the one after a relocalisation, are made on the frame's path. At a
-    camera's 30 fps the fit (~1 ms) is done long before the next frame comes."""
+    floor_async: bool = True
+    """Fit a due floor off the frame's path: the frame that leaves a fit due keeps the last
+    fit, the fit of its sample runs on a worker thread once its delta is out
+    (``fit_pending_floor``, which the node calls after publishing), and the NEXT frame takes
+    it, waiting for it if it is not done (made there on the path if nobody started it). Which
+    frame uses which fit is then fixed by the frames alone, not by the thread's timing: the
+    map is the same on every run and on every backend. At a camera's 30 fps the fit (~1 ms
+    on the dev VM) is done long before the next frame comes; back to back the next frame
+    waits about what a fit on the path costs. Only the first fit, and the one after a
+    relocalisation, are made on the frame's path of the frame that needs them."""
     max_tilt_deg: float = 25.0
     backend: str = "auto"
     limits: FrameLimits = field(default_factory=FrameLimits)
@@ -186,26 +202,36 @@ class OccupancyMapper:
             self.refused[exc.refusal] += 1
             if exc.refusal is Refusal.POSE_JUMP:
                 self._jumps += 1
-                if self._jumps >= JUMPS_TO_RELOCALISE:
+                if self._jumps >= JUMPS_TO_RELOCALISE:  # a fit due from the old place, too
                     self.last_xy, self._jumps, self._floor = None, 0, None
+                    self._floor_due, self._floor_job = None, None
             raise
 
     def _process(self, frame: DepthFrame) -> FrameResult:
         s = self.settings
         t0 = time.perf_counter()
-        intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
+        late = self.binner.counts_valid  # the pass counts the pixels: check those after it
+        if late:
+            intr, pose = check_header(frame, self.last_stamp)
+        else:
+            intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
         depth = frame.depth
         scale = intr.depth_scale if depth.dtype == np.uint16 else 1.0
         rot = pose.world_from_optical()
         cam = np.asarray(pose.position, np.float64)
         t1 = time.perf_counter()
-        fit, floor_rot, floor_z, refit = self._floor_for(depth, scale, intr, rot, cam)
+        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam)
         t2 = time.perf_counter()
         win = self.window(cam[0], cam[1])
         binned = self.binner(depth, scale, intr, floor_rot, cam, floor_z, win,
                              s.min_height_m, s.max_height_m, s.max_range_m, s.cols_per_bin,
                              s.stride)  # fmt: skip
         t3 = time.perf_counter()
+        if late:  # check_frame's last two rules, in its order; nothing was kept of the frame yet
+            assert binned.present is not None
+            check_depth(binned.present, depth.size, s.limits)
+            check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
+        t3b = time.perf_counter()
         forget_before = -math.inf
         if s.forget_s > 0 and frame.stamp - self._forgot_at >= 1.0:  # the whole map, once a second
             forget_before = frame.stamp - s.forget_s
@@ -222,6 +248,8 @@ class OccupancyMapper:
                          frame.stamp)  # fmt: skip
         t4 = time.perf_counter()
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
+        if arrived is not None:  # the fit the last frame left due, taken by this frame
+            self._floor, self._floor_job, self._floor_due = arrived, None, None
         if isinstance(refit, Sample):
             self._floor_due, self._floor_age = refit, 0
         elif refit is not None:
@@ -229,36 +257,36 @@ class OccupancyMapper:
         self._floor_age += 1
         self.frames += 1
         ms = {
-            "check": (t1 - t0) * 1e3, "floor": (t2 - t1) * 1e3, "bin": (t3 - t2) * 1e3,
-            "merge": (t4 - t3) * 1e3, "total": (t4 - t0) * 1e3,
+            "check": (t1 - t0 + t3b - t3) * 1e3, "floor": (t2 - t1) * 1e3,
+            "bin": (t3 - t2) * 1e3, "merge": (t4 - t3b) * 1e3, "total": (t4 - t0) * 1e3,
         }  # fmt: skip
         return FrameResult(cells, values, prox, fit, binned.valid, ms)
 
     def _floor_for(
         self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray
-    ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None]:
+    ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None, tuple | None]:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
         in the camera's frame. Returns the new fit to keep (or, ``floor_async``, the sample
-        to fit once the frame is out), or None, applied by the caller only once the frame is
-        merged (a refused frame changes nothing)."""
+        to fit once the frame is out), or None, and the fit the last merged frame left due
+        (``_pending_fit``), or None: both applied by the caller only once the frame is merged
+        (a refused frame changes nothing, also one refused after this, on cuda)."""
         s = self.settings
         if not s.floor_ransac:
-            return NOMINAL, rot, 0.0, None
-        if self._floor_job is not None and self._floor_job.done():
-            self._floor, self._floor_job = self._floor_job.result(), None  # applied on arrival
-        last = self._floor
+            return NOMINAL, rot, 0.0, None, None
+        arrived = self._pending_fit()
+        last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
                or float(np.hypot(*(cam[:2] - last[2][:2]))) > s.floor_refit_m)  # fmt: skip
         sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
                         scale, intr, rot, cam.copy()) if due else None  # fmt: skip
         if sample is not None and (last is None or not s.floor_async):
             keep = self._fit(sample)
-            return keep[0], keep[0].rotation @ rot, keep[0].floor_z, keep
+            return keep[0], keep[0].rotation @ rot, keep[0].floor_z, keep, arrived
         # The floor itself does not move: its height is kept as it was fitted.
         assert last is not None
         fit, in_cam, _ = last
-        return fit, rot @ in_cam, fit.floor_z, sample
+        return fit, rot @ in_cam, fit.floor_z, sample, arrived
 
     def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, np.ndarray]:
         """The fit of one frame's sample, to keep: the fit, the camera's own tilt and where
@@ -270,10 +298,22 @@ class OccupancyMapper:
         fit = fit_floor(pts, sample.cam, max_tilt_deg=s.max_tilt_deg)
         return fit, rot.T @ fit.rotation @ rot, sample.cam
 
+    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, np.ndarray] | None:
+        """The fit the last merged frame left due (``floor_async``), for this frame: waited
+        for if the worker has not finished it, made here if nobody started it (a caller that
+        never calls ``fit_pending_floor``), so the frame that takes it never depends on the
+        thread's timing. None when none is due."""
+        if self._floor_job is not None:
+            return self._floor_job.result()
+        if self._floor_due is not None:
+            return self._fit(self._floor_due)
+        return None
+
     def fit_pending_floor(self) -> bool:
         """Start the floor fit a frame left due (``floor_async``) on the worker thread; the
-        node calls this once the frame's delta is out. False when none is due, or one is
-        still running (the due one then waits for the next call)."""
+        node calls this once the frame's delta is out, and the next merged frame takes it.
+        False when none is due, or the one started is not taken yet (a refused frame
+        between them)."""
         if self._floor_due is None or self._floor_job is not None:
             return False
         if self._fitter is None:

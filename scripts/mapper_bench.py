@@ -1,12 +1,17 @@
 """Mapper speed: a 640 x 480 depth frame to a published ``MapDelta``, per frame.
 
 Usage: PYTHONPATH=. python scripts/mapper_bench.py [--backend cpu cuda] [--floor-every 1 4]
-       [--floor-async] [--fps 0 30] [--split F.json] [--frames 200] [--json out/mapper_bench.json]
-       [--cache frames.pickle]
-Each backend x floor-refit interval (x floor fit on / off the frame's path, with
-``--floor-async`` both, x each ``--fps``) is one row, on the same rendered frames. ``--fps``
+       [--floor next path] [--fps 0 30] [--sleep chunks whole] [--split F.json] [--frames 200]
+       [--json out/mapper_bench.json] [--cache frames.pickle]
+Each backend x floor-refit interval (x where a due fit runs: ``next``, off the frame's path
+and taken by the next frame, as shipped, or ``path``, on the frame's own path; x each
+``--fps``) is one row, on the same rendered frames. ``--fps``
 feeds the frames at a camera's rate (the time between frames is not counted; 0: back to
-back); ``--split``
+back), the loop sleeping in 2 ms pieces until the next frame is due (``--sleep chunks``), in
+one sleep as ``guidebelt mapper --rate`` does (``whole``), spinning on the clock (``spin``:
+the host never idles, the GPU still does), or sleeping once to 2 ms before the frame and
+spinning from there (``spin2``); each such row gives how late the loop woke
+(``wake_late_ms``): a frame that starts after a sleep pays the wake-up. ``--split``
 adds, on cuda, the per-pixel pass's GPU time against its host time (CuPy's profiler).
 Frames are rendered first (the simulated RGB-D camera walking the courtyard's route, with
 noise and missing pixels; ``--cache`` keeps them in a file for the next run: rendering 300
@@ -64,8 +69,24 @@ def main() -> None:
     ap.add_argument("--backend", nargs="+", default=["cpu"])
     ap.add_argument("--floor-every", type=int, nargs="+", default=[1])
     ap.add_argument("--frames", type=int, default=200)
-    ap.add_argument("--floor-async", action="store_true", help="Fit off the path too.")
+    ap.add_argument(
+        "--floor",
+        nargs="+",
+        choices=("next", "path"),
+        default=["next" if MapperSettings().floor_async else "path"],
+        help="A due floor fit off the path, taken by the next frame (next), or on the frame's "
+        "own path (path); default: as shipped.",
+    )
     ap.add_argument("--fps", type=float, nargs="+", default=[0.0], help="0: back to back.")
+    ap.add_argument(
+        "--sleep",
+        nargs="+",
+        choices=("chunks", "whole", "spin", "spin2"),
+        default=["chunks"],
+        help="At --fps > 0: sleep in 2 ms pieces, once (as the CLI's --rate), not at all "
+        "(spin: the host never idles; the wake-up's cost is the difference), or once to 2 ms "
+        "before the frame and spin from there (spin2).",
+    )
     ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--cache", type=Path, help="Rendered frames: read if there, else written.")
@@ -84,9 +105,10 @@ def main() -> None:
         session = open_session(ZenohSettings(connect=[], multicast_scouting=False))
     except ImportError:
         session = None
-    modes = (False, True) if args.floor_async else (False,)
-    rows = [bench(session, frames, b, k, a, fps) for b in args.backend
-            for k in args.floor_every for a in modes for fps in args.fps]  # fmt: skip
+    modes = [m == "next" for m in args.floor]
+    rows = [bench(session, frames, b, k, a, fps, sleep) for b in args.backend
+            for k in args.floor_every for a in modes for fps in args.fps
+            for sleep in (args.sleep if fps > 0 else ["-"])]  # fmt: skip
     if args.split is not None and "cuda" in args.backend:
         parts = split(frames[len(frames) // 2])
         print(json.dumps(parts))
@@ -102,8 +124,8 @@ def main() -> None:
         session.close()
 
 
-def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = False,
-          fps: float = 0.0) -> dict:  # fmt: skip
+def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = True,
+          fps: float = 0.0, sleep: str = "chunks") -> dict:  # fmt: skip
     settings = MapperSettings(backend=backend, floor_every=floor_every, floor_async=floor_async)
     mapper = OccupancyMapper(settings)
     node = None
@@ -133,11 +155,17 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     gc.callbacks.append(count)
     period = 1.0 / fps if fps > 0 else 0.0
     due = time.perf_counter()
+    late = []
+    started_at = time.time()  # wall clock, to match samples taken beside (GPU clocks)
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
+        if sleep in ("whole", "spin2"):
+            time.sleep(max(0.0, due - (0.002 if sleep == "spin2" else 0.0) - time.perf_counter()))
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet
-            time.sleep(min(due - t, 0.002))
+            if sleep in ("chunks", "whole"):
+                time.sleep(min(due - t, 0.002))
         t, before = time.perf_counter(), runs[0]
+        late.append((t - due) * 1e3)
         r = feed(f)
         ms.append((time.perf_counter() - t) * 1e3)
         collected.append(runs[0] > before)
@@ -155,7 +183,7 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     slowest = np.argsort(ms)[::-1][:5]
     return {
         "backend": mapper.backend, "floor_every": floor_every, "floor_async": floor_async,
-        "fps": fps, "frames": len(ms),
+        "fps": fps, "sleep": sleep, "frames": len(ms),
         "size": "640x480", "published": node is not None,
         "median_ms": round(float(np.median(ms)), 3), "mean_ms": round(float(ms.mean()), 3),
         "p99_ms": round(float(np.percentile(ms, 99)), 3), "max_ms": round(float(ms.max()), 3),
@@ -163,6 +191,10 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
         "parts_median_ms": {k: round(float(np.median(v)), 3) for k, v in parts.items()},
         "parts_p99_ms": {k: round(float(np.percentile(v, 99)), 3) for k, v in parts.items()},
         "frames_collected": int(sum(collected)),
+        "started_at": round(started_at, 3), "ended_at": round(time.time(), 3),
+        # How long after the frame was due the loop took it (0 back to back: never slept).
+        "wake_late_ms": {"median": round(float(np.median(late[1:])), 3),
+                         "p99": round(float(np.percentile(late[1:], 99)), 3)} if fps > 0 else None,
         "slowest_ms_collected": [[round(float(ms[i]), 3), collected[i]] for i in slowest],
     }  # fmt: skip
 

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
-from mapper.occupancy_mapper import FREE, OCCUPIED, UNKNOWN
+from mapper.frame import FrameRejected
+from mapper.occupancy_mapper import FREE, OCCUPIED, UNKNOWN, OccupancyMapper
 
 from .scenes import NORTH, box_scene, frame, mapper
 
@@ -92,19 +96,22 @@ def test_proximity_reports_the_box_ahead():
     assert abs(r.proximity.bearing) < 0.3
 
 
-def test_a_floor_fit_off_the_frame_path_is_taken_on_arrival():
+def _tilted_walk() -> list:
+    headings = [NORTH + a for a in (0.0, 0.25, -0.25, 0.15, 0.1, -0.1)]
+    return [frame(box_scene(), 1.0 + i, heading=h, pitch=42.0, reported_pitch=30.0)
+            for i, h in enumerate(headings)]  # fmt: skip
+
+
+def test_a_floor_fit_off_the_frame_path_is_taken_by_the_next_frame():
     """``floor_async``: the first fit is made on the frame's path; a refit due later runs on
-    the worker thread once the frame is out, and the first frame after it is done takes it.
-    With each fit done before the next frame (a camera's 30 fps), the map is the one that
-    fits on the frame's path make, cell for cell."""
+    the worker thread once the frame is out, and the next frame takes it. With each fit
+    done before the next frame (a camera's 30 fps), the map is the one that fits on the
+    frame's path make, cell for cell."""
     import threading
 
-    headings = [NORTH + a for a in (0.0, 0.25, -0.25, 0.15, 0.1, -0.1)]
-    frames = [frame(box_scene(), 1.0 + i, heading=h, pitch=42.0, reported_pitch=30.0)
-              for i, h in enumerate(headings)]  # fmt: skip
-    inline, off = mapper(floor_every=2), mapper(floor_every=2, floor_async=True)
+    inline, off = mapper(floor_every=2, floor_async=False), mapper(floor_every=2)
     started, fits = [], []
-    for f in frames:
+    for f in _tilted_walk():
         inline.process(f)
         fits.append(off.process(f).floor)
         started.append(off.fit_pending_floor())
@@ -117,3 +124,46 @@ def test_a_floor_fit_off_the_frame_path_is_taken_on_arrival():
     assert any(t.name.startswith("floor-fit") for t in threading.enumerate())
     off.close()
     assert not any(t.name.startswith("floor-fit") for t in threading.enumerate())
+
+
+def _slowed(m: OccupancyMapper, s: float) -> OccupancyMapper:
+    """``m`` with every floor fit ``s`` late (the worker thread descheduled, a loaded host)."""
+    fit = m._fit
+
+    def late(sample):
+        time.sleep(s)
+        return fit(sample)
+
+    m._fit = late  # type: ignore[method-assign]
+    return m
+
+
+def test_the_map_does_not_depend_on_when_the_fit_thread_finishes():
+    """Which frame takes a fit made off the path is fixed by the frames, not by the thread:
+    a worker slowed far past the next frame, one as fast as it goes, and nobody starting the
+    worker at all give the same floor to every frame and the same map, a refused frame
+    between a due fit and its taker included (it takes nothing: the next merged frame does)."""
+    frames = _tilted_walk()
+    frames.insert(3, dataclasses.replace(frames[2], stamp=frames[1].stamp))  # stale: refused
+    fast, slow, never = (mapper(floor_every=2, floor_async=True) for _ in range(3))
+    _slowed(slow, 0.3)  # a frame here takes ~40 ms
+    used: dict[str, list] = {"fast": [], "slow": [], "never": []}
+    for f in frames:
+        for name, m in (("fast", fast), ("slow", slow), ("never", never)):
+            try:
+                fit = m.process(f).floor
+                used[name].append((fit.floor_z, fit.rotation.tobytes()))
+            except FrameRejected:
+                used[name].append("refused")
+            if m is not never and m.fit_pending_floor():  # not waited for
+                assert m is fast or not m._floor_job.done()  # type: ignore[union-attr]
+    assert used["fast"] == used["slow"] == used["never"]
+    assert used["fast"][3] == "refused"
+    # The fits taken off the path (frames 4 and 6) differ from the ones before them: a frame
+    # that kept the old fit would show.
+    assert len({u for u in used["fast"] if u != "refused"}) == 3
+    for m in (slow, never):
+        assert np.array_equal(m.occupancy, fast.occupancy)
+        assert np.array_equal(m.logodds, fast.logodds)
+    for m in (fast, slow, never):
+        m.close()

@@ -7,10 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from mapper.backends import Binner
+from mapper.binning import bin_frame_cpu
 from mapper.camera_model import CameraPose
-from mapper.frame import FrameRejected, Refusal
+from mapper.frame import FrameRejected, Refusal, count_valid
 
-from .scenes import NORTH, box_scene, frame, mapper
+from .scenes import NORTH, bad_frames, box_scene, edge_frames, frame, mapper, outcome
 
 
 @pytest.fixture
@@ -20,27 +22,9 @@ def warm():
     return m
 
 
-def _bad_frames(good):
-    nan = good.depth.astype(np.float32) / 1000.0
-    nan[:] = np.nan
-    far = CameraPose.level(8.0, 5.0, 1.3, 1.57, 0.5)
-    return [
-        (dataclasses.replace(good, depth=good.depth[:, :-1]), Refusal.WRONG_SIZE),
-        (dataclasses.replace(good, intrinsics=None), Refusal.NO_INTRINSICS),
-        (dataclasses.replace(good, pose=None), Refusal.NO_POSE),
-        (dataclasses.replace(good, depth=np.zeros_like(good.depth)), Refusal.NO_DEPTH),
-        (dataclasses.replace(good, depth=nan), Refusal.NO_DEPTH),
-        (dataclasses.replace(good, depth=good.depth.astype(np.int32)), Refusal.BAD_DEPTH),
-        (dataclasses.replace(good, stamp=9.0), Refusal.STALE),
-        (dataclasses.replace(good, stamp=10.0), Refusal.STALE),
-        (dataclasses.replace(good, stamp=float("nan")), Refusal.STALE),
-        (dataclasses.replace(good, pose=far, stamp=10.1), Refusal.POSE_JUMP),
-    ]
-
-
 def test_each_bad_frame_is_refused_and_leaves_the_map_unchanged(warm):
     good = frame(box_scene(), 11.0)
-    for bad, why in _bad_frames(good):
+    for bad, why in bad_frames(good):
         before = warm.occupancy.copy()
         seen = warm.seen_at.copy()
         odds = warm.logodds.copy()
@@ -50,7 +34,7 @@ def test_each_bad_frame_is_refused_and_leaves_the_map_unchanged(warm):
         assert np.array_equal(warm.occupancy, before)
         assert np.array_equal(warm.seen_at, seen)
         assert np.array_equal(warm.logodds, odds)
-    assert sum(warm.refused.values()) == len(_bad_frames(good))
+    assert sum(warm.refused.values()) == len(bad_frames(good))
     assert warm.refused[Refusal.STALE] == 3
     warm.process(good)  # and the next good frame is mapped as usual
     assert warm.frames == 2
@@ -71,3 +55,48 @@ def test_bad_intrinsics_and_orientation_are_refused_at_construction():
         Intrinsics(640, 480, float("nan"), 500, 320, 240)
     with pytest.raises(ValueError):
         CameraPose((0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 2.0))
+
+
+def counting(m):
+    """``m`` with a pass that counts the frame's pixels itself, as the cuda one does: the
+    mapper then checks the depth and the motion once the pass is back."""
+
+    def fn(depth, *args):
+        b = bin_frame_cpu(depth, *args)
+        b.present = count_valid(depth)
+        return b
+
+    m.binner = Binner("counting", fn, counts_valid=True)
+    return m
+
+
+def _state(m):
+    fit = m._floor[0] if m._floor is not None else None
+    return (m.occupancy.tobytes(), m.logodds.tobytes(), m.seen_at.tobytes(), m.last_stamp,
+            m.frames, dict(m.refused), m._floor_age, m._floor_job is None,
+            None if fit is None else (fit.floor_z, fit.rotation.tobytes()))  # fmt: skip
+
+
+def test_a_pass_that_counts_the_pixels_refuses_as_the_host_check_does():
+    """The cuda pass counts the frame's pixels, so its mapper checks those after the pass:
+    the same frames refused, with the same refusal and reason, in the same order, and a
+    refused frame keeps nothing, not even a floor fit that came back from the worker."""
+    host, late = (mapper(floor_async=True, floor_every=1) for _ in range(2))
+    counting(late)
+    good = frame(box_scene(), 10.0)
+    frames = [good, dataclasses.replace(good, stamp=10.05)]
+    frames += [f for f, _ in bad_frames(dataclasses.replace(good, stamp=10.5))]
+    frames += [
+        dataclasses.replace(f, stamp=10.1 + 0.1 * i) for i, f in enumerate(edge_frames(good))
+    ]
+    frames.append(dataclasses.replace(good, stamp=11.0))
+    refused = 0
+    for f in frames:
+        said = [outcome(m, f) for m in (host, late)]
+        assert said[0] == said[1]
+        refused += said[0] != "mapped"
+        assert _state(host) == _state(late)
+    assert refused == len(frames) - 5  # both good frames, the limit, the holes and the last
+    assert late.refused[Refusal.NO_DEPTH] == 4  # zeros, NaN, one pixel short, zeros + jump
+    host.close()
+    late.close()

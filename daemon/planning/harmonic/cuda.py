@@ -1,5 +1,5 @@
-"""The harmonic field on the GPU: a thin CuPy wrapper round ``kernels/harmonic.cu``, with
-``cpu.CpuField``'s interface (``planner.py`` cannot tell them apart).
+"""The harmonic field on the GPU: a thin CuPy wrapper round ``kernels/harmonic.cu`` and
+``harmonic_reach.cu``, with ``cpu.CpuField``'s interface (``planner.py`` cannot tell them apart).
 
 The kernel source is compiled once per process and float type (``functools.cache``; cupy
 also keeps the binary in its on-disk cache), as the cuda planner's ``device.module`` does.
@@ -37,7 +37,9 @@ import numpy as np
 from . import fill as fl
 from . import relax as rx
 
-SOURCE = Path(__file__).with_name("kernels") / "harmonic.cu"
+SOURCES = tuple(Path(__file__).with_name("kernels") / name
+                for name in ("harmonic.cu", "harmonic_reach.cu"))
+"""One module, compiled from these in order: the reach search uses the fill's tiling."""
 THREADS = 256
 FIRST_PITS = 64
 """Pits copied back with every relaxation's result (a step leaves a few: 2–27 measured);
@@ -63,7 +65,7 @@ _SCATTER = cp.ElementwiseKernel("int32 c, T v", "raw T w", "w[c] = v", "harmonic
 @functools.cache
 def _module(real: str) -> cp.RawModule:
     eps = "1.1920929e-7f" if real == "float" else "2.220446049250313e-16"
-    return cp.RawModule(code=SOURCE.read_text(),
+    return cp.RawModule(code="".join(p.read_text() for p in SOURCES),
                         options=("--std=c++17", f"-DREAL={real}", f"-DREAL_EPS={eps}")
                         + (("--use_fast_math",) if real == "float" else ()),
                         enable_cooperative_groups=True)  # fmt: skip

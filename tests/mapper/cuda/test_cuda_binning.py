@@ -6,6 +6,7 @@ machine); skipped cleanly elsewhere.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,10 +14,13 @@ import pytest
 
 from mapper.backends import cuda_usable, make_binner
 from mapper.binning import bin_frame_cpu
+from mapper.frame import count_valid
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
 from sim.camera import RgbdCamera
 from sim.courtyard import make_courtyard
 from sim.scene3d import scene_from_scenario
+
+from ..scenes import bad_frames, box_scene, edge_frames, frame, mapper, outcome
 
 pytestmark = [
     pytest.mark.gpu,
@@ -43,6 +47,7 @@ def test_same_cells_and_rays_as_the_cpu():
         args = (f.depth, 0.001, f.intrinsics, rot, t, 0.0, win, 0.1, 2.0, 3.0, 4, 1)
         a, b = bin_frame_cpu(*args), cuda(*args)
         assert a.valid == b.valid
+        assert b.present == count_valid(f.depth)
         # Fused multiply-adds on the device may put a point sitting on a cell boundary
         # into the neighbour: a handful of the 300 000 points at most.
         assert np.abs(a.counts - b.counts).sum() <= 20
@@ -62,3 +67,53 @@ def test_the_same_map_on_either_backend():
             m.process(f)
         maps[backend] = m.occupancy.copy()
     assert (maps["cpu"] != maps["cuda"]).sum() <= 2
+
+
+def test_the_pass_counts_what_the_check_counts():
+    """``Binned.present`` is ``frame.count_valid`` of the frame as given: uint16 with holes,
+    float32 with every kind of missing pixel (on the device), and float64 or a strided pass
+    (the device sees a cast or subsampled copy: counted on the host)."""
+    cuda = make_binner("cuda")
+    f = next(frames(1))
+    rot, t = f.pose.world_from_optical(), np.array(f.pose.position)
+    win = OccupancyMapper(MapperSettings(backend="cpu")).window(t[0], t[1])
+    holed = f.depth.copy()
+    holed.flat[::5] = 0
+    metres = f.depth.astype(np.float32) / 1000.0
+    metres.flat[::3], metres.flat[1::7], metres.flat[2::11] = np.nan, np.inf, -1.0
+    metres.flat[4::13], metres.flat[5::17] = 1e-30, 1e-40  # tiny, subnormal: both positive
+    wide = metres.astype(np.float64)
+    wide.flat[6::19] = 1e-50  # positive as float64, 0 once cast to float32
+    for depth, scale, stride in ((f.depth, 0.001, 1), (holed, 0.001, 1), (metres, 1.0, 1),
+                                 (wide, 1.0, 1), (holed, 0.001, 2)):  # fmt: skip
+        args = (depth, scale, f.intrinsics, rot, t, 0.0, win, 0.1, 2.0, 3.0, 4, stride)
+        assert cuda(*args).present == count_valid(depth)
+
+
+def test_a_frame_is_refused_on_cuda_as_on_the_cpu():
+    """The same refusals, reasons and order with the pixels counted on the device, and a
+    refused frame keeps nothing there either."""
+    cpu, gpu = mapper(floor_async=True, floor_every=1), mapper(floor_async=True, floor_every=1)
+    gpu.binner = make_binner("cuda")
+    good = frame(box_scene(), 10.0)
+    seq = [good, dataclasses.replace(good, stamp=10.05)]
+    seq += [f for f, _ in bad_frames(dataclasses.replace(good, stamp=10.5))]
+    seq += [dataclasses.replace(f, stamp=10.1 + 0.1 * i) for i, f in enumerate(edge_frames(good))]
+    seq.append(dataclasses.replace(good, stamp=11.0))
+    for f in seq:
+        before = gpu.logodds.copy()
+        said = [outcome(m, f) for m in (cpu, gpu)]
+        assert said[0] == said[1]
+        if said[1] != "mapped":
+            assert np.array_equal(gpu.logodds, before)
+        assert (cpu.last_stamp, cpu.frames, cpu._floor_age) == (gpu.last_stamp, gpu.frames,
+                                                                 gpu._floor_age)  # fmt: skip
+        # The fits are made on the host from the same samples: the same floor, to the bit.
+        assert cpu._floor is not None and gpu._floor is not None
+        assert cpu._floor[0].floor_z == gpu._floor[0].floor_z
+        assert np.array_equal(cpu._floor[1], gpu._floor[1])
+    assert cpu.refused == gpu.refused
+    assert sum(gpu.refused.values()) == len(seq) - 5
+    assert (cpu.occupancy != gpu.occupancy).sum() <= 2
+    cpu.close()
+    gpu.close()
