@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from daemon.planning.harmonic.floods import reached
-from daemon.planning.harmonic.reach import Reach
+from daemon.planning.harmonic.reach import MARGIN, Reach, _joined_each
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -143,6 +143,35 @@ def test_a_try_with_more_seeds_than_its_budget_gives_up_before_it_searches(maps)
     assert not reach._group.any()
     assert_fresh(reach, maps, blocked, goal)
     assert lost.size == cells.size + 16 * 23 * 23 and gained.size == 0
+
+
+def test_the_clusters_that_fail_list_their_contacts_once_for_the_cut_off_search(maps):
+    # Two rings one free column apart (each closes a pocket: its contacts inside and outside
+    # do not join) and a blob in the open (its contacts join): the seeds listed are the
+    # rings' reached free neighbours, the column between them once, none of the blob's; the
+    # scratch is left zeroed.
+    h = w = 60
+    reach = reach_on(np.zeros((h, w), dtype=bool), (1, 1))
+    rr, cc = np.mgrid[0:h, 0:w]
+    rings = (np.maximum(np.abs(rr - 20), np.abs(cc - 20)) == 5) | (
+        np.maximum(np.abs(rr - 20), np.abs(cc - 32)) == 5
+    )
+    blob = np.maximum(np.abs(rr - 45), np.abs(cc - 45)) <= 2
+    new = pad(np.flatnonzero((rings | blob).reshape(-1)), w)
+    reach.blocked[new] = True  # as ``apply``'s flips leave them
+    reach.reach[new] = False
+    contacts = np.empty(reach.blocked.size, dtype=np.int64)
+    n = _joined_each(reach.blocked, reach.reach, new, w + 2, h + 2, MARGIN, reach._mark,
+                     reach._queue, reach._label, contacts, reach._out)  # fmt: skip
+    ring_cells = padded(rings)
+    ring_cells[padded(np.zeros((h, w), dtype=bool))] = False  # the border is not a ring
+    near = np.zeros_like(ring_cells)
+    for o in (-w - 3, -w - 2, -w - 1, -1, 1, w + 1, w + 2, w + 3):
+        near |= np.roll(ring_cells, o)
+    want = np.flatnonzero(near & reach.reach)
+    assert n == want.size == np.unique(contacts[:n]).size
+    assert set(contacts[:n].tolist()) == set(want.tolist())
+    assert not reach._label.any() and not reach._mark.any()
 
 
 def test_beside_a_search_a_long_try_runs_while_the_search_it_started_works(maps):
