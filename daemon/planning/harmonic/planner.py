@@ -155,6 +155,8 @@ class HarmonicPlanner(GlobalPlanner):
         # on maps large enough for that to pay.
         search = getattr(self.engine, "reach_search_start", None)
         self.reach.search = search if flat.size >= DEVICE_SEARCH_CELLS else None
+        if search is not None:
+            self.reach.warm()  # on any map: the warm-up's is too small to search on the device
         return self._relax(t0, COLD_SWEEPS)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
