@@ -123,6 +123,12 @@ class Admission:
         self.sheddings = 0
         self.draining = False
         """The lag's newer half-window is well under its older half (``drain_ratio``)."""
+        self.recent_p95_ms = 0.0
+        """The lag's p95 over the newer half-window (0: too few samples to say)."""
+        self.drain_waits = 0
+        """Lags over the threshold for ``sustain_s`` that were draining, so nobody was shed
+        then (one count per lag, however many reviews it was waited out)."""
+        self._waited: float | None = None
         self.last_p95_ms = 0.0
         self.last_cpu_ms = 0.0
 
@@ -185,7 +191,7 @@ class Admission:
         for user in self._admitted:
             self._cost[user] = spent.get(user, 0.0) / self.s.window_s
         self.last_cpu_ms = sum(self._cost.get(u, 0.0) for u in self._admitted)
-        self.draining = False
+        self.draining, self.recent_p95_ms = False, 0.0
         if len(self._lags) < self.s.min_samples:
             self.last_p95_ms = 0.0
             return
@@ -201,7 +207,7 @@ class Admission:
         newer = at >= now - self.s.window_s / 2
         half = self.s.min_samples // 2
         if newer.sum() >= half and (~newer).sum() >= half:
-            recent = float(np.percentile(lags[newer], 95))
+            self.recent_p95_ms = recent = float(np.percentile(lags[newer], 95))
             self.draining = recent < self.s.drain_ratio * float(np.percentile(lags[~newer], 95))
 
     def _typical_cost(self) -> float:
@@ -254,6 +260,9 @@ class Admission:
             return self._admitted[-n:]
         if self._over_since is not None and now - self._over_since >= self.s.sustain_s:
             if self.draining and now - self._over_since < self.s.drain_patience_s:
+                if self._waited != self._over_since:
+                    self._waited = self._over_since
+                    self.drain_waits += 1
                 return []  # a burst passing: those shed for it would come back in seconds
             threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not

@@ -121,15 +121,20 @@ def _reviews(adm: Admission, users, lag_at, start: float, end: float) -> list[tu
 def test_a_burst_that_has_passed_is_waited_out_and_a_lasting_lag_is_not():
     users = [f"u{i}" for i in range(20)]
 
+    waits: list[int] = []
+
     def guided(lag_at) -> list[tuple[float, list]]:
         adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
         for u in users:
             adm.join(u, 0.0)
-        return [(t, shed) for t, shed in _reviews(adm, users, lag_at, 8.0, 14.0) if shed]
+        shed = [(t, shed) for t, shed in _reviews(adm, users, lag_at, 8.0, 14.0) if shed]
+        waits.append(adm.drain_waits)
+        return shed
 
     # A 0.2 s stall (150 ms lags), then 8 ms: the window's p95 stays over the threshold for a
     # whole window after it, but its newer half is back. The old rule shed 10 at 10.75.
     assert guided(lambda t: 150.0 if 10.0 <= t < 10.2 else 8.0) == []
+    assert waits == [1]  # waited out once (the daemon logs it), over several reviews
     # The same lag lasting: shed after sustain_s, as before.
     lasting = guided(lambda t: 150.0 if t >= 10.0 else 8.0)
     assert lasting and lasting[0][0] == pytest.approx(10.75) and len(lasting[0][1]) == 10
