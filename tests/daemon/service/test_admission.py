@@ -69,6 +69,13 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
         steps(ramp, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = ramp.review(t)
     assert len(shed) == 2  # users still joining: their first steps are a burst, a tenth
+    outlasted = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=1.5))
+    for i, u in enumerate(users):
+        outlasted.join(u, 8.5 + i * 0.075)  # the last joins at 9.925
+    for t in (10.0, 10.6, 11.2, 11.6):  # over from 10.0, decided at 11.6: the joins are over
+        steps(outlasted, users, t, cpu_ms=0.1, lag_ms=600.0)
+        shed, _ = outlasted.review(t)
+    assert len(shed) == 2  # a lag that began while they joined: a tenth still, not half
     burst = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
     for i, u in enumerate(users):
         burst.join(u, 9.0 + i * 0.08)
