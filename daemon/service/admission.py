@@ -267,8 +267,8 @@ class Admission:
             threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not
             # the steady load, so a tenth at a time then (those who join later wait anyway);
-            # also for a lag that began while they joined and outlasted the joins: at 50-user
-            # starts each worker shed 12-13 at once (round 8 at 02:49; round 10, every run).
+            # also for a lag that began while they joined and outlasted the joins: otherwise a
+            # worker shed 10-13 of its 25 at once in every 50-user start measured (dev VM).
             joining = self._over_since - self._joined_at <= self.s.window_s
             most = 0.1 if joining else self.s.max_shed_share
             share = min(most, 1.0 - threshold / self.last_p95_ms)
