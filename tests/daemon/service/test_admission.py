@@ -3,6 +3,7 @@ hear ``overloaded`` and feel WAIT, never a false ``stale_pose``; the first admit
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -68,6 +69,13 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
         steps(ramp, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = ramp.review(t)
     assert len(shed) == 2  # users still joining: their first steps are a burst, a tenth
+    outlasted = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=1.5))
+    for i, u in enumerate(users):
+        outlasted.join(u, 8.5 + i * 0.075)  # the last joins at 9.925
+    for t in (10.0, 10.6, 11.2, 11.6):  # over from 10.0, decided at 11.6: the joins are over
+        steps(outlasted, users, t, cpu_ms=0.1, lag_ms=600.0)
+        shed, _ = outlasted.review(t)
+    assert len(shed) == 2  # a lag that began while they joined: a tenth still, not half
     burst = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
     for i, u in enumerate(users):
         burst.join(u, 9.0 + i * 0.08)
@@ -100,6 +108,47 @@ def test_the_backlog_left_from_before_a_shedding_does_not_shed_again():
         steps(adm, users[:10], t, cpu_ms=0.1, lag_ms=5.0)
         assert adm.review(t)[0] == [], t
     assert len(adm.shed) == 10
+
+
+def _reviews(adm: Admission, users, lag_at, start: float, end: float) -> list[tuple[float, list]]:
+    """Each user stepping every 50 ms with the lag ``lag_at(t)``, reviewed every 0.25 s (the
+    daemon's tick); who was shed at which review."""
+    decisions, t, review_at = [], start, start + 0.25
+    while t < end:
+        for u in users:
+            adm.record(u, lag_at(t), 0.1, t)
+        t = round(t + 0.05, 6)
+        if t >= review_at:
+            shed, _ = adm.review(t)
+            decisions.append((t, shed))
+            review_at = round(review_at + 0.25, 6)
+    return decisions
+
+
+def test_a_burst_that_has_passed_is_waited_out_and_a_lasting_lag_is_not():
+    users = [f"u{i}" for i in range(20)]
+
+    waits: list[int] = []
+
+    def guided(lag_at) -> list[tuple[float, list]]:
+        adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
+        for u in users:
+            adm.join(u, 0.0)
+        shed = [(t, shed) for t, shed in _reviews(adm, users, lag_at, 8.0, 14.0) if shed]
+        waits.append(adm.drain_waits)
+        return shed
+
+    # A 0.2 s stall (150 ms lags), then 8 ms: the window's p95 stays over the threshold for a
+    # whole window after it, but its newer half is back. The old rule shed 10 at 10.75.
+    assert guided(lambda t: 150.0 if 10.0 <= t < 10.2 else 8.0) == []
+    assert waits == [1]  # waited out once (the daemon logs it), over several reviews
+    # The same lag lasting: shed after sustain_s, as before.
+    lasting = guided(lambda t: 150.0 if t >= 10.0 else 8.0)
+    assert lasting and lasting[0][0] == pytest.approx(10.75) and len(lasting[0][1]) == 10
+    # Draining (600 ms falling with a 1 s time constant) but over the threshold for 2.75 s:
+    # waited out from 9.75, shed once drain_patience_s (2 s) has passed since 9.25.
+    slow = guided(lambda t: 600.0 * math.exp(9.0 - t) if t >= 9.0 else 8.0)
+    assert slow and slow[0][0] == pytest.approx(11.25)
 
 
 def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once():
