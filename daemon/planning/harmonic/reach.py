@@ -264,6 +264,12 @@ class Reach:
         self._queue = np.empty(blocked.size, dtype=np.int64)
         self._mark = np.zeros(blocked.size, dtype=np.int8)
         self._label = np.zeros(blocked.size, dtype=np.int8)
+        # Written now so the kernel maps their pages here, not in a step: np.zeros leaves them
+        # to be faulted in one 4 KiB page at a time on first write, and a sensor sweep's
+        # changes, spread over the map, write these two scratch masks nearly everywhere (the
+        # 2000² walk's first sweep: ~670 faults in _joined_each, ~1 ms of CPU on the dev VM).
+        self._mark.fill(0)
+        self._label.fill(0)
         self._group = np.zeros(blocked.size, dtype=np.int32)
         self._failed = np.empty(blocked.size, dtype=np.int64)
         self._out = np.empty(blocked.size, dtype=np.int64)
