@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import time
 
 import numpy as np
@@ -72,7 +73,12 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
     """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
     Each row's ``residual`` is the field's after each step (what an early stop left)."""
     from daemon.navigation.warm import warm_up
+    from daemon.runtime import malloc_policy
 
+    # The daemon's C heap policy, before anything is built: without it the two largest 2000²
+    # steps took 1.7 and 2.2 ms longer in this process than in another on the same tree
+    # (H100), their temporaries on pages the kernel faulted in afresh.
+    malloc_policy.install()
     for name in planners:
         # As the daemon does before READY: every compiled path (a fill, a whole-map reach
         # search) loaded once, not on the first walk step that needs it.
@@ -91,9 +97,14 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             passes: list[int] = []
             searches: list[int] = []
             cuts: list[int] = []
+            faults: list[int] = []
+            pending = _count_faults(nav.route)
 
             def note(*_, nav=nav, residuals=residuals, filled=filled, passes=passes,
-                     searches=searches, cuts=cuts) -> None:  # fmt: skip
+                     searches=searches, cuts=cuts, faults=faults,
+                     pending=pending) -> None:  # fmt: skip
+                faults.append(pending[0])
+                pending[0] = 0
                 planner = nav.route.planner
                 residuals.append(float(getattr(planner, "residual", 0.0)))
                 filled.append(int(getattr(planner, "filled", 0)))
@@ -122,12 +133,31 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "full_searches": _new_searches(searches, len(r.changed)),
                 # ... and those whose cut-off cells were found from the change (cut_off.cut_off).
                 "cut_searches": _new_searches(cuts, len(r.changed)),
+                # Each step's minor page faults inside its replanning step (fresh pages the
+                # kernel mapped and zeroed, ~µs each): where a large step's time went.
+                "plan_faults": faults[len(faults) - len(r.changed) :],
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
                           in zip(r.changed, r.iterations, r.step_ms, strict=True)],
             })  # fmt: skip
     return rows
+
+
+def _count_faults(route) -> list[int]:
+    """Count the minor page faults of ``route``'s path reads (the replanning step, the window
+    of ``step_ms``) into the returned one-element list; the counting is outside that window."""
+    pending = [0]
+    read = route.path_from
+
+    def counted(*args, **kwargs):
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        out = read(*args, **kwargs)
+        pending[0] += resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+        return out
+
+    route.path_from = counted
+    return pending
 
 
 def _new_searches(counts: list[int], steps: int) -> list[int]:
