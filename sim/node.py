@@ -275,6 +275,8 @@ class SimNode:
                 result.actions[action] = result.actions.get(action, 0) + 1
                 if action == "step":
                     result.walked.append(self.cell())
+                if action == "bump":
+                    self._bumped(path, belt)
                 if action in ("step", "turn", "bump"):  # a bump turned the user, too
                     self._sense(stop)
                 if on_step is not None:
@@ -290,6 +292,9 @@ class SimNode:
                 result.known = self.world.known.copy()
             self.close()
         return result
+
+    def _bumped(self, path: NavPath, belt: BeltPattern | None) -> None:
+        """A step ran into something; a node that knows more of its world records what."""
 
     def _wait_for_belt(self, stamp: float, stop: threading.Event) -> BeltPattern | None:
         """The pattern made in the same step as the path stamped ``stamp`` (the daemon sends
