@@ -298,9 +298,16 @@ class SimNode:
 
     def _wait_for_belt(self, stamp: float, stop: threading.Event) -> BeltPattern | None:
         """The pattern made in the same step as the path stamped ``stamp`` (the daemon sends
-        it first, but on another key), so the walker feels what that step decided."""
-        self._await(lambda: self._belt is not None and abs(self._belt.stamp - stamp) < 1e-6, stop)
-        return self._belt
+        it first, but on another key), so the walker feels what that step decided; None (the
+        walker stands) if it did not come: another step's pattern was decided on other data."""
+
+        def same() -> BeltPattern | None:
+            b = self._belt
+            return b if b is not None and abs(b.stamp - stamp) < 1e-6 else None
+
+        self._await(lambda: same() is not None, stop)
+        with self._cond:
+            return same()
 
     def _wait_for_path(self, stamp: float, stop: threading.Event) -> NavPath | None:
         """The path planned from the pose sent at ``stamp``; None on ARRIVED or timeout."""
