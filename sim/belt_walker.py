@@ -91,10 +91,14 @@ def first_hit(
     ys = y0 + t * (y1 - y0)
     rows = h - 1 - np.floor(ys / cell_m).astype(np.int64)
     cols = np.floor(xs / cell_m).astype(np.int64)
-    if rows.min() < 0 or rows.max() >= h or cols.min() < 0 or cols.max() >= w:
-        return (-1, -1)
-    hit = np.flatnonzero(occupancy[rows, cols] == OCCUPIED)
-    return None if hit.size == 0 else (int(rows[hit[0]]), int(cols[hit[0]]))
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    blocked = ~inside
+    blocked[inside] = occupancy[rows[inside], cols[inside]] == OCCUPIED
+    hit = np.flatnonzero(blocked)
+    if hit.size == 0:
+        return None
+    i = hit[0]
+    return (int(rows[i]), int(cols[i])) if inside[i] else (-1, -1)
 
 
 @dataclass(frozen=True)

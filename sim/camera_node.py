@@ -116,6 +116,7 @@ class CameraSimNode(SimNode):
         r, c = b.cell
         inside = 0 <= r < self.shape[0] and 0 <= c < self.shape[1]
         now = time.time()
+        framed = self._last_frame > 0.0
         people = [math.hypot(x - b.x, y - b.y) for x, y in (p.where() for p in self.movers.people)]
         last = self.map_node.last if self.map_node is not None else None
         prox = last.proximity if last is not None else None
@@ -127,9 +128,9 @@ class CameraSimNode(SimNode):
             "person_m": round(min(people), 3) if people else None,
             "pattern": {"kind": b.kind, "motors": list(b.motors), "period_ms": b.period_ms,
                         "age_ms": None if belt is None else round((now - belt.stamp) * 1e3, 1)},
-            "frame_age_ms": round((now - self._last_frame) * 1e3, 1),
-            "frame_to_pattern_ms": None if belt is None
-            else round((belt.stamp - self._last_frame) * 1e3, 1),
+            "frame_age_ms": round((now - self._last_frame) * 1e3, 1) if framed else None,
+            "frame_to_pattern_ms": round((belt.stamp - self._last_frame) * 1e3, 1)
+            if framed and belt is not None else None,
             "frame_proximity": None if prox is None
             else {k: None if v is None else round(v, 3)
                   for k, v in (("ahead_m", prox.ahead_m), ("nearest_m", prox.nearest_m))},
