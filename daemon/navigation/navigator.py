@@ -170,7 +170,6 @@ class Navigator:
             self._pose_missing(now, out)
         # After a STOP before contact, no GUIDE back into what the camera saw (an estimated pose
         # may be off by more than the margin).
-        self.safety.keep_off(now, self.guidance, out)
         self.safety.blocked.steer(inbox.proximity, self.pose, now, self.guidance, out)
         if self.controls.finish(inbox, out, now, self.guidance, self._whereabouts()):
             why = "guidance paused by the user" if self.controls.paused else "guidance resumed"

@@ -29,11 +29,9 @@ takes over.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from daemon.guidance.guide import Guidance
-from daemon.guidance.patterns import decode
 from protocol.messages import PatternKind, Proximity
 
 from .blocked_side import BlockedSide
@@ -47,9 +45,6 @@ class ProximitySettings:
     hold_s: float = 0.5
     rearm_m: float = 0.15
     max_age_s: float = 1.0
-    ahead_deg: float = 40.0
-    """After the hold, a GUIDE this near the front is kept off what the frame shows ahead:
-    at 0.3 m a ±0.25 m corridor spans ±40° (and the belt walker turns on the spot beyond it)."""
 
 
 class ProximityGuard:
@@ -60,8 +55,6 @@ class ProximityGuard:
         """STOPs armed so far (each a new close obstacle)."""
         self.overtaken = 0
         """Steps that gave no GUIDE because the pose was newer than the camera's look."""
-        self.kept_off = 0
-        """GUIDEs towards what the frame showed ahead, made STOPs (``keep_off``)."""
         self._since: float | None = None
         self._armed_at_m = 0.0
         self.blocked = BlockedSide(self.settings.stop_m)
@@ -114,22 +107,3 @@ class ProximityGuard:
             return True
         self.overtaken += 1
         return False
-
-    def keep_off(self, now: float, guidance: Guidance, out: StepOutput) -> None:
-        """Once the hold is over, guidance leads around what the frame shows ahead, never
-        into it: a GUIDE within ``ahead_deg`` of the front while the latest frame has an
-        obstacle nearer than ``stop_m`` in the corridor becomes a STOP. The release assumed
-        the planner's map holds the obstacle; a person who just stood still is not on it yet,
-        the path went straight on, and the pulsed steps (shorter than ``rearm_m``) crept into
-        them without a new STOP (a camera walk: GUIDE ahead, the frame 1 mm from a person)."""
-        s, p = self.settings, self.latest
-        if p is None or p.ahead_m is None or p.ahead_m >= s.stop_m:
-            return
-        if now - p.frame_stamp > s.max_age_s or not out.belt:
-            return
-        last = out.belt[-1]
-        cw = decode(last.motors) if last.kind == PatternKind.GUIDE else None
-        if cw is None or min(cw, 2.0 * math.pi - cw) > math.radians(s.ahead_deg):
-            return
-        self.kept_off += 1
-        out.belt[-1] = guidance.patterns.event(PatternKind.STOP, now)

@@ -50,15 +50,8 @@ def test_stop_is_held_then_guidance_leads_around_and_a_closer_obstacle_stops_aga
     s.step(Inbox(proximity=near(0.5, now)), now)
     held = s.step(Inbox(pose=pose(25, 15, now + 0.2)), now + 0.2)  # same obstacle, in the hold
     assert [b.kind for b in held.belt] == [PatternKind.STOP]
-    # The hold is over, the map does not hold the obstacle, the path goes straight on: no GUIDE
-    # into what the frame shows 0.5 m ahead (it is kept off), and no new STOP armed either.
     after = s.step(Inbox(pose=pose(25, 15, now + 0.8), proximity=near(0.5, now + 0.8)), now + 0.8)
-    assert [b.kind for b in after.belt] == [PatternKind.STOP]
-    assert s.safety.stops == 1 and s.safety.kept_off == 1
-    # Facing east, the goal to the north: the GUIDE turns the user away from it (left, 90°).
-    side = Pose(x=1.55, y=0.45, heading=0.0, stamp=now + 0.85)
-    around = s.step(Inbox(pose=side, proximity=near(0.5, now + 0.85)), now + 0.85)
-    assert [b.kind for b in around.belt] == [PatternKind.GUIDE] and s.safety.kept_off == 1
+    assert [b.kind for b in after.belt] == [PatternKind.GUIDE]  # stopped and felt: go on
     closer = s.step(Inbox(proximity=near(0.3, now + 0.9), pose=pose(25, 15, now + 0.9)), now + 0.9)
     assert [b.kind for b in closer.belt] == [PatternKind.STOP] and s.safety.stops == 2
 
