@@ -120,7 +120,7 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "fill_passes": _pcts(np.array([p for p in passes if p], float)),
                 # The steps (indices into trace) whose reach needed the whole-map search.
                 "full_searches": _new_searches(searches, len(r.changed)),
-                # ... and those whose cut-off cells were found from the change (reach._cut_off).
+                # ... and those whose cut-off cells were found from the change (cut_off.cut_off).
                 "cut_searches": _new_searches(cuts, len(r.changed)),
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.

@@ -186,9 +186,10 @@ class Route:
             searched = getattr(planner, "search_stats", None)
             if searched is not None:
                 self._record(searched)
-        else:
-            stats, path = planner.update_and_path(*self._take(), cell)
-            self._record(stats)
+        else:  # a walking step: _take and _record written out (a frame each, every step)
+            (flipped, now), self._pending = self._pending, None
+            stats, path = planner.update_and_path(flipped, now, cell)
+            self.report.stats = stats
         self.report.max_open = getattr(planner, "max_open", None)
         if len(path) == 0:
             # A free pocket the margin closes in (a user who stepped between obstacles the

@@ -73,8 +73,7 @@ SLOT_WORDS = 16
 C_BAR = 0
 """Grid barrier arrivals (only ever grows)."""
 C_CNT = 2
-"""Three rotating sums of the tile flags set for the next round (the raise's also carry the
-kernels' give-up bit, fast.cu's CUT_PENDING)."""
+"""Three rotating sums of the tile flags set for the next round."""
 C_CUT = 5
 """EDS: the cells raised when the call gave up its repair for a plan from scratch (0: it did
 not; ``C_RAISED`` is then 0)."""
@@ -101,6 +100,10 @@ C_STAMP = 16
 """Nine words: the global timer (ns, low 32 bits) at the call's phase boundaries, written by
 block 0 (``STAMP_PHASES`` in ``scripts/profile_cuda_phases.py``), then when the loop saw the
 call's post: the phases' device time per call."""
+C_RAISE_RING = 25
+"""EDS: three rotating sums of the cells raised in a round (beside ``C_CNT``'s, zeroed with
+them): every block adds them up after each barrier to decide the cut-over, so no visit waits
+for an atomic's return to compare the running total with the limit."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 P_SEG = 40
@@ -150,8 +153,8 @@ _WORDS = (
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO",
-    "C_CMD", "C_SLOT", "C_SERVED",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_RELEASE", "P_SEG", "P_NSEGS",
+    "C_GO", "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",
     "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",
     "BATCH_WORDS",

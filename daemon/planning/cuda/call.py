@@ -21,7 +21,7 @@ from . import abi, device, resident
 # run at every step.
 PARAMS_WORDS = struct.Struct("5i")
 _ORDER = (abi.PARAM_NDELTA, abi.PARAM_MODE, abi.PARAM_START, abi.PARAM_GOAL, abi.PARAM_SEQ)
-assert tuple(range(5)) == _ORDER, "the order _pack_params packs the words in"
+assert tuple(range(5)) == _ORDER, "the order _stage_fast packs the words in"
 FOCUS_WORD = struct.Struct("i")
 """PARAM_FOCUS, after the mailbox's words (which the post writes, last)."""
 RESULT_WORDS = struct.Struct(
@@ -122,7 +122,13 @@ class FastCall:
             self._loop = self._new_loop()
         if focus >= 0 and eds:
             self._unsettled = True
-        return self._pack_params(eds, n, start, focus), n
+        # The params words for the call's new seq (written out here: every step stages).
+        self._seq = seq = self._seq % 0x7FFFFFFF + 1
+        goal = self._goal[0] * self._shape[1] + self._goal[1]
+        view = self._stage.view
+        PARAMS_WORDS.pack_into(view, 0, n, abi.MODE_EDS if eds else abi.MODE_DSS, start, goal, seq)
+        FOCUS_WORD.pack_into(view, 4 * abi.PARAM_FOCUS, focus)
+        return seq, n
 
     def _finish_fast(
         self,
@@ -146,15 +152,6 @@ class FastCall:
             raise RuntimeError("the resident loop refused a sorted delta")
         cells, blocked = device.unique_last(cells, blocked)
         self._call_fast(eds, cells, blocked, start, again=True, focus=focus)
-
-    def _pack_params(self, eds: bool, n_delta: int, start: int, focus: int = -1) -> int:
-        """The params words into the stage, for the next call's new seq, which it returns."""
-        self._seq = seq = self._seq % 0x7FFFFFFF + 1
-        goal = self._goal[0] * self._shape[1] + self._goal[1]
-        mode = abi.MODE_EDS if eds else abi.MODE_DSS
-        PARAMS_WORDS.pack_into(self._stage.view, 0, n_delta, mode, start, goal, seq)
-        FOCUS_WORD.pack_into(self._stage.view, 4 * abi.PARAM_FOCUS, focus)
-        return seq
 
     def _read_fast_stats(self) -> tuple[int, int]:
         st = self._result

@@ -64,15 +64,19 @@ class Combiner(Generic[T]):
     """``call(item)`` from any thread: ``post(items)`` runs for batches of concurrent calls,
     one post at a time, and must return one result or exception per item, in order.
     ``limit()`` is how many items a post takes (asked when a queue is there to split);
-    ``key(item)`` items of one key never share a post."""
+    ``key(item)`` items of one key never share a post. ``solo(item)``, if given, posts a call
+    that found no post in flight: it returns that call's result or raises (as ``post([item])``
+    would have said it), without the lists."""
 
     def __init__(
         self,
         post: Callable[[list[T]], list[Any]],
         limit: Callable[[], int],
         key: Callable[[T], Hashable] = id,
+        solo: Callable[[T], Any] | None = None,
     ) -> None:
         self._post, self._limit, self._key = post, limit, key
+        self._solo = solo if solo is not None else self._solo_by_post
         self._lock = threading.Lock()
         self._busy = False
         self._queue: list[_Call[T]] = []
@@ -104,17 +108,19 @@ class Combiner(Generic[T]):
             self.posts += 1
             self.calls += 1
             try:
-                (out,) = self._post([item])
-            except BaseException as exc:  # no waiter may be left blocked
-                out = exc
-            self._hand_on()
-            if isinstance(out, BaseException):
-                raise out
-            return out
+                return self._solo(item)
+            finally:  # no waiter may be left blocked, whatever the post raised
+                self._hand_on()
         me.wake.acquire()  # blocks until served, or handed the lead
         if me.lead is not None:
             self._serve(me.lead)
         return me.result()
+
+    def _solo_by_post(self, item: T) -> Any:
+        (out,) = self._post([item])
+        if isinstance(out, BaseException):
+            raise out
+        return out
 
     def _serve(self, batch: list[_Call[T]]) -> None:
         self.posts += 1

@@ -54,7 +54,7 @@ from ..field import FieldPlanner
 from ..grid import INF, Cell, checked_plan_input, in_bounds
 from ..interface import UpdateStats
 from . import abi, device, posting, resident
-from .call import FastCall
+from .call import R_COUNT, R_REJECT, R_STATUS, RESULT_WORDS, FastCall
 from .paper import PaperForm
 from .path import PathReader
 
@@ -315,15 +315,24 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         return (y, x), seq, n, cells, blocked, cell
 
     def _finish_step(self, step: tuple, t0: float) -> tuple[UpdateStats, np.ndarray]:
-        """The staged step's statistics and path, its call done (lock held)."""
+        """The staged step's statistics and path, its call done (lock held); the common case
+        (delta taken, path whole in the mapped buffer) in line: a helper's frame costs ~1 µs."""
         start, _, _, cells, blocked, cell = step
-        self._finish_fast(not self.dss, cells, blocked, cell, False, self._focus)
-        if cell >= 0:
-            path = self._path_locked(start, fused=True)
-        else:
+        self._result = st = RESULT_WORDS.unpack_from(self._io_host.view)
+        if st[R_REJECT]:  # refused: raised, or sorted and called again
+            self._finish_fast(not self.dss, cells, blocked, cell, False, self._focus)
+            st = self._result
+        if cell < 0:
             path = np.empty((0, 2), dtype=np.int32)
-        iterations, touched = self._read_fast_stats()
-        stats = UpdateStats(iterations, touched, (time.perf_counter() - t0) * 1e3)
+        elif st[R_STATUS] == abi.PATH_DONE and self._pairs[0] is self._io_host.array:
+            path = self._pairs[1][: st[R_COUNT]].copy()  # as _path_locked reads it
+        else:
+            path = self._path_locked(start, fused=True)
+        raised = st[abi.C_RAISED]
+        self.sweeps, self.raised_cells, self.tiles = st[abi.C_SWEEPS], raised, st[abi.C_TILES]
+        self.exit_tiles, self.cut_cells = st[abi.C_EXITS], st[abi.C_CUT]
+        touched = raised + st[abi.C_CHANGED]
+        stats = UpdateStats(st[abi.C_ROUNDS], touched, (time.perf_counter() - t0) * 1e3)
         self.last_stats = stats
         return stats, path
 

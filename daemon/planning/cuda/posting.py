@@ -35,18 +35,27 @@ def batch_size() -> int:
     return max(1, min(abi.BATCH_MAX, blocks // GROUP_MIN))
 
 
+def post_one(step: Post) -> Any:
+    """One step posted alone, the call as before batches, on every block of the loop: its
+    ``(UpdateStats, path)``, or its exception raised. What a walking step that finds the
+    device free runs (``STEPS``'s ``solo``): the loop's own post and wait, not ``Slot``'s,
+    and no lists, which cost a frame or an allocation each at every step."""
+    p, cells, blocked, start, t0 = step
+    with device.DEVICE_LOCK:
+        staged = p._stage_step(cells, blocked, start)
+        slot = p._loop
+        loop = slot.loop
+        loop.post(slot.index, staged[2])
+        loop.wait(p._io_host.view, staged[1], STEPS.contended)
+        return p._finish_step(staged, t0)
+
+
 def post_steps(steps: list[Post]) -> list[Any]:
     """Each step's ``(UpdateStats, path)`` or the exception it raised, in order (at most
     ``abi.BATCH_MAX`` steps, each planner once)."""
     if len(steps) == 1:
-        # Alone: the call as before batches, on every block of the loop.
-        p, cells, blocked, start, t0 = steps[0]
         try:
-            with device.DEVICE_LOCK:
-                step = p._stage_step(cells, blocked, start)
-                p._loop.post(step[1], step[2])
-                p._loop.wait(p._io_host.view, step[1], STEPS.contended)
-                return [p._finish_step(step, t0)]
+            return [post_one(steps[0])]
         except Exception as exc:  # the caller's own: raised in its thread
             return [exc]
     out: list[Any] = [None] * len(steps)
@@ -84,5 +93,7 @@ def post_steps(steps: list[Post]) -> list[Any]:
     return out
 
 
-STEPS: Combiner[Post] = Combiner(post_steps, batch_size, key=lambda step: id(step[0]))
+STEPS: Combiner[Post] = Combiner(
+    post_steps, batch_size, key=lambda step: id(step[0]), solo=post_one
+)
 """The process's walking steps, combined across threads (one device, one loop a process)."""

@@ -144,7 +144,11 @@ class ResidentLoop:
     def post(self, slot: int, n_delta: int) -> None:
         """Hand the loop ``slot``'s call (params and delta in the slot's mailbox, ``n_delta``
         cells). Starts the loop if none runs."""
-        self._before_post()
+        # _before_post's checks written out: every walking step posts here.
+        if _ACTIVE is not self:
+            evict()
+        if self._running and time.perf_counter() - self._served_at > 0.5e-3 * IDLE_MS:
+            self._ended()
         self._words[abi.BOX_SLOT] = slot
         self._gen = gen = self._gen % 0x7FFFFFFF + 1
         # Last, as one 8-byte store: x86 makes the earlier stores visible first, and the loop

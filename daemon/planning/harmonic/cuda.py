@@ -1,5 +1,5 @@
-"""The harmonic field on the GPU: a thin CuPy wrapper round ``kernels/harmonic.cu``, with
-``cpu.CpuField``'s interface (``planner.py`` cannot tell them apart).
+"""The harmonic field on the GPU: a thin CuPy wrapper round ``kernels/harmonic.cu`` and
+``harmonic_reach.cu``, with ``cpu.CpuField``'s interface (``planner.py`` cannot tell them apart).
 
 The kernel source is compiled once per process and float type (``functools.cache``; cupy
 also keeps the binary in its on-disk cache), as the cuda planner's ``device.module`` does.
@@ -8,9 +8,10 @@ residual and pit checks, and the paper's Idx with the list of pits it leaves —
 of the queued changes before it and, after it, one synchronisation for three copies into
 page-locked host memory: Idx (one byte a cell, the host walks the descent itself), the sweep
 count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
-step's sweeps, when pits are left) finds their basins on the host from Idx (``fill.basins``)
-and fills them on the device (``harmonic_fill``: the fixed point ``fill.flood`` reaches by a
-heap, by passes over the basins' cells, then Idx and the pits left, in one more launch);
+step's sweeps, when pits are left) finds their basins from Idx (pointer jumping) and fills
+them on the device (``harmonic_fill``: the fixed point ``fill.flood`` reaches by a heap, by
+passes over tiles of the basins, each iterated in shared memory until stable, then Idx and
+the pits left, in one more launch);
 the host's flood, from the few values of ``w`` it gathers, only takes what the passes left.
 ``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
 it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
@@ -35,16 +36,20 @@ import numpy as np
 from . import fill as fl
 from . import relax as rx
 
-SOURCE = Path(__file__).with_name("kernels") / "harmonic.cu"
+SOURCES = tuple(Path(__file__).with_name("kernels") / name
+                for name in ("harmonic.cu", "harmonic_reach.cu"))
+"""One module, compiled from these in order: the reach search uses the fill's tiling."""
 THREADS = 256
 FIRST_PITS = 64
 """Pits copied back with every relaxation's result (a step leaves a few: 2–27 measured);
 ``fill`` fetches the rest when there are more."""
 FILL_PASSES = 2048
-"""Passes the device's fill may take before the host's flood fills what they left. The
-passes a basin needs are about its longest chain of cells from where it spills (a numba
-replay of the passes in lockstep on the 400² courtyard walk's fills, CPU: 11–233 passes for
-121–22 363 cells); an uncapped launch could hold the step for as long as the map is wide."""
+"""Passes the device's fill may take before the host's flood fills what they left. A pass
+carries a value across a tile (``FILL_TILE``), so the passes a basin needs are about its
+longest chain of tiles from where it spills; an uncapped launch could hold the step for as
+long as the map is wide."""
+FILL_TILE = 32
+"""The fill's tile side (``harmonic.cu``'s ``FILL_TILE``): its tile marks are sized by it."""
 _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 """``set``'s (w is BLOCKED_W, fixed) → the kernel's change code (``harmonic.cu``): blocked or
 cut off, newly reachable without a value yet, the goal's fixed zero."""
@@ -59,7 +64,7 @@ _SCATTER = cp.ElementwiseKernel("int32 c, T v", "raw T w", "w[c] = v", "harmonic
 @functools.cache
 def _module(real: str) -> cp.RawModule:
     eps = "1.1920929e-7f" if real == "float" else "2.220446049250313e-16"
-    return cp.RawModule(code=SOURCE.read_text(),
+    return cp.RawModule(code="".join(p.read_text() for p in SOURCES),
                         options=("--std=c++17", f"-DREAL={real}", f"-DREAL_EPS={eps}")
                         + (("--use_fast_math",) if real == "float" else ()),
                         enable_cooperative_groups=True)  # fmt: skip
@@ -158,8 +163,24 @@ class CudaField:
         self.blocks = _blocks(self.real, "harmonic_relax")
         self.fill_kernel = _module(self.real).get_function("harmonic_fill")
         self.fill_blocks = _blocks(self.real, "harmonic_fill")
-        # The fill's three pass flags and its pit count; each launch clears them as it ends.
-        self.fill_flags = cp.zeros(4, dtype=cp.uint32)
+        # The fill's three pass flags, its pit and basin counts; each launch clears them as it ends,
+        # and leaves its map-sized lift (-1 off the basins) and its tiles' marks as it found
+        # them.
+        self.fill_flags = cp.zeros(5, dtype=cp.uint32)
+        self.down = cp.empty(n, dtype=cp.int32)  # the fill's pointer jumping along Idx
+        self.lift = cp.full(n, -1, dtype=self.dtype)
+        tiles = -(-self.height // FILL_TILE) * -(-self.width // FILL_TILE)
+        self.tile_active = cp.zeros(tiles, dtype=cp.uint8)
+        self.tile_stamp = cp.full(tiles, -2, dtype=cp.int32)
+        # The whole-map reach search's map, mask before the change, result and changed cells.
+        self.blocked_dev = cp.empty(n, dtype=cp.uint8)
+        self.before_dev = cp.empty(n, dtype=cp.uint8)
+        self.reach_dev = cp.empty(n, dtype=cp.uint8)
+        self.changed_dev = cp.empty(n, dtype=cp.int32)
+        self.reach_kernel = _module(self.real).get_function("harmonic_reach")
+        self.reach_blocks = _blocks(self.real, "harmonic_reach")
+        self.reach_passes = 0
+        """The last whole-map reach search's device passes."""
         self.fill_passes = 0
         """The last step's device fill passes (0: no fill ran)."""
 
@@ -207,33 +228,51 @@ class CudaField:
         return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
-        """Fill the basins of the pits the last relaxation left: the basins found on the host
-        from Idx (``fill.basins``), their ``w`` filled on the device (``harmonic_fill``, one
-        cooperative launch that also writes Idx and lists the pits left), the host flood
+        """Fill the basins of the pits the last relaxation left, on the device
+        (``harmonic_fill``, one cooperative launch: the basins from Idx by pointer jumping,
+        their ``w`` filled, Idx written and the pits left listed), the host flood
         (``fill.flood``) only for cells the device's passes did not reach within
         ``FILL_PASSES``. Returns the basins' cells and those left unfilled (0: no pit)."""
         self._flush()
         self.fill_passes = 0
         if self.pit_count == 0:
             return 0, 0
-        # The basins straight into the pinned int32 list the launch reads (mark left zeroed).
-        n_basin = fl.basins(self.idx_view, self.fixed_host, self.width, self._pits(),
-                            self.mark, self.cells_host, False)[0]  # fmt: skip
-        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * n_basin, _H2D)
         self.fill_kernel(
             (self.fill_blocks,), (THREADS,),
-            (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.io_cells,
-             self.io_vals, np.int32(n_basin), self.dtype.type(eps), np.int32(FILL_PASSES),
-             self.fill_flags, self.result, self.idx, self.pit_list),
+            (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.down,
+             self.lift, self.dtype.type(eps), np.int32(FILL_PASSES), self.fill_flags,
+             self.result, self.idx, self.pit_list, self.tile_active, self.tile_stamp),
         )  # fmt: skip
         self.launches += 1
         self._fetch()
-        self.fill_passes = int(self.result_host[0])
+        self.fill_passes, n_basin = int(self.result_host[0]), int(self.result_host[1])
         self.pit_count = int(self.result_host[3])
         if self.pit_count == 0:
             return n_basin, 0
         more, left = self._fill_host(eps)
         return n_basin + more, left
+
+    def reach_search(self, blocked: np.ndarray, before: np.ndarray, goal: int) -> np.ndarray:
+        """``Reach``'s whole-map search on the device (``harmonic_reach``): the padded flat
+        cells (sorted, int64) whose reach by the goal in ``blocked`` differs from ``before``
+        (both bool, the host's). One launch, the two masks up and the changed cells back: the
+        host's breadth-first search over the map took 1.4 ms of a 400² step and 55 ms of a
+        2000² one (H100 host, the bench walk)."""
+        self.blocked_dev.set(blocked.view(np.uint8))
+        self.before_dev.set(before.view(np.uint8))
+        self.reach_kernel(
+            (self.reach_blocks,), (THREADS,),
+            (self.blocked_dev, self.before_dev, self.reach_dev, np.int32(self.height),
+             np.int32(self.width), np.int32(goal), self.fill_flags, self.result,
+             self.changed_dev, self.tile_stamp),
+        )  # fmt: skip
+        self.launches += 1
+        _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
+        cp.cuda.get_current_stream().synchronize()
+        self.reach_passes = int(self.result_host[0])
+        changed = self.changed_dev[: int(self.result_host[3])].get().astype(np.int64)
+        changed.sort()
+        return changed
 
     def _pits(self) -> np.ndarray:
         """The pits the last launch listed (int32; read before the next launch's fetch)."""

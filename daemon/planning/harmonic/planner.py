@@ -74,6 +74,12 @@ STEP_OMEGA = 1.0
 drops cells of a filled basin's gentle slope below their lowest neighbour, and the next step
 fills again (H100, 2000² courtyard walk, fill ε 0.05: fills on 50 of 60 steps at 1.3, on 9 at
 1; step median 13.1 → 2.26 ms). Plans and ``converge`` keep the engine's omega."""
+DEVICE_SEARCH_CELLS = 1 << 20
+"""Padded maps from this many cells on search the whole map for the reach on the device
+(``CudaField.reach_search``), smaller ones on the host. H100, the bench walk's whole-map
+searches: at 400² the device's search took 1.05 ms where the host's breadth-first search and
+its diff took ~0.3; at 2000² the device's 6.3 ms against ~40 ms on the host. Between the two
+the crossing is interpolated (~1000²), not measured."""
 _EMPTY = np.empty((0, 2), dtype=np.int32)
 
 
@@ -145,6 +151,10 @@ class HarmonicPlanner(GlobalPlanner):
             w0[g] = 0.0
             fixed[g] = True
         self.engine.load(fixed, w0, w + 2, g)
+        # The GPU engine searches the whole map on the device when a change may cut cells off,
+        # on maps large enough for that to pay.
+        search = getattr(self.engine, "reach_search", None)
+        self.reach.search = search if flat.size >= DEVICE_SEARCH_CELLS else None
         return self._relax(t0, COLD_SWEEPS)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:

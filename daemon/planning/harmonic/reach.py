@@ -10,7 +10,7 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   cells, those around it still join up inside a window round the cluster (its bounding box
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
-  Otherwise the cells cut off are found from where the change happened (``_cut_off``), and
+  Otherwise the cells cut off are found from where the change happened (``cut_off``), and
   only past a budget by one BFS over the whole map.
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
@@ -18,41 +18,32 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba
 import numpy as np
 
+from .cut_off import cut_off, neighbour_offsets
 from .relax import bfs_steps
 
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
 CUT_SHARE = 8
-"""``_cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+CUT_CELLS_BESIDE_SEARCH = 1 << 16
+"""... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
+is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
+def _joined(blocked, new, width, height, margin, mark, queue, around, first, wanted) -> bool:
     """True when the reached free neighbours of the newly blocked cells ``new`` all connect
-    inside the window around them (``mark``: scratch of zeros, left zeroed)."""
-    r0, r1, c0, c1 = height, -1, width, -1
-    for i in new:
-        r, c = i // width, i % width
-        r0, r1, c0, c1 = min(r0, r), max(r1, r), min(c0, c), max(c1, c)
-    r0, r1 = max(1, r0 - margin), min(height - 2, r1 + margin)
-    c0, c1 = max(1, c0 - margin), min(width - 2, c1 + margin)
-    first = -1
-    wanted = 0
-    for i in new:
-        for d in range(9):
-            j = i + (d // 3 - 1) * width + d % 3 - 1
-            if not blocked[j] and reach[j] and mark[j] == 0:
-                mark[j] = 2  # a contact, still to be met by the search
-                wanted += 1
-                if first < 0:
-                    first = j
+    inside the window around them. ``_joined_each`` met them as it gathered ``new``: the
+    ``wanted`` of them are marked 2 in ``mark`` (scratch of zeros, left zeroed), ``first``
+    the first met (-1: none). ``around``: ``neighbour_offsets(width)``."""
     if wanted <= 1:
-        for i in new:
-            for d in range(9):
-                mark[i + (d // 3 - 1) * width + d % 3 - 1] = 0
+        if first >= 0:
+            mark[first] = 0
         return True
     head, tail = 0, 1
     queue[0] = first
@@ -64,19 +55,28 @@ def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
     while head < tail and wanted > 0:
         cur = queue[head]
         head += 1
-        for d in range(9):
-            j = cur + (d // 3 - 1) * width + d % 3 - 1
+        for o in around:
+            j = cur + o
             if mark[j] == 2:
                 wanted -= 1
                 mark[j] = 1
                 queue[tail] = j
                 tail += 1
+    # The window (and its bounding box, two divisions a cell) only when the ring left some
+    # apart: on the 2000² first sweep the ring joined every cluster, up to 84 k cells.
+    r0, r1, c0, c1 = height, -1, width, -1
+    if wanted > 0:
+        for i in new:
+            r, c = i // width, i % width
+            r0, r1, c0, c1 = min(r0, r), max(r1, r), min(c0, c), max(c1, c)
+        r0, r1 = max(1, r0 - margin), min(height - 2, r1 + margin)
+        c0, c1 = max(1, c0 - margin), min(width - 2, c1 + margin)
     head = 0
     while head < tail and wanted > 0:
         cur = queue[head]
         head += 1
-        for d in range(9):
-            j = cur + (d // 3 - 1) * width + d % 3 - 1
+        for o in around:
+            j = cur + o
             r, c = j // width, j % width
             if blocked[j] or mark[j] == 1 or r < r0 or r > r1 or c < c0 or c > c1:
                 continue
@@ -85,16 +85,19 @@ def _joined(blocked, reach, new, width, height, margin, mark, queue) -> bool:
             mark[j] = 1
             queue[tail] = j
             tail += 1
+    # Every cell marked 1 is queued; contacts still at 2 exist only when some were not met.
     for k in range(tail):
         mark[queue[k]] = 0
-    for i in new:
-        for d in range(9):
-            mark[i + (d // 3 - 1) * width + d % 3 - 1] = 0
+    if wanted > 0:
+        for i in new:
+            for o in around:
+                mark[i + o] = 0
     return wanted == 0
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, failed) -> int:
+def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, failed,
+                 group) -> int:  # fmt: skip
     """``_joined`` for each 8-connected cluster of the newly blocked cells in its own window;
     the cells of the clusters whose contacts do not join there go into ``failed``, and their
     count is returned (0: every cluster's contacts join). Sound: a path through new
@@ -102,10 +105,11 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
     contacts still join (in the map with every change applied), so a path that crossed only
     joined clusters can be rerouted round them. One window round all of a step's changes
     spans the sensor's sweep (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's
-    spans the cluster. ``label``: scratch of zeros, left zeroed."""
+    spans the cluster. ``label``: scratch of zeros, left zeroed; ``group``: scratch as long
+    as ``new`` (allocated here, its fresh pages cost the 2000² first sweep ~1 ms)."""
+    around = neighbour_offsets(width)
     for i in new:
         label[i] = 1
-    group = np.empty(new.size, dtype=np.int64)
     n_failed = 0
     for s in new:
         if label[s] != 1:
@@ -113,16 +117,26 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
         label[s] = 2
         group[0] = s
         head, n = 0, 1
+        # The cluster's contacts (reached free neighbours) are met in the same pass that
+        # gathers it, in the order a second pass over its cells would meet them (that pass
+        # was ~1 ms of this function's ~3.8 on the 2000² first sweep, dev VM CPU time).
+        first, wanted = -1, 0
         while head < n:
             cur = group[head]
             head += 1
-            for d in range(9):
-                j = cur + (d // 3 - 1) * width + d % 3 - 1
+            for o in around:
+                j = cur + o
                 if label[j] == 1:
                     label[j] = 2
                     group[n] = j
                     n += 1
-        if not _joined(blocked, reach, group[:n], width, height, margin, mark, queue):
+                elif not blocked[j] and reach[j] and mark[j] == 0:
+                    mark[j] = 2  # a contact, still to be met by _joined's search
+                    wanted += 1
+                    if first < 0:
+                        first = j
+        if not _joined(blocked, group[:n], width, height, margin, mark, queue, around, first,
+                       wanted):  # fmt: skip
             failed[n_failed : n_failed + n] = group[:n]
             n_failed += n
     for i in new:
@@ -131,94 +145,16 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
 
 
 @numba.njit(cache=True, nogil=True)
-def _root(parent, a):
-    while parent[a] != a:
-        parent[a] = parent[parent[a]]
-        a = parent[a]
-    return a
-
-
-@numba.njit(cache=True, nogil=True)
-def _cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
-    """The reached cells that the clusters ``new`` (those ``_joined_each`` could not clear)
-    cut off from the goal, into ``out`` and cleared in ``reach``; returns their count, or -1
-    for the whole-map search: past ``limit`` cells searched, or when the goal's region turns
-    out finite (its outside is then unknown). One breadth-first search from many groups at
-    once, each reached free neighbour of ``new`` one; groups that meet merge (union-find),
-    and a group whose frontier runs out is a whole region. A region cut off holds such a
-    neighbour (its paths to the goal crossed these clusters, the others can be rerouted), and
-    so does the goal's region when any was cut off (or else every neighbour is in it). So
-    once at most one group is still growing and the goal is not in a finished one, the
-    growing one is the goal's and every finished one is cut off: the search costs about the
-    groups times the regions cut off, not the map. ``group``: int32 scratch of zeros, left
-    zeroed."""
-    parent = np.empty(9 * new.size + 1, dtype=np.int64)
-    count = np.zeros(9 * new.size + 1, dtype=np.int64)
-    groups = tail = 0
-    for i in new:
-        for d in range(9):
-            j = i + (d // 3 - 1) * width + d % 3 - 1
-            if not blocked[j] and reach[j] and group[j] == 0:
-                groups += 1
-                parent[groups], count[groups], group[j] = groups, 1, groups
-                queue[tail] = j
-                tail += 1
-    growing, head, found = groups, 0, 0
-    while growing > 1 and head < tail and tail <= limit:
-        cur = queue[head]
-        head += 1
-        own = group[cur]
-        a = _root(parent, own)
-        count[a] -= 1
-        for d in range(9):
-            j = cur + (d // 3 - 1) * width + d % 3 - 1
-            g = group[j]
-            # Most neighbours carry cur's own label or its root's (both groups' cells are
-            # labelled with the root they had when met): no union-find walk for them.
-            if g == own or blocked[j]:
-                continue
-            if g == a:
-                continue
-            if g == 0:
-                group[j] = a
-                count[a] += 1
-                queue[tail] = j
-                tail += 1
-                continue
-            b = _root(parent, g)
-            if b != a:  # two growing groups meet (a finished one met every neighbour)
-                parent[b] = a
-                count[a] += count[b]
-                growing -= 1
-        if count[a] == 0:
-            growing -= 1
-            if group[goal] != 0 and _root(parent, group[goal]) == a:
-                break  # the goal's region is finite: the rest of the map is unknown here
-    home = _root(parent, group[goal]) if group[goal] != 0 else 0
-    if growing <= 1 and (home == 0 or count[home] > 0) and tail <= limit:
-        for k in range(tail):
-            c = queue[k]
-            if count[_root(parent, group[c])] == 0 and reach[c]:
-                reach[c] = False
-                out[found] = c
-                found += 1
-    else:
-        found = -1
-    for k in range(tail):
-        group[queue[k]] = 0
-    return found
-
-
-@numba.njit(cache=True, nogil=True)
 def _grow(blocked, reach, freed, width, queue, out) -> int:
     """Cells newly reached through the freed cells; written to ``out``, count returned."""
+    around = neighbour_offsets(width)
     tail = 0
     for i in freed:
         if blocked[i] or reach[i]:
             continue
-        for d in range(9):
-            j = i + (d // 3 - 1) * width + d % 3 - 1
-            if j != i and reach[j] and not blocked[j]:
+        for o in around:
+            j = i + o
+            if reach[j] and not blocked[j]:
                 reach[i] = True
                 queue[tail] = i
                 tail += 1
@@ -233,11 +169,12 @@ def _flood(blocked, reach, width, queue, head, tail) -> int:
     """Breadth-first from ``queue[head:tail]`` (already marked in ``reach``) over the free
     cells (8-connected, padded flat map); every cell reached is marked and queued. Returns
     the new tail."""
+    around = neighbour_offsets(width)
     while head < tail:
         cur = queue[head]
         head += 1
-        for d in range(9):
-            nxt = cur + (d // 3 - 1) * width + d % 3 - 1
+        for o in around:
+            nxt = cur + o
             if not reach[nxt] and not blocked[nxt]:
                 reach[nxt] = True
                 queue[tail] = nxt
@@ -309,8 +246,12 @@ class Reach:
         self._was = np.empty(blocked.size, dtype=np.bool_)
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
+        self.search: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
+        """The whole-map search elsewhere (the GPU engine's ``reach_search``): given the map,
+        the reach before the change and the goal, the cells whose reach changed (sorted);
+        None: the host's breadth-first search."""
         self.cut_searches = 0
-        """Changes whose cut-off cells ``_cut_off`` found without it."""
+        """Changes whose cut-off cells ``cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
         """8-connected steps from the goal of the map as first given (a plan's first guess);
         not kept up by ``apply``."""
@@ -318,9 +259,23 @@ class Reach:
         self.count = int(self.reach.sum())
         """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
 
-    def _full(self) -> None:
-        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+    def _afresh(self, now_blocked: np.ndarray, was: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every reached cell found afresh (a change may have cut some off): ``(lost,
+        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``)."""
         self.full_searches += 1
+        if self.search is not None:
+            self.reach[now_blocked] = was  # the reach before the change
+            changed = self.search(self.blocked, self.reach, self.goal)
+            lost = self.reach[changed]
+            self.reach[changed] = ~lost
+            n_lost = int(np.count_nonzero(lost))
+            self.count += changed.size - 2 * n_lost
+            return changed[lost], changed[~lost]
+        before = self.reach.copy()
+        before[now_blocked] = was
+        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+        changed = np.flatnonzero(before != self.reach)
+        return changed[~self.reach[changed]], changed[self.reach[changed]]
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
@@ -333,28 +288,22 @@ class Reach:
             return flips[:0], flips[:0]
         now_blocked, freed, was = flips[:nb], flips[flips.size - nf :], self._was[:nb]
         if not self.blocked[self.goal] and not self.reach[self.goal]:
-            before = self.reach.copy()  # the goal itself freed: everything is found afresh
-            before[now_blocked] = was
-            self._full()
-            changed = np.flatnonzero(before != self.reach)
-            return changed[~self.reach[changed]], changed[self.reach[changed]]
+            return self._afresh(now_blocked, was)  # the goal itself freed
         cut = 0
         failed = 0
         if nb and not self.blocked[self.goal]:
             failed = _joined_each(self.blocked, self.reach, now_blocked, self.width, self.height,
                                   MARGIN, self._mark, self._queue, self._label,
-                                  self._failed)  # fmt: skip
+                                  self._failed, self._out)  # fmt: skip
         if nb and (self.blocked[self.goal] or failed):
             if not self.blocked[self.goal]:
-                cut = _cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
-                               self.goal, self._group, self._queue, self._out,
-                               self.blocked.size // CUT_SHARE)  # fmt: skip
+                limit = self.blocked.size // CUT_SHARE
+                if self.search is not None:
+                    limit = min(limit, CUT_CELLS_BESIDE_SEARCH)
+                cut = cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
+                               self.goal, self._group, self._queue, self._out, limit)  # fmt: skip
             if self.blocked[self.goal] or cut < 0:
-                before = self.reach.copy()
-                before[now_blocked] = was
-                self._full()
-                changed = np.flatnonzero(before != self.reach)
-                return changed[~self.reach[changed]], changed[self.reach[changed]]
+                return self._afresh(now_blocked, was)
             self.cut_searches += 1
         lost = now_blocked[was]
         if cut:

@@ -35,6 +35,7 @@
 #define C_LONGEST 13
 #define C_BASE 14
 #define C_STAMP 16
+#define C_RAISE_RING 25
 #define C_RELEASE 32
 #define P_SEG 40
 #define P_NSEGS 42

@@ -61,8 +61,11 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
                 low = min(low, __ldcg(g + ny * G.w + nx) + STRAIGHT);
         }
     }
-    for (int t = tid; t < G.ntiles; t += stride)
-        if (__ldcg(deferred + t)) low = min(low, __ldcg(lb + t));
+    for (int t = tid; t < G.ntiles; t += stride) {
+        const unsigned is_deferred = __ldcg(deferred + t);
+        const int bound = __ldcg(lb + t);  // with the flag: one round trip, not two
+        if (is_deferred) low = min(low, bound);
+    }
     // One atomic a warp; stored as INF - level so that the zero the word starts with means
     // "no bound" and a max keeps the least level.
     low = __reduce_min_sync(FULL, low);

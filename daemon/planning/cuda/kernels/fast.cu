@@ -20,9 +20,10 @@
 // re-lowering that many cells costs more than a plan from the goal (the CPU's rule,
 // cpu/dial.py). It keeps every cell whose old g lies below the least g the change can reach
 // and relaxes from there (cut_over.cuh), not from the goal. The raised cells are counted as
-// they are raised, into ctrl[C_RAISED]; the visit that passes the limit sets CUT_PENDING in
-// the round's flag count, which every block reads after the round's barrier anyway, so the
-// decision is the same in every block and costs no extra barrier or host round trip.
+// they are raised, into the round's word of a ring beside the flag counts (rounds.cuh,
+// count_raised); every block reads it with the round's flag count after the round's barrier
+// and adds it to its running total, so the decision is the same in every block and costs no
+// extra barrier, no host round trip, and no visit a wait for an atomic's return.
 //
 // Focused repair (focus >= 0, the user's cell; LPA*'s and D* Lite's keys, Koenig and Likhachev
 // 2002, per tile). A visit that lowers cells on edge/corner k of its tile bounds every value the
@@ -172,6 +173,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     __shared__ int s_list[THREADS];
     __shared__ int s_n;
     __shared__ int s_params[PARAM_USED];
+    __shared__ unsigned s_raised;  // EDS: the cells raised so far (round_pending)
     Grid G;
     G.h = h; G.w = w;
     G.tiles_x = (w + TILE - 1) / TILE;
@@ -186,6 +188,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     int* lb = (int*)(flags + 6 * G.ntiles);
     int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
+    if (threadIdx.x == 0) s_raised = 0;
     __syncthreads();
     const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
     const int start = s_params[PARAM_START], goal = s_params[PARAM_GOAL];
@@ -260,17 +263,18 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         mine = __reduce_add_sync(FULL, mine);
         flagged = __reduce_add_sync(FULL, flagged);
         if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
-        if (lane == 0 && mine) count_raised(ctrl, mine, limit, cnt1);
+        if (lane == 0 && mine) count_raised(ctrl, mine, 0);
     }
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 1);
-    unsigned pending = *((volatile unsigned*)cnt1);
+    unsigned pending = round_pending(ctrl, 0, limit, &s_raised);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
             pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
-                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit);
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                &s_raised);
             ++r;
         }
         stamp(ctrl, 2);
@@ -280,12 +284,17 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
                               deferred, lb, ctrl, &bar);
         } else {
             // The focus's g after the reset: the raise is over (its last barrier) and the
-            // reset round lowers nothing.
+            // reset round lowers nothing. Both words at once (one round trip, not two); g is
+            // read even where the focus was raised, and then not used.
             int g_focus = INF;
-            if (focus >= 0 && !__ldcg(raised + focus)) g_focus = __ldcg(g + focus);
+            if (focus >= 0) {
+                const unsigned char focus_raised = __ldcg(raised + focus);
+                const int g_old = __ldcg(g + focus);
+                if (!focus_raised) g_focus = g_old;
+            }
             pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
                                 g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
-                                deferred, lb, g_focus, fy, fx);
+                                nullptr, deferred, lb, g_focus, fy, fx);
         }
         ++r;
     }
@@ -298,7 +307,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
                 bs, s_list, &s_n, focus, fy, fx, deferred, lb);
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 4);
-    if (tid == 0) ctrl[C_ROUNDS] += ctrl[C_LONGEST];
     if (start >= 0) {
         // The path: exits of the stale tiles and of the start's, the hops, the segments.
         unsigned char(*code)[TILE] = (unsigned char(*)[TILE]) & rs[0][0];
@@ -333,10 +341,16 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     if (grid_arrive_last(ctrl, &bar)) {
         if (threadIdx.x == 0) ctrl[C_STAMP + 7] = (unsigned)global_ns();
         __syncthreads();
-        if (threadIdx.x < IO_DONE) io[threadIdx.x] = (int)__ldcg(ctrl + threadIdx.x);
+        // C_ROUNDS goes out with the relaxation's longest chain added: summed here by the
+        // thread that copies it, rather than by block 0 on its way into the path's phases.
+        if (threadIdx.x < IO_DONE) {
+            unsigned v = __ldcg(ctrl + threadIdx.x);
+            if (threadIdx.x == C_ROUNDS) v += __ldcg(ctrl + C_LONGEST);
+            io[threadIdx.x] = (int)v;
+        }
         __syncthreads();  // every word is copied before it is zeroed
         if (threadIdx.x == 0) {
-            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = 0;
+            for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = ctrl[C_RAISE_RING + i] = 0;
             ctrl[C_EXITS] = 0;
             ctrl[C_CUT] = 0;
             ctrl[C_KEEP] = 0;

@@ -26,12 +26,30 @@ __device__ __forceinline__ void stamp(unsigned* ctrl, int i) {
     if (GBLOCK == 0 && threadIdx.x == 0) ctrl[C_STAMP + i] = (unsigned)global_ns();
 }
 
-// Count n newly raised cells; past `limit` in all, set CUT_PENDING in *cnt, the count of the
-// round that every block reads after its barrier.
-__device__ __forceinline__ void count_raised(unsigned* ctrl, unsigned n, unsigned limit,
-                                             unsigned* cnt) {
-    unsigned before = atomicAdd(ctrl + C_RAISED, n);
-    if (before + n > limit) atomicOr(cnt, CUT_PENDING);
+// Count n cells newly raised in round r: into the round's word of the raise ring (which
+// round_pending reads after the round's barrier) and the call's total (a statistic, and the
+// cut-over's C_CUT). Both are reductions the visit never waits for: comparing the running
+// total with the limit here needed the add's return, a round trip to L2 (~0.6 µs) on the
+// visit's path, before the block could take its next tile or arrive at the barrier.
+__device__ __forceinline__ void count_raised(unsigned* ctrl, unsigned n, int r) {
+    atomicAdd(ctrl + C_RAISE_RING + (r + 1) % 3, n);
+    atomicAdd(ctrl + C_RAISED, n);
+}
+
+// After round r's barrier, in every thread: the round's flag count, with CUT_PENDING once the
+// cells raised so far passed `limit`. *so_far (shared) is the block's running sum of the
+// ring's words, the same in every block: a word is read only after its round's barrier and
+// is not written again before the barrier of round r + 2 (run_round zeroes it then). The
+// two loads are independent: one round trip. The sum is kept in shared memory, not in a
+// register passed by address, which put it on plan_call's stack.
+__device__ __forceinline__ unsigned round_pending(const unsigned* ctrl, int r, unsigned limit,
+                                                  unsigned* so_far) {
+    const unsigned pending = ((volatile const unsigned*)ctrl)[C_CNT + (r + 1) % 3];
+    const unsigned raised = ((volatile const unsigned*)ctrl)[C_RAISE_RING + (r + 1) % 3];
+    const unsigned total = *so_far + raised;
+    __syncthreads();  // every thread has read *so_far (its next read follows a grid barrier)
+    if (threadIdx.x == 0) *so_far = total;
+    return total > limit ? pending | CUT_PENDING : pending;
 }
 
 // Take this block's flagged tiles of the chunk at `base` (t = base + k * GSIZE) into
@@ -61,20 +79,23 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 
 // One grid-wide round: every block takes its flagged tiles of `in`, applies `op`, and flags
 // tiles for the next round in `next` (counted in ctrl[C_CNT + (r + 1) % 3]). Returns that
-// count, 0 when no tile is flagged for the next round, the same in every block; a raise that
-// passed `limit` raised cells in all sets CUT_PENDING in it.
+// count, 0 when no tile is flagged for the next round, the same in every block; after a
+// raise, with CUT_PENDING once more than `limit` cells were raised in all (*so_far: the
+// cells raised before this round, round_pending).
 // The reset round also takes back the deferred tiles whose key lb + h(focus) is no more than
 // `g_focus`, the focus's g after the reset (INF: every one; fy < 0: no focus).
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
                               unsigned* stale, unsigned* ctrl, int r, int* g,
                               const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
                               unsigned char (*bs)[TILE + 1], unsigned char (*rs)[HT], int* s_list,
-                              int* s_n, unsigned* bar, unsigned limit, unsigned* deferred = nullptr,
-                              int* lb = nullptr, int g_focus = INF, int fy = -1, int fx = 0) {
+                              int* s_n, unsigned* bar, unsigned limit, unsigned* so_far,
+                              unsigned* deferred = nullptr, int* lb = nullptr, int g_focus = INF,
+                              int fy = -1, int fx = 0) {
     unsigned* cnt_next = ctrl + C_CNT + (r + 1) % 3;
     if (GBLOCK == 0 && threadIdx.x == 0) {
         ctrl[C_CNT + (r + 2) % 3] = 0;
-        ctrl[C_ROUNDS] += 1;
+        ctrl[C_RAISE_RING + (r + 2) % 3] = 0;
+        atomicAdd(ctrl + C_ROUNDS, 1u);  // a reduction: += would wait for the load
     }
     for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
         int count = take_flagged(in, G.ntiles, base, s_list, s_n);
@@ -87,7 +108,7 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
                     raise_tile(G, tile, g, raised, gs, rs, ctrl + C_SWEEPS, &any, &fresh);
                 flag_neighbour(G, tile, bits, threadIdx.x, next, cnt_next);
                 if (any && threadIdx.x == 8) atomicExch(seeds + tile, 1u);
-                if (fresh && threadIdx.x == 9) count_raised(ctrl, fresh, limit, cnt_next);
+                if (fresh && threadIdx.x == 9) count_raised(ctrl, fresh, r);
             } else {
                 unsigned bits = reset_tile(G, tile, g, raised);
                 if (threadIdx.x == 0) flag_tile(next, cnt_next, tile);
@@ -99,8 +120,11 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
     }
     if (deferred) {
         for (int t = GBLOCK * THREADS + threadIdx.x; t < G.ntiles; t += GSIZE * THREADS) {
-            if (!__ldcg(deferred + t)) continue;
-            int bound = __ldcg(lb + t);
+            // Both words at once: the bound read after the flag was a second round trip on
+            // block 0's path to the barrier.
+            const unsigned is_deferred = __ldcg(deferred + t);
+            const int bound = __ldcg(lb + t);
+            if (!is_deferred) continue;
             if (fy >= 0 && bound + tile_h(G, t, fy, fx) > g_focus) continue;  // stays deferred
             deferred[t] = 0u;
             lb[t] = INF;
@@ -108,5 +132,6 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
         }
     }
     grid_barrier(ctrl, bar);
+    if (op == OP_RAISE) return round_pending(ctrl, r, limit, so_far);
     return *((volatile unsigned*)cnt_next);
 }

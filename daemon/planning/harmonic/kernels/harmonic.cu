@@ -189,59 +189,186 @@ extern "C" __global__ void harmonic_relax(REAL* w, unsigned char* fixed, REAL* p
     }
 }
 
-// A replanning step's fill (fill.py) on the device: the basins' cells `cells[:n]` (the host
-// found them from Idx) take the smallest field W >= w that has, at every basin cell, a
+// A replanning step's fill (fill.py) on the device: the pits' basins (the free cells whose
+// Idx chain ends at a pit, found here by pointer jumping) take the smallest field W >= w that
+// has, at every basin cell, a
 // neighbour at least eps lower — W(c) = max(w(c), min over neighbours W + eps), a cell with no
 // value yet taking the second term — the fixed point that Planchon & Darboux (2002) reach by
 // iteration and Barnes et al.'s priority-flood by a heap. From W = BLOCKED_W on the basins the
-// passes only lower W and every value stays >= the fixed point; once a pass lowers nothing,
-// W is it (unique: a chain of cells each eps above the next cannot close on itself). A cell
-// with a value is never a pit, even mid-way (its lowest neighbour only went down since): the
-// only pits a pass cap can leave are cells the passes have not reached yet, and write_idx
-// lists them for the host. Three flag slots, as the relaxation's pit check: after pass p's
-// barrier thread 0 clears slot (p + 2) % 3, read before that barrier and written again only
-// after the next one (slot (p + 1) % 3 may already be taking a fast block's flag).
-extern "C" __global__ void harmonic_fill(REAL* w, const unsigned char* fixed, int height,
-                                         int width, const int* cells, REAL* orig, int n,
-                                         REAL eps, int max_passes, unsigned* flags,
-                                         int* result, signed char* idx, int* pit_list) {
+// updates only lower W and every value stays >= the fixed point, in whatever order they come;
+// once nothing lowers, W is it (unique: a chain of cells each eps above the next cannot close
+// on itself). A cell with a value is never a pit, even mid-way (its lowest neighbour only went
+// down since): the only pits a pass cap can leave are cells not reached yet, and write_idx
+// lists them for the host.
+//
+// The passes go by tiles of FILL_TILE² cells, one block each: a tile whose basin cells or
+// neighbour tiles changed in the last pass loads itself and its ring of neighbours into shared
+// memory and iterates there, a block barrier an iteration, until it is stable against that
+// ring; then one grid barrier and the tiles read each other's new borders. A value crosses a
+// tile in one pass, not FILL_TILE, so the grid barriers (~3 µs each) fall from about the
+// basin's longest chain of cells to its chain of tiles. `lift` (map-sized, -1 off the basins)
+// holds each basin cell's w before the fill; `active` (the tiles with basin cells) and
+// `stamp` (the last pass a tile changed, -2 never) are left as found. Three flag slots for the
+// stop: after pass p's barrier thread 0 clears slot (p + 2) % 3, read before that barrier and
+// written again only after the next one (slot (p + 1) % 3 may already be taking a fast
+// block's flag).
+#define FILL_TILE 32
+#define FILL_ROWS (FILL_TILE / 8)  // a block of 256 threads: 32 columns x 8 rows
+#define FILL_SPAN (FILL_TILE + 2)
+
+// max(w, m + eps) for a basin cell whose lowest neighbour is m: strictly above m in REAL
+// (float32 rounds m + eps back to m past 2^24 eps); lifted < BLOCKED_W is its w before.
+__device__ __forceinline__ REAL filled(REAL m, REAL eps, REAL lifted) {
+    REAL step = eps, v = m + step;
+    while (v <= m) { step *= (REAL)2; v = m + step; }
+    return lifted < BLOCKED_W && lifted > v ? lifted : v;
+}
+
+// One tile of a fill pass: returns whether it lowered any cell (the same in every thread).
+__device__ bool fill_tile(REAL* w, const REAL* lift, int height, int width, int tr, int tc,
+                          REAL eps, REAL* s) {
+    const int r0 = tr * FILL_TILE - 1, c0 = tc * FILL_TILE - 1;
+    for (int k = threadIdx.x; k < FILL_SPAN * FILL_SPAN; k += blockDim.x) {
+        const int r = r0 + k / FILL_SPAN, c = c0 + k % FILL_SPAN;
+        // Past the map's padded ring: nothing to fall on. __ldcg: other blocks' writes of the
+        // last pass, from L2, never a stale line of this multiprocessor's L1.
+        s[k] = r >= 0 && r < height && c >= 0 && c < width ? __ldcg(w + r * width + c)
+                                                           : BLOCKED_W;
+    }
+    const int tx = threadIdx.x % FILL_TILE, ty = threadIdx.x / FILL_TILE;
+    REAL lifted[FILL_ROWS], loaded[FILL_ROWS];
+    __syncthreads();
+    for (int j = 0; j < FILL_ROWS; ++j) {
+        const int r = r0 + 1 + ty + 8 * j, c = c0 + 1 + tx;
+        lifted[j] = r < height && c < width ? lift[r * width + c] : (REAL)-1;
+        loaded[j] = s[(ty + 8 * j + 1) * FILL_SPAN + tx + 1];  // what the tile held
+    }
+    bool any = false;
+    while (true) {
+        // In place: a neighbour read mid-update is its old value or its new, lower one, both
+        // >= the fixed point; an iteration that lowers nothing read only final values.
+        bool mine = false;
+        for (int j = 0; j < FILL_ROWS; ++j) {
+            if (lifted[j] < (REAL)0) continue;
+            const int k = (ty + 8 * j + 1) * FILL_SPAN + tx + 1;
+            REAL m = BLOCKED_W;
+            for (int d = 0; d < 9; ++d)
+                if (d != 4) m = fmin(m, s[k + (d / 3 - 1) * FILL_SPAN + d % 3 - 1]);
+            if (m >= BLOCKED_W) continue;
+            const REAL v = filled(m, eps, lifted[j]);
+            if (v < s[k]) { s[k] = v; mine = true; }
+        }
+        if (!__syncthreads_or(mine)) break;
+        any = true;
+    }
+    if (any)
+        for (int j = 0; j < FILL_ROWS; ++j) {
+            const REAL v = s[(ty + 8 * j + 1) * FILL_SPAN + tx + 1];
+            if (lifted[j] >= (REAL)0 && v < loaded[j])
+                w[(r0 + 1 + ty + 8 * j) * width + c0 + 1 + tx] = v;
+        }
+    __syncthreads();  // s is the block's next tile's
+    return any;
+}
+
+extern "C" __global__ void __launch_bounds__(256)
+harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, int* down,
+              REAL* lift, REAL eps, int max_passes, unsigned* flags, int* result,
+              signed char* idx, int* pit_list, unsigned char* active, int* stamp) {
     cg::grid_group grid = cg::this_grid();
+    __shared__ REAL s[FILL_SPAN * FILL_SPAN];
+    __shared__ unsigned s_count;
     const long long stride = (long long)gridDim.x * blockDim.x;
     const long long first = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    const long long n = (long long)height * width;
+    const int tiles_x = (width + FILL_TILE - 1) / FILL_TILE;
+    const int tiles = tiles_x * ((height + FILL_TILE - 1) / FILL_TILE);
+    // The basins (fill.basins on the host): down[i] = (the cell i's Idx chain has reached so
+    // far) << 1 | (a pit is on it). A pit (write_idx's: free, Idx 4 or no value yet) ends
+    // its chain flagged; a fixed cell or Idx 4 ends it unflagged. Pointer jumping halves every
+    // chain's rest a round (log2 of the longest chain rounds, not one per cell). One word a
+    // cell, so a read mid-update is a consistent pair, and any pair is on the cell's chain.
     for (long long k = first; k < n; k += stride) {
-        orig[k] = w[cells[k]];
-        w[cells[k]] = BLOCKED_W;
+        const int i = (int)k, d = idx[i];
+        const bool pit = !fixed[i] && (d == 4 || w[i] >= BLOCKED_W);
+        const int to = fixed[i] || d == 4 ? i : i + (d / 3 - 1) * width + d % 3 - 1;
+        down[i] = pit ? (i << 1 | 1) : (to << 1);
     }
+    grid.sync();
+    for (int round = 0;; ++round) {
+        bool mine = false;
+        for (long long k = first; k < n; k += stride) {
+            const int v = __ldcg(down + k), j = v >> 1;
+            if ((v & 1) || j == (int)k) continue;
+            const int u = __ldcg(down + j);
+            if (u != v) { down[k] = u; mine = true; }
+        }
+        unsigned* slot = flags + round % 3;
+        if (__syncthreads_or(mine) && threadIdx.x == 0) atomicOr(slot, 1u);
+        grid.sync();
+        const bool any = *(volatile unsigned*)slot != 0u;
+        if (first == 0) flags[(round + 2) % 3] = 0u;
+        if (!any) break;
+    }
+    if (threadIdx.x == 0) s_count = 0u;
+    __syncthreads();
+    for (long long k = first; k < n; k += stride) {
+        if (!(__ldcg(down + k) & 1)) continue;
+        const int c = (int)k, t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
+        lift[c] = w[c];
+        w[c] = BLOCKED_W;
+        active[t] = 1;
+        stamp[t] = -1;  // changed "before pass 0": every basin tile runs first
+        atomicAdd(&s_count, 1u);
+    }
+    __syncthreads();
+    if (threadIdx.x == 0 && s_count) atomicAdd(flags + 4, s_count);
+    // The passes' slots start clear: the rounds' clears and these are all done by the
+    // barrier after them.
+    if (first == 0) flags[0] = flags[1] = flags[2] = 0u;
     grid.sync();
     int passes = 0;
     while (passes < max_passes) {
         bool mine = false;
-        for (long long k = first; k < n; k += stride) {
-            const int c = cells[k];
-            REAL m = BLOCKED_W;
-            for (int d = 0; d < 9; ++d)
-                if (d != 4) m = fmin(m, w[c + (d / 3 - 1) * width + d % 3 - 1]);
-            if (m >= BLOCKED_W) continue;
-            // Strictly above m in REAL (float32 rounds m + eps back to m past 2^24 eps).
-            REAL step = eps, v = m + step;
-            while (v <= m) { step *= (REAL)2; v = m + step; }
-            const REAL o = orig[k];
-            if (o < BLOCKED_W && o > v) v = o;
-            if (v < w[c]) { w[c] = v; mine = true; }
+        for (int t = blockIdx.x; t < tiles; t += gridDim.x) {
+            if (!__ldcg(active + t)) continue;
+            const int tr = t / tiles_x, tc = t % tiles_x;
+            // Due when it or a neighbour tile changed in the last pass (or this one, seen
+            // early: a change missed now is seen next pass, and it raised this pass's flag).
+            bool due = false;
+            if (threadIdx.x < 9) {
+                const int r = tr + threadIdx.x / 3 - 1, c = tc + threadIdx.x % 3 - 1;
+                due = r >= 0 && c >= 0 && c < tiles_x && r * tiles_x + c < tiles &&
+                      __ldcg(stamp + r * tiles_x + c) >= passes - 1;
+            }
+            if (!__syncthreads_or(due)) continue;
+            if (fill_tile(w, lift, height, width, tr, tc, eps, s)) {
+                mine = true;
+                if (threadIdx.x == 0) stamp[t] = passes;
+            }
         }
         unsigned* slot = flags + passes % 3;
-        if (__syncthreads_or(mine) && threadIdx.x == 0) atomicOr(slot, 1u);
+        if (mine && threadIdx.x == 0) atomicOr(slot, 1u);  // mine is the block's own verdict
         grid.sync();
         const bool any = *(volatile unsigned*)slot != 0u;
         if (first == 0) flags[(passes + 2) % 3] = 0u;
         ++passes;
         if (!any) break;
     }
+    for (long long k = first; k < n; k += stride) {
+        if (!(__ldcg(down + k) & 1)) continue;
+        const int c = (int)k, t = c / width / FILL_TILE * tiles_x + c % width / FILL_TILE;
+        lift[c] = (REAL)-1;
+        active[t] = 0;
+        stamp[t] = -2;
+    }
     write_idx(w, fixed, idx, height, width, first, stride, pit_list, flags + 3);
     grid.sync();
     if (first == 0) {
         result[0] = passes;
+        result[1] = (int)*(volatile unsigned*)(flags + 4);
         result[3] = (int)*(volatile unsigned*)(flags + 3);
-        for (int k = 0; k < 4; ++k) flags[k] = 0u;
+        for (int k = 0; k < 5; ++k) flags[k] = 0u;
     }
 }
+

@@ -202,3 +202,37 @@ def test_contended_once_calls_queue_and_again_not_after_posts_alone():
         alone += 1
     # the queued call's own post counts as one of them
     assert alone == CONTENDED_POSTS - 1
+
+
+def test_a_call_alone_goes_to_solo_and_a_queue_behind_it_to_post():
+    """With ``solo`` (the cuda backend's single step), a call that finds no post in flight is
+    solo's: its result returned, its exception raised in its own thread, and the combiner
+    free again either way; calls that queue behind it still go together through ``post``."""
+    dev = FakeDevice()
+    solos: list = []
+
+    def solo(item):
+        solos.append(item)
+        (out,) = dev.post([item])
+        if isinstance(out, BaseException):
+            raise out
+        return out
+
+    c = Combiner(dev.post, lambda: 16, key, solo=solo)
+    assert c.call(("u", 0)) == ("done", ("u", 0))
+    with pytest.raises(ValueError):
+        c.call(("fail", 1))
+    assert solos == [("u", 0), ("fail", 1)] and not c._busy
+    dev.gate.clear()
+    out: dict = {}
+    threads = [call_in_thread(c, ("u", 2), out)]
+    assert dev.entered.wait(5)
+    for n, item in enumerate([("u", 3), ("v", 4)], start=1):
+        threads.append(call_in_thread(c, item, out))
+        queued(c, n)
+    dev.gate.set()
+    for t in threads:
+        t.join(5)
+    assert solos[-1] == ("u", 2) and dev.posts[-1] == [("u", 3), ("v", 4)]
+    assert out == {it: ("done", it) for it in [("u", 2), ("u", 3), ("v", 4)]}
+    assert not c._busy and not c._queue

@@ -67,3 +67,46 @@ def test_a_map_above_the_limit_is_planned_on_the_device_and_both_parts_warm_up()
     assert isinstance(planner._serving, CudaPlanner) and planner.name == "eds-cuda-fast"
     walk_checked(planner, (20, 30), seed=4)  # a new, small map: the CPU again
     assert planner.name == "eds-cpu-fast"
+
+
+def test_each_plan_sends_the_steps_to_the_planner_serving_that_map(monkeypatch):
+    """A step goes straight to the serving planner's ``update_and_path`` (bound at ``plan``),
+    so a new map of the other size must move the steps with it: small, large, small again."""
+    from daemon.planning.cpu.fast import FastCpuPlanner
+
+    steps: dict[str, int] = {"cpu": 0, "large": 0}
+
+    class Counted(FastCpuPlanner):
+        def __init__(self, name: str) -> None:
+            super().__init__()
+            self.counted = name
+
+        def update_and_path(self, cells, blocked, start):
+            steps[self.counted] += 1
+            return super().update_and_path(cells, blocked, start)
+
+    planner = SmallGridsOnCpu(small_cells=30 * 30)
+    with pytest.raises(RuntimeError):  # before a plan, the class's own forwarding answers
+        planner.update_and_path(np.array([0]), np.array([True]), (0, 0))
+    small, large = Counted("cpu"), Counted("large")
+    monkeypatch.setattr(planner, "cpu", lambda: small)
+    monkeypatch.setattr(planner, "cuda", lambda: large)  # the device's part, played on the CPU
+    walk_checked(planner, (20, 30))
+    assert steps == {"cpu": 6, "large": 0}
+    walk_checked(planner, (40, 50), seed=4)
+    assert steps == {"cpu": 6, "large": 6}
+    walk_checked(planner, (20, 30), seed=5)
+    assert steps == {"cpu": 12, "large": 6}
+
+
+def test_the_route_reads_no_search_of_either_part(cuda):
+    """The route asks every step for ``max_open`` and ``search_stats`` (a searching planner's);
+    neither part has them, so the wrapper answers None itself, before and after a plan."""
+    from daemon.planning.cpu.fast import FastCpuPlanner
+
+    for part in (FastCpuPlanner(), cuda.planner.CudaPlanner("fast")):
+        assert not hasattr(part, "max_open") and not hasattr(part, "search_stats")
+    planner = SmallGridsOnCpu()
+    assert planner.max_open is None and planner.search_stats is None
+    walk_checked(planner, (40, 50))
+    assert getattr(planner, "max_open", 0) is None and getattr(planner, "search_stats", 0) is None

@@ -213,3 +213,117 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
         assert np.abs(host.w[free] - after[free]).max() < GPU_TOL
     else:
         assert engine.fill_passes == 1
+
+
+def _fixed_point_f32(w: np.ndarray, cells: np.ndarray, width: int, eps: float) -> np.ndarray:
+    """The fill's fixed point W = max(w, min neighbour W + eps) on ``cells``, by lockstep
+    passes over them in float32 (the device's arithmetic, one pass at a time): the reference
+    the tiled passes must reach to the last bit."""
+    from daemon.planning.harmonic import relax as rx
+
+    big = np.float32(rx.BLOCKED_W)
+    out = w.astype(np.float32)
+    lift = out[cells].copy()
+    out[cells] = big
+    offs = np.array([(d // 3 - 1) * width + d % 3 - 1 for d in range(9) if d != 4])
+    around = cells[:, None] + offs[None, :]
+    eps32 = np.float32(eps)
+    while True:
+        m = out[around].min(axis=1)
+        valued = m < big
+        step = np.full_like(m, eps32)
+        v = m + step
+        while (short := valued & (v <= m)).any():  # float32 rounds m + eps back to m
+            step[short] *= 2
+            v[short] = m[short] + step[short]
+        v = np.where((lift < big) & (lift > v), lift, v)
+        now = out[cells]
+        new = np.where(valued, np.minimum(now, v), now)
+        if (new == now).all():
+            return out
+        out[cells] = new
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
+    # ``harmonic_fill`` finds the basins by pointer jumping along Idx and iterates tiles in
+    # shared memory between grid barriers: the same basins as the host's search, and the same
+    # fixed point the passes cell by cell reach, on basins across many tiles (a wall across a
+    # 130² map, its door nearest the goal closed, then random blocks).
+    from daemon.planning.harmonic import fill as fl
+    from daemon.planning.harmonic import relax as rx
+
+    rng = np.random.default_rng(200 + seed)
+    side = 130
+    blocked = maps.random_map(rng, side, side, 0.06)
+    row = int(rng.integers(50, 80))
+    blocked[row, :] = True
+    doors = [int(rng.integers(2, 40)), int(rng.integers(90, 126))]
+    for door in doors:
+        blocked[row, door : door + 3] = False
+    goal = (int(rng.integers(2, row - 10)), int(rng.integers(2, 40)))
+    blocked[goal] = False
+    gpu = cuda_planner("rb")
+    gpu.plan(blocked, goal)
+    gpu.step_sweeps, gpu.step_cap = 1, 1
+    engine, seen = gpu.engine, []
+    device_fill = engine.fill
+
+    def fill(eps):
+        engine._flush()
+        if engine.pit_count:
+            size = engine.idx_view.size
+            cells = np.empty(size, dtype=np.int64)
+            n = fl.basins(engine.idx_view, engine.fixed_host, engine.width, engine._pits(),
+                          np.zeros(size, dtype=np.int8), cells, False)[0]  # fmt: skip
+            want = _fixed_point_f32(engine.w.get(), cells[:n], engine.width, eps)
+        out = device_fill(eps)
+        if out[0]:
+            assert out[0] == n  # the device's basins (pointer jumping) are the host's
+            assert engine.pit_count == 0  # the device filled it all: no host flood after
+            assert np.array_equal(engine.w.get(), want)
+            rows, cols = np.divmod(cells[:n], engine.width)
+            seen.append((len(np.unique(rows // 32 * 1000 + cols // 32)), engine.fill_passes))
+        return out
+
+    monkeypatch.setattr(engine, "fill", fill)
+    door = row * side + doors[0] + np.arange(3)
+    steps = [(door, np.ones(3, dtype=bool))]
+    for _ in range(4):
+        r, c = int(rng.integers(2, side - 9)), int(rng.integers(2, side - 9))
+        cells = (np.arange(r, r + 7)[:, None] * side + np.arange(c, c + 7)[None, :]).ravel()
+        values = rng.random(cells.size) < 0.6
+        values[cells == goal[0] * side + goal[1]] = False
+        steps.append((cells, values))
+    for cells, values in steps:
+        gpu.update(cells, values)
+        blocked.reshape(-1)[cells] = values
+        assert gpu.settled
+        assert not rx.has_pit(engine.w.get(), engine.fixed_host.astype(bool), engine.width)
+        maps.descents_hold(gpu, blocked, maps.reachable(blocked, goal), steps=True)
+    assert max(tiles for tiles, _ in seen) >= 4 and all(passes >= 2 for _, passes in seen)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cuda_reach_search_is_the_host_search(maps, seed):
+    # ``harmonic_reach`` (tiles grown from the goal) against the host's breadth-first search
+    # of the same padded map, the goal blocked once: the cells whose reach changed.
+    from daemon.planning.harmonic.reach import _reached
+
+    rng = np.random.default_rng(300 + seed)
+    h, w = int(rng.integers(60, 200)), int(rng.integers(60, 200))
+    blocked = maps.random_map(rng, h, w, 0.3 + 0.05 * seed)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    blocked[goal] = seed == 3
+    gpu = cuda_planner("rb")
+    gpu.plan(np.zeros((h, w), dtype=bool), (0, 0))
+    flat = np.ones((h + 2, w + 2), dtype=np.bool_)
+    flat[1:-1, 1:-1] = blocked
+    flat = flat.reshape(-1)
+    g = (goal[0] + 1) * (w + 2) + goal[1] + 1
+    before = rng.random(flat.size) < 0.5
+    fresh = np.zeros(flat.size, dtype=np.bool_)
+    count = _reached(flat, g, w + 2, fresh, np.empty(flat.size, dtype=np.int64))
+    got = gpu.engine.reach_search(flat, before, g)
+    assert np.array_equal(got, np.flatnonzero(fresh != before))
+    assert (count > 0) == (seed != 3) and gpu.engine.reach_passes >= 1

@@ -1,6 +1,7 @@
-"""``kernels/harmonic.cu`` compiles with NVRTC (what CuPy uses) for the H100's sm_90, in both
-float types, on a machine without a GPU — as ``test_kernels_compile.py`` does for the
-cuda planner's kernels. (A name NVRTC lacks, ``INFINITY``, once reached the device.)"""
+"""``kernels/harmonic.cu`` and ``harmonic_reach.cu``, joined as cuda.py joins them, compile
+with NVRTC (what CuPy uses) for the H100's sm_90, in both float types, on a machine without a
+GPU — as ``test_kernels_compile.py`` does for the cuda planner's kernels. (A name NVRTC lacks,
+``INFINITY``, once reached the device.)"""
 
 from __future__ import annotations
 
@@ -9,10 +10,8 @@ from pathlib import Path
 
 import pytest
 
-SOURCE = (
-    Path(__file__).resolve().parents[4] / "daemon" / "planning" / "harmonic" / "kernels"
-    / "harmonic.cu"
-)  # fmt: skip
+KERNELS = Path(__file__).resolve().parents[4] / "daemon" / "planning" / "harmonic" / "kernels"
+SOURCES = (KERNELS / "harmonic.cu", KERNELS / "harmonic_reach.cu")  # joined as cuda.py does
 
 
 def cuda_include(lib: ctypes.CDLL) -> Path:
@@ -46,5 +45,5 @@ def test_the_harmonic_kernel_compiles_for_sm90(nvrtc, real, eps):
     opts = [b"--std=c++17", b"--gpu-architecture=sm_90", b"-rdc=true", f"-I{include}".encode(),
             f"-I{include / 'cccl'}".encode(),
             f"-DREAL={real}".encode(), f"-DREAL_EPS={eps}".encode()]  # fmt: skip
-    rc, log = nvrtc.compile(SOURCE.read_bytes(), "harmonic.cu", opts)
+    rc, log = nvrtc.compile(b"".join(p.read_bytes() for p in SOURCES), "harmonic.cu", opts)
     assert rc == 0, log

@@ -194,3 +194,41 @@ def test_a_cell_named_twice_in_one_delta_takes_its_last_value():
     assert not planner.reach.blocked[planner._flat((3, 3))]
     assert planner.reach.blocked[planner._flat((3, 4))]
     assert planner.reach.count == planner.reach.reach.sum() == 64 - 2
+
+
+def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
+    # An engine with ``reach_search`` (the GPU's) takes the reach's whole-map searches on a map
+    # past DEVICE_SEARCH_CELLS: the same reach, field and descents as the host's own search.
+    from daemon.planning.harmonic import HarmonicPlanner
+    from daemon.planning.harmonic import planner as hp
+    from daemon.planning.harmonic.cpu import CpuField
+    from daemon.planning.harmonic.reach import _reached
+
+    calls = []
+
+    class Searching(CpuField):
+        def reach_search(self, blocked, before, goal):
+            calls.append(goal)
+            fresh = np.zeros(blocked.size, dtype=np.bool_)
+            _reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
+            return np.flatnonzero(fresh != before)
+
+    monkeypatch.setattr(hp, "DEVICE_SEARCH_CELLS", 0)
+    blocked = np.zeros((30, 30), dtype=bool)
+    goal = (2, 2)
+    handed, own = HarmonicPlanner(Searching()), HarmonicPlanner(CpuField())
+    wall = 15 * 30 + np.arange(30)
+    door = 15 * 30 + np.arange(20, 23)
+    # A wall across (both sides finite: the whole-map search), a door in it, the goal walled in.
+    steps = [(wall, True), (door, False), (np.array([1 * 30 + 2, 3 * 30 + 2]), True)]
+    for planner in (handed, own):
+        planner.plan(blocked, goal)
+    for cells, value in steps:
+        for planner in (handed, own):
+            planner.update(cells, value)
+        blocked.reshape(-1)[cells] = value
+        assert (handed.reach.reach == own.reach.reach).all()
+        assert handed.reach.count == own.reach.count == int(own.reach.reach.sum())
+        assert np.array_equal(handed.field(), own.field())
+        maps.descents_hold(handed, blocked, maps.reachable(blocked, goal), steps=True)
+    assert len(calls) == handed.reach.full_searches >= 1
