@@ -318,6 +318,12 @@ class Navigator:
         if safe is not None:
             g = replace(g, pattern=safe)
             self.guidance.hysteresis.reset()  # the next direction is felt from this one
+        # After a STOP's hold: around what the frame shows ahead, which the map may not hold.
+        around = self.safety.lead_around(g.pattern, self.pose, grid.occupancy,
+                                         self.settings.cell_m, self.guidance, now)  # fmt: skip
+        if around is not None:
+            g = replace(g, pattern=around)
+            self.guidance.hysteresis.reset()
         out.belt.append(g.pattern)
         if g.cue is not None:
             out.voice.append(g.cue)

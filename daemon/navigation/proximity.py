@@ -5,9 +5,12 @@ the nearest obstacle in the walking corridor is closer than ``stop_m`` (0.6 m by
 the step says STOP (and "stop" once), and nothing later in the same step may turn that into
 GUIDE: ``step`` returns True and the navigator holds the step. The STOP is held for
 ``hold_s`` while the obstacle stays where it was, so the user has stopped and felt it; then
-guidance leads around it. An obstacle that comes closer again (a person walking up) by
-more than ``rearm_m`` stops the user again at once. A proximity older than ``max_age_s``
-(the mapper stopped) is not acted on: the navigator's own stale-input rules apply.
+guidance leads around it: while the frame still shows it within ``stop_m`` ahead, the GUIDE
+is turned away from it (``lead_around``: the map may not hold it yet). An obstacle that comes
+closer again (a person walking up) by more than ``rearm_m``, or by ``creep_m`` from where the
+hold ended (the user's own short steps), stops the user again at once. A proximity older
+than ``max_age_s`` (the mapper stopped) is not acted on: the navigator's own stale-input
+rules apply.
 
 A GUIDE is given only once the camera has looked since the user's previous pose
 (``looked_since``): the daemon takes a pose straight into the user's inbox on zenoh's thread,
@@ -31,11 +34,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from daemon.guidance.guide import Guidance
-from protocol.messages import PatternKind, Proximity
+from protocol.messages import BeltPattern, PatternKind, Pose, Proximity
 
 from .blocked_side import BlockedSide
 from .inbox import StepOutput
+from .lead_around import lead_around
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,10 @@ class ProximitySettings:
     near_m: float = 1.0
     hold_s: float = 0.5
     rearm_m: float = 0.15
+    creep_m: float = 0.05
+    """After a hold, the obstacle this much nearer than where the hold ended stops the user
+    again: a step at the fastest pulse (0.125 m) is shorter than ``rearm_m``, so steps taken
+    one after each hold crept to contact under it (a camera walk, seed 11)."""
     max_age_s: float = 1.0
 
 
@@ -57,6 +67,12 @@ class ProximityGuard:
         """Steps that gave no GUIDE because the pose was newer than the camera's look."""
         self._since: float | None = None
         self._armed_at_m = 0.0
+        self._ended_at_m: float | None = None
+        """How near the obstacle was when the last hold ended (None: still held, or none)."""
+        self.leading: Proximity | None = None
+        """The frame this step's GUIDE must lead around (after a hold, obstacle still near)."""
+        self.led = 0
+        """GUIDEs turned away from the frame's obstacle after a hold (or made STOP)."""
         self.blocked = BlockedSide(self.settings.stop_m)
         """What the STOPs saw, kept so that the GUIDE after them turns away from it."""
 
@@ -64,15 +80,17 @@ class ProximityGuard:
              guiding: bool) -> bool:  # fmt: skip
         """Patterns for this step; True when the step must not guide (STOP held)."""
         s = self.settings
+        self.leading = None
         if fresh is not None and (self.latest is None or fresh.stamp >= self.latest.stamp):
             self.latest = fresh
         p = self.latest
         if p is None or now - p.frame_stamp > s.max_age_s:
-            self._since = None
+            self._since, self._ended_at_m = None, None
             return False
         if p.ahead_m is not None and p.ahead_m < s.stop_m:
-            if self._since is None or p.ahead_m < self._armed_at_m - s.rearm_m:
-                self._since, self._armed_at_m = now, p.ahead_m
+            crept = self._ended_at_m is not None and p.ahead_m < self._ended_at_m - s.creep_m
+            if self._since is None or p.ahead_m < self._armed_at_m - s.rearm_m or crept:
+                self._since, self._armed_at_m, self._ended_at_m = now, p.ahead_m, None
                 self.stops += 1
                 self.blocked.arm(now)
                 g = guidance.event(PatternKind.STOP, now, reason="obstacle ahead")
@@ -83,8 +101,11 @@ class ProximityGuard:
             if now - self._since <= s.hold_s:
                 out.belt.append(guidance.patterns.event(PatternKind.STOP, now))
                 return True
-            return False  # stopped and felt: guidance now leads around it
-        self._since = None
+            if self._ended_at_m is None:
+                self._ended_at_m = p.ahead_m
+            self.leading = p
+            return False  # stopped and felt: guidance now leads around it (``lead_around``)
+        self._since, self._ended_at_m = None, None
         near = p.nearest_m is not None and p.nearest_m < s.near_m and p.bearing is not None
         if near and not guiding and fresh is not None:
             assert p.nearest_m is not None and p.bearing is not None
@@ -95,6 +116,17 @@ class ProximityGuard:
             if g.cue is not None:
                 out.voice.append(g.cue)
         return False
+
+    def lead_around(self, pattern: BeltPattern, pose: Pose, occupancy: np.ndarray, cell_m: float,
+                    guidance: Guidance, now: float) -> BeltPattern | None:  # fmt: skip
+        """This step's GUIDE turned away from what the frame shows within ``stop_m`` ahead,
+        once its hold is over; None when nothing is to be led around or it keeps clear."""
+        if self.leading is None:
+            return None
+        led = lead_around(pattern, self.leading, pose, occupancy, cell_m, self.settings.stop_m,
+                          guidance.patterns, now)  # fmt: skip
+        self.led += led is not None
+        return led
 
     def looked_since(self, stamp: float | None, now: float) -> bool:
         """Whether the latest frame was taken after ``stamp`` (the pose before the user's

@@ -1,0 +1,96 @@
+"""After a STOP's hold: the GUIDE leads around what the latest frame shows ahead, not into it.
+
+A STOP before contact is held for ``hold_s``; then "guidance leads around it" — but the GUIDE
+comes from the planner's map, and a person who has just stood still is not on the map yet:
+the path runs straight through them. In a camera walk (seed 11) the hold ended, GUIDE said
+straight on at the fastest pulse, the frame showed the person 1 mm-8 cm ahead, and the
+user's short steps crept in under ``rearm_m`` to contact. A STOP in place of that GUIDE
+stood the RFID belt walks at their action limit (the user never left), so the GUIDE is
+turned instead, the way ``blocked_side`` turns it for estimated poses:
+
+- the frame bounds what the user may walk into, in the body frame: the corridor's obstacle
+  ``ahead_m`` straight on and the nearest one at ``bearing``, each as a line square to its
+  bearing with the obstacle beyond (the nearest point of a convex obstacle bounds it so), so
+  a straight step at δ has a free run of (r − margin) / cos(δ − φ) towards it;
+- the GUIDE keeps its direction when that run, over the belt's reading error either side,
+  reaches the STOP's own distance: the user is led out of the STOP's reach or along its
+  edge, never deeper in;
+- otherwise it turns to the nearest such direction (10° apart, either side of the GUIDE's)
+  whose step also keeps clear of the map's known obstacles (``clear_way``'s cone from where
+  the user stands); with none, the user is told to stop.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from daemon.guidance.patterns import PatternMaker, angle_diff, decode
+from daemon.planning.grid import OCCUPIED
+from protocol.messages import BeltPattern, PatternKind, Pose, Proximity
+
+from .blocked_side import BlockedSideSettings
+from .clear_way import STEP_MAX_M, cone_clear
+
+SIDE = BlockedSideSettings()
+"""The reading error either side of a direction and the margin off a reading, as for an
+estimated pose's blocked side."""
+
+
+def free_run(rel: float, proximity: Proximity) -> float:
+    """Metres a straight step at ``rel`` (radians CCW from the front, give or take the
+    reading error) may go before a bounding line of the frame's obstacles."""
+    spread = math.radians(SIDE.spread_deg)
+    readings = [(proximity.ahead_m, 0.0), (proximity.nearest_m, proximity.bearing)]
+    run = math.inf
+    for dist, bearing in readings:
+        if dist is None or bearing is None:
+            continue
+        for d in (-spread, 0.0, spread):
+            towards = math.cos(rel + d - bearing)
+            if towards > 1e-6:
+                run = min(run, max(0.0, dist - SIDE.margin_m) / towards)
+    return run
+
+
+def on_free_map(occupancy: np.ndarray, pose: Pose, cell_m: float) -> bool:
+    """Whether the pose lies on the map in a cell not OCCUPIED."""
+    h, w = occupancy.shape
+    r, c = h - 1 - math.floor(pose.y / cell_m), math.floor(pose.x / cell_m)
+    return 0 <= r < h and 0 <= c < w and occupancy[r, c] != OCCUPIED
+
+
+def lead_around(
+    pattern: BeltPattern,
+    proximity: Proximity,
+    pose: Pose,
+    occupancy: np.ndarray,
+    cell_m: float,
+    need_m: float,
+    patterns: PatternMaker,
+    now: float,
+) -> BeltPattern | None:
+    """The GUIDE turned away from the frame's obstacle (or a STOP if no way is clear), or
+    None when ``pattern`` already keeps ``need_m`` (the STOP's distance) free of it."""
+    if pattern.kind != PatternKind.GUIDE:
+        return None
+    cw = decode(pattern.motors)
+    if cw is None:
+        return None
+    rel = -cw  # CCW from the front, as the bearings
+    if free_run(rel, proximity) >= need_m:
+        return None
+    k = np.arange(1, 19)
+    offsets = np.ravel(np.column_stack([k, -k])) * math.radians(10.0)
+    rels = [angle_diff(rel + o, 0.0) for o in offsets]
+    runs = np.array([free_run(r, proximity) for r in rels])
+    headings = pose.heading + np.array(rels)
+    mapped = cone_clear(occupancy, pose.x, pose.y, headings, STEP_MAX_M, cell_m)
+    if not mapped.any() and not on_free_map(occupancy, pose, cell_m):
+        mapped[:] = True  # a pose on an obstacle or off the map: the frame alone decides
+    ok = np.flatnonzero((runs >= need_m) & mapped)
+    if ok.size == 0:
+        return patterns.event(PatternKind.STOP, now)
+    away = rels[int(ok[0])]
+    return patterns.guide(-away, min(runs[int(ok[0])], 1.0), now)
