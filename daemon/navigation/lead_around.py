@@ -18,6 +18,10 @@ turned instead, the way ``blocked_side`` turns it for estimated poses:
 - otherwise it turns to the nearest such direction (10° apart, either side of the GUIDE's)
   whose step also keeps clear of the map's known obstacles (``clear_way``'s cone from where
   the user stands); with none, the user is told to stop.
+
+This is for an exact pose (the camera's own, as in the camera walks). An estimated pose's
+GUIDE is turned by ``blocked_side``, which keeps the STOP's points and lets a GUIDE with a
+short step free keep its direction (the RFID belt walks arrive with it).
 """
 
 from __future__ import annotations

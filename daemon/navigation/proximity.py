@@ -120,9 +120,10 @@ class ProximityGuard:
     def lead_around(self, pattern: BeltPattern, pose: Pose, occupancy: np.ndarray, cell_m: float,
                     guidance: Guidance, now: float) -> BeltPattern | None:  # fmt: skip
         """This step's GUIDE turned away from what the frame shows within ``stop_m`` ahead,
-        once its hold is over; None when nothing is to be led around or it keeps clear."""
-        if self.leading is None:
-            return None
+        once its hold is over, for an exact pose; None when nothing is to be led around or it
+        keeps clear."""
+        if self.leading is None or pose.sigma_m is not None:
+            return None  # an estimated pose's GUIDE is turned by ``blocked`` (kept points)
         led = lead_around(pattern, self.leading, pose, occupancy, cell_m, self.settings.stop_m,
                           guidance.patterns, now)  # fmt: skip
         self.led += led is not None
