@@ -34,7 +34,7 @@ from daemon.guidance.patterns import PatternMaker, angle_diff, decode
 from daemon.planning.grid import OCCUPIED
 from protocol.messages import BeltPattern, PatternKind, Pose, Proximity
 
-from .blocked_side import BlockedSideSettings
+from .blocked_side import BlockedSide, BlockedSideSettings
 from .clear_way import STEP_MAX_M, cone_clear
 
 SIDE = BlockedSideSettings()
@@ -65,36 +65,81 @@ def on_free_map(occupancy: np.ndarray, pose: Pose, cell_m: float) -> bool:
     return 0 <= r < h and 0 <= c < w and occupancy[r, c] != OCCUPIED
 
 
+class LeadAround:
+    """The hold's obstacle kept where it stands in the world, for an exact pose: once the
+    user has turned away the frame no longer shows it, and the planner's next GUIDE (the map
+    still without it) turns them back to face it: a STOP, a turn away, a turn back, for
+    ever, never a step (a camera walk, seed 11: 55 turns and 29 steps in 300 s, timed out).
+    So the readings of the steps after the hold are kept as discs (``blocked_side``'s
+    ``point_m``) for ``memory_s`` after the last, and every GUIDE is checked against them
+    too; the user goes on past the person."""
+
+    def __init__(self, stop_m: float) -> None:
+        self.stop_m = stop_m
+        self.kept = BlockedSide(stop_m)
+        """Its points and their free run (no nearest-point bound: the user has moved)."""
+        self.led = 0
+        """GUIDEs turned away (or made STOP) so far."""
+
+    def steer(self, pattern: BeltPattern, seen: Proximity | None, pose: Pose,
+              occupancy: np.ndarray, cell_m: float, patterns: PatternMaker,
+              now: float) -> BeltPattern | None:  # fmt: skip
+        """This step's GUIDE turned away from the hold's obstacle, or None. ``seen``: this
+        step's frame when it still shows the obstacle within ``stop_m`` after the hold."""
+        points = self.kept.points
+        if seen is not None:
+            for dist, bearing in ((seen.ahead_m, 0.0), (seen.nearest_m, seen.bearing)):
+                if dist is not None and bearing is not None and dist < self.stop_m:
+                    a = pose.heading + bearing
+                    points.append((pose.x + dist * math.cos(a), pose.y + dist * math.sin(a)))
+            self.kept.until = now + SIDE.memory_s
+        if now > self.kept.until:
+            points.clear()
+        if not points:
+            return None
+        led = lead_around(pattern, seen, pose, occupancy, cell_m, self.kept, patterns, now)
+        self.led += led is not None
+        return led
+
+
 def lead_around(
     pattern: BeltPattern,
-    proximity: Proximity,
+    seen: Proximity | None,
     pose: Pose,
     occupancy: np.ndarray,
     cell_m: float,
-    need_m: float,
+    kept: BlockedSide,
     patterns: PatternMaker,
     now: float,
 ) -> BeltPattern | None:
-    """The GUIDE turned away from the frame's obstacle (or a STOP if no way is clear), or
-    None when ``pattern`` already keeps ``need_m`` (the STOP's distance) free of it."""
+    """The GUIDE turned away from the hold's obstacle (or a STOP if the frame still shows it
+    and no way is clear), or None when ``pattern`` keeps clear of it: ``kept.stop_m`` from
+    what the frame shows, ``turn_run_m`` from the kept discs."""
     if pattern.kind != PatternKind.GUIDE:
         return None
     cw = decode(pattern.motors)
     if cw is None:
         return None
     rel = -cw  # CCW from the front, as the bearings
-    if free_run(rel, proximity) >= need_m:
+
+    def run(r: float) -> float:
+        disc = kept.free_run(r, pose) if kept.points else math.inf
+        return min(disc / SIDE.turn_run_m, free_run(r, seen) / kept.stop_m if seen else math.inf)
+
+    if run(rel) >= 1.0:
         return None
     k = np.arange(1, 19)
     offsets = np.ravel(np.column_stack([k, -k])) * math.radians(10.0)
     rels = [angle_diff(rel + o, 0.0) for o in offsets]
-    runs = np.array([free_run(r, proximity) for r in rels])
+    runs = np.array([run(r) for r in rels])
     headings = pose.heading + np.array(rels)
     mapped = cone_clear(occupancy, pose.x, pose.y, headings, STEP_MAX_M, cell_m)
     if not mapped.any() and not on_free_map(occupancy, pose, cell_m):
         mapped[:] = True  # a pose on an obstacle or off the map: the frame alone decides
-    ok = np.flatnonzero((runs >= need_m) & mapped)
+    ok = np.flatnonzero((runs >= 1.0) & mapped)
     if ok.size == 0:
-        return patterns.event(PatternKind.STOP, now)
+        # The frame shows it within stop_m: stop. Otherwise the frame is clear ahead and its
+        # STOP guards the step: the GUIDE (clear of the map) stands.
+        return patterns.event(PatternKind.STOP, now) if seen is not None else None
     away = rels[int(ok[0])]
-    return patterns.guide(-away, min(runs[int(ok[0])], 1.0), now)
+    return patterns.guide(-away, min(kept.free_run(away, pose), 1.0), now)

@@ -41,7 +41,7 @@ from protocol.messages import BeltPattern, PatternKind, Pose, Proximity
 
 from .blocked_side import BlockedSide
 from .inbox import StepOutput
-from .lead_around import lead_around
+from .lead_around import LeadAround
 
 
 @dataclass(frozen=True)
@@ -71,8 +71,8 @@ class ProximityGuard:
         """How near the obstacle was when the last hold ended (None: still held, or none)."""
         self.leading: Proximity | None = None
         """The frame this step's GUIDE must lead around (after a hold, obstacle still near)."""
-        self.led = 0
-        """GUIDEs turned away from the frame's obstacle after a hold (or made STOP)."""
+        self.around = LeadAround(self.settings.stop_m)
+        """The hold's obstacle, kept so that the GUIDEs after it lead around it."""
         self.blocked = BlockedSide(self.settings.stop_m)
         """What the STOPs saw, kept so that the GUIDE after them turns away from it."""
 
@@ -119,15 +119,13 @@ class ProximityGuard:
 
     def lead_around(self, pattern: BeltPattern, pose: Pose, occupancy: np.ndarray, cell_m: float,
                     guidance: Guidance, now: float) -> BeltPattern | None:  # fmt: skip
-        """This step's GUIDE turned away from what the frame shows within ``stop_m`` ahead,
-        once its hold is over, for an exact pose; None when nothing is to be led around or it
+        """This step's GUIDE turned away from what a hold's frame showed within ``stop_m``
+        (``LeadAround``), for an exact pose; None when nothing is to be led around or it
         keeps clear."""
-        if self.leading is None or pose.sigma_m is not None:
+        if pose.sigma_m is not None:
             return None  # an estimated pose's GUIDE is turned by ``blocked`` (kept points)
-        led = lead_around(pattern, self.leading, pose, occupancy, cell_m, self.settings.stop_m,
-                          guidance.patterns, now)  # fmt: skip
-        self.led += led is not None
-        return led
+        return self.around.steer(pattern, self.leading, pose, occupancy, cell_m,
+                                 guidance.patterns, now)  # fmt: skip
 
     def looked_since(self, stamp: float | None, now: float) -> bool:
         """Whether the latest frame was taken after ``stamp`` (the pose before the user's

@@ -9,7 +9,7 @@ import numpy as np
 
 from daemon.guidance.patterns import PatternMaker, blend, decode
 from daemon.navigation import Inbox, Navigator, NavigatorSettings
-from daemon.navigation.lead_around import free_run, lead_around
+from daemon.navigation.lead_around import LeadAround, free_run
 from daemon.planning.grid import FREE, OCCUPIED
 from protocol.messages import Goal, GoalCell, MapDelta, PatternKind, Pose, Proximity
 
@@ -57,7 +57,7 @@ def test_a_person_not_on_the_map_straight_on_gets_a_turned_guide_never_straight_
         cw = decode(belt[0].motors)
         # 3 cm from the person: only a step square to it or away keeps clear of its bound.
         assert abs(math.remainder(cw, 2 * math.pi)) >= math.radians(90), math.degrees(cw)
-    assert s.safety.led == 4 and s.safety.stops == 1
+    assert s.safety.around.led == 4 and s.safety.stops == 1
 
 
 def test_the_turned_guide_keeps_clear_of_the_map_too():
@@ -84,19 +84,38 @@ def test_creeping_in_after_the_hold_stops_the_user_again():
     assert s.safety.stops == 2
 
 
+def test_turned_away_the_person_out_of_view_is_not_walked_back_into():
+    now = time.time()
+    s = walking_north(now)
+    stopped_then(s, 0.03, now, steps=1)
+    # The frame shows nothing now (the user turned away); the planner's map still has no
+    # person and says straight on, into them: the kept person turns it away again.
+    t = now + 0.8
+    clear = Proximity(ahead_m=None, nearest_m=None, bearing=None, frame_stamp=t, stamp=t)
+    out = s.step(Inbox(pose=pose(25, 15, t), proximity=clear), t)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+    assert abs(math.remainder(decode(out.belt[0].motors), 2 * math.pi)) >= math.radians(60)
+    # Once the memory lapses, guidance is the planner's again.
+    t += 6.5
+    out = s.step(Inbox(pose=pose(25, 15, t), proximity=clear.model_copy(update={"stamp": t,
+                 "frame_stamp": t})), t)  # fmt: skip
+    assert abs(math.remainder(decode(out.belt[0].motors), 2 * math.pi)) < 0.05
+
+
 def test_a_guide_that_already_keeps_clear_is_left_and_none_clear_stops():
     now = time.time()
     free = np.full(SHAPE, FREE, np.uint8)
     maker = PatternMaker()
     here = pose(15, 15, now)
+    seen = person(0.05, now)
     side = maker.guide(math.radians(-110), None, now)  # 110° to the left of the person
-    assert free_run(-decode(side.motors), person(0.05, now)) == math.inf
-    assert lead_around(side, person(0.05, now), here, free, 0.1, 0.6, maker, now) is None
+    assert free_run(-decode(side.motors), seen) == math.inf
+    assert LeadAround(0.6).steer(side, seen, here, free, 0.1, maker, now) is None
     ahead = maker.guide(0.0, None, now)
     boxed = np.full(SHAPE, OCCUPIED, np.uint8)
     boxed[15, 15] = FREE  # walled in on the map: no step is clear
-    out = lead_around(ahead, person(0.05, now), here, boxed, 0.1, 0.6, maker, now)
+    out = LeadAround(0.6).steer(ahead, seen, here, boxed, 0.1, maker, now)
     assert out is not None and out.kind == PatternKind.STOP
-    turned = lead_around(ahead, person(0.05, now), here, free, 0.1, 0.6, maker, now)
+    turned = LeadAround(0.6).steer(ahead, seen, here, free, 0.1, maker, now)
     assert turned is not None and turned.kind == PatternKind.GUIDE
     assert turned.motors != blend(0.0)
