@@ -113,9 +113,12 @@ def test_a_guide_that_already_keeps_clear_is_left_and_none_clear_stops():
     assert LeadAround(0.6).steer(side, seen, here, free, 0.1, maker, now) is None
     ahead = maker.guide(0.0, None, now)
     boxed = np.full(SHAPE, OCCUPIED, np.uint8)
-    boxed[15, 15] = FREE  # walled in on the map: no step is clear
+    boxed[13:16, 14:17] = FREE  # walled in on the map, the person not on it: no step clear
     out = LeadAround(0.6).steer(ahead, seen, here, boxed, 0.1, maker, now)
     assert out is not None and out.kind == PatternKind.STOP
     turned = LeadAround(0.6).steer(ahead, seen, here, free, 0.1, maker, now)
     assert turned is not None and turned.kind == PatternKind.GUIDE
     assert turned.motors != blend(0.0)
+    mapped = free.copy()
+    mapped[14, 15] = OCCUPIED  # the map holds it: the planner's GUIDE is its business
+    assert LeadAround(0.6).steer(ahead, seen, here, mapped, 0.1, maker, now) is None
