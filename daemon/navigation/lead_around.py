@@ -94,14 +94,15 @@ class LeadAround:
         """GUIDEs turned away (or made STOP) so far."""
 
     def steer(self, pattern: BeltPattern, seen: Proximity | None, pose: Pose,
-              occupancy: np.ndarray, cell_m: float, patterns: PatternMaker,
-              now: float) -> BeltPattern | None:  # fmt: skip
-        """This step's GUIDE turned away from the hold's obstacle, or None. ``seen``: this
-        step's frame when it still shows the obstacle within ``stop_m`` after the hold."""
+              occupancy: np.ndarray, cell_m: float, patterns: PatternMaker, now: float,
+              held: bool = True) -> BeltPattern | None:  # fmt: skip
+        """This step's GUIDE turned away from the hold's obstacle, or None. ``seen``: the
+        latest frame when it shows an obstacle within ``stop_m``; ``held``: this step comes
+        after a hold for it (only then is it kept)."""
         points = self.kept.points
-        if seen is not None and on_map(seen, pose, occupancy, cell_m):
-            seen = None  # the planner knows it: its path and ``keep_clear`` keep off it
-        if seen is not None:
+        # What the map holds, the planner's path and ``keep_clear`` keep off: not kept, and
+        # no reason to turn; but a GUIDE that is turned keeps off it too.
+        if held and seen is not None and not on_map(seen, pose, occupancy, cell_m):
             for dist, bearing in ((seen.ahead_m, 0.0), (seen.nearest_m, seen.bearing)):
                 if dist is not None and bearing is not None and dist < self.stop_m:
                     a = pose.heading + bearing
@@ -162,4 +163,5 @@ def lead_around(
         else:
             return None  # the frame is clear ahead and its STOP guards the step
     away = rels[int(ok[0])]
-    return patterns.guide(-away, min(kept.free_run(away, pose), 1.0), now)
+    room = min(kept.free_run(away, pose), free_run(away, seen) if seen else math.inf)
+    return patterns.guide(-away, min(room, 1.0), now)  # its pulse: steps as short as the room

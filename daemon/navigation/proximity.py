@@ -124,8 +124,12 @@ class ProximityGuard:
         keeps clear."""
         if pose.sigma_m is not None:
             return None  # an estimated pose's GUIDE is turned by ``blocked`` (kept points)
-        return self.around.steer(pattern, self.leading, pose, occupancy, cell_m,
-                                 guidance.patterns, now)  # fmt: skip
+        seen, p = self.leading, self.latest
+        if seen is None and p is not None and now - p.frame_stamp <= self.settings.max_age_s:
+            near = [d for d in (p.ahead_m, p.nearest_m) if d is not None]
+            seen = p if near and min(near) < self.settings.stop_m else None
+        return self.around.steer(pattern, seen, pose, occupancy, cell_m, guidance.patterns,
+                                 now, held=self.leading is not None)  # fmt: skip
 
     def looked_since(self, stamp: float | None, now: float) -> bool:
         """Whether the latest frame was taken after ``stamp`` (the pose before the user's

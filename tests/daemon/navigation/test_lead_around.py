@@ -63,7 +63,7 @@ def test_a_person_not_on_the_map_straight_on_gets_a_turned_guide_never_straight_
 def test_the_turned_guide_keeps_clear_of_the_map_too():
     now = time.time()
     # A wall 0.25 m to the left (west) of the user: the turn goes right (east), though
-    # with the map clear it goes left (the first side tried).
+    # with the map clear it goes left.
     walls = [r * SHAPE[1] + 12 for r in range(20, 29)]
     s = walking_north(now, walls)
     for belt in stopped_then(s, 0.03, now, steps=2):
@@ -122,3 +122,22 @@ def test_a_guide_that_already_keeps_clear_is_left_and_none_clear_stops():
     mapped = free.copy()
     mapped[14, 15] = OCCUPIED  # the map holds it: the planner's GUIDE is its business
     assert LeadAround(0.6).steer(ahead, seen, here, mapped, 0.1, maker, now) is None
+
+
+def test_a_turned_guide_keeps_off_what_the_frame_shows_on_the_map_too():
+    now = time.time()
+    free = np.full(SHAPE, FREE, np.uint8)
+    maker = PatternMaker()
+    here = pose(15, 15, now)
+    lead = LeadAround(0.6)
+    ahead = maker.guide(0.0, None, now)
+    first = lead.steer(ahead, person(0.05, now), here, free, 0.1, maker, now)
+    assert first is not None and 0 < decode(first.motors) < math.pi  # to the right
+    # The frame now shows a box the map holds, 0.35 m away on the right; the kept person
+    # still turns the straight-on GUIDE, and the turn goes left, off both.
+    mapped = free.copy()
+    mapped[15, 19:21] = OCCUPIED  # beyond the map check's 0.3 m step: the frame bounds it
+    box = Proximity(ahead_m=None, nearest_m=0.35, bearing=-math.pi / 2, frame_stamp=now, stamp=now)
+    out = lead.steer(ahead, box, here, mapped, 0.1, maker, now + 0.1, held=False)
+    assert out is not None and out.kind == PatternKind.GUIDE
+    assert decode(out.motors) > math.pi, math.degrees(decode(out.motors))  # left
