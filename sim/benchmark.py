@@ -23,7 +23,7 @@ import numpy as np
 
 from daemon.navigation.warm import warm_up as warm_navigator
 from daemon.planning import resolve_backend
-from daemon.runtime import gc_policy, malloc_policy
+from daemon.runtime import gc_policy
 
 from .courtyard import make_courtyard
 from .scenarios import SCENARIOS, check_grid, make_scenario, scenario_list
@@ -99,9 +99,7 @@ def settle_heap() -> None:
     """Collect, then freeze what exists, as the daemon does once it is ready: a walk's steps
     then never wait for a full collection of the objects built before it (measured: one
     28 ms gen-2 pause in a 400² walk otherwise). The walk's own steps run under the daemon's
-    collector policy (``gc_policy.after_step`` in ``closed_loop``), and the C heap's
-    (``malloc_policy``), as the daemon's."""
-    malloc_policy.install()
+    collector policy (``gc_policy.after_step`` in ``closed_loop``)."""
     gc_policy.settle()
 
 

@@ -73,12 +73,7 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
     """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
     Each row's ``residual`` is the field's after each step (what an early stop left)."""
     from daemon.navigation.warm import warm_up
-    from daemon.runtime import malloc_policy
 
-    # The daemon's C heap policy, before anything is built: without it the two largest 2000²
-    # steps took 1.7 and 2.2 ms longer in this process than in another on the same tree
-    # (H100), their temporaries on pages the kernel faulted in afresh.
-    malloc_policy.install()
     for name in planners:
         # As the daemon does before READY: every compiled path (a fill, a whole-map reach
         # search) loaded once, not on the first walk step that needs it.

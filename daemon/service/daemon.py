@@ -25,7 +25,7 @@ from daemon.navigation import Navigator
 from daemon.navigation.log_limit import LogLimiter
 from daemon.navigation.warm import warm_up
 from daemon.planning import resolve_backend
-from daemon.runtime import gc_policy, malloc_policy
+from daemon.runtime import gc_policy
 from protocol import codec
 from protocol import topics as T
 from protocol.messages import Health, NavState, NavStatus, StatusCode
@@ -108,8 +108,6 @@ class Daemon:
                 user, lag_ms, cpu_ms, time.monotonic()
             ),
         )
-        # Before the warm-up: the heap it grows stays resident for the users' steps.
-        malloc_policy.install()
         self._warm_up()
         say_who_may_connect(self.config.zenoh)
         self._zenoh = open_session(self.config.zenoh)
