@@ -17,7 +17,14 @@ turned instead, the way ``blocked_side`` turns it for estimated poses:
   edge, never deeper in;
 - otherwise it turns to the nearest such direction (10° apart, either side of the GUIDE's)
   whose step also keeps clear of the map's known obstacles (``clear_way``'s cone from where
-  the user stands); with none, the user is told to stop.
+  the user stands); with none, the roomiest such map-clear direction if a short step is free
+  there, else the user is told to stop (a STOP there stood seed 11's user for minutes);
+- only an obstacle the map does not hold starts this: what it holds, the planner's path and
+  ``keep_clear`` keep off (leading around every wall and box turned a walk in place for
+  300 s). The one it starts for is kept in the world for a while (``LeadAround``), and a
+  turned GUIDE keeps off everything the frame shows within ``stop_m``, mapped or not, and
+  pulses for the room left (turned by the kept person alone, one went at a steady pulse into
+  a mapped person 0.35 m away).
 
 This is for an exact pose (the camera's own, as in the camera walks). An estimated pose's
 GUIDE is turned by ``blocked_side``, which keeps the STOP's points and lets a GUIDE with a
