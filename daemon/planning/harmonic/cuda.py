@@ -186,25 +186,10 @@ class CudaField:
         self.changed_dev = cp.empty(n, dtype=cp.int32)
         self.reach_kernel = _module(self.real).get_function("harmonic_reach")
         self.reach_blocks = _blocks(self.real, "harmonic_reach")
-        self._map_host()
         self.reach_passes = 0
         """The last whole-map reach search's device passes."""
         self.fill_passes = 0
         """The last step's device fill passes (0: no fill ran)."""
-
-    def _map_host(self) -> None:
-        """Write the host scratch now, at ``load`` (a plan), so that its pages are mapped
-        before the first replanning step: ``np.empty`` / ``np.zeros`` leave each 4 KiB page
-        to a fault on its first write, and the first step that goes to the host's fill, reads
-        Idx or queues a large change wrote them there (H100, the 2000² bench walk's step 0:
-        15–23 k minor faults, 7.1–8.1 ms). What each holds is written again before it is read,
-        so the values here are never used. The descent's buffer only as far as a path runs
-        (4 × (h + w) cells; a longer one maps the rest as it goes)."""
-        for scratch in (self.vals, self.mark, self.cells, self.queued, self.cells_host,
-                        self.vals_host, self.masks_host):  # fmt: skip
-            scratch.fill(0)
-        self.idx_view.fill(4)  # the device's Idx as ``load`` left it: no descent yet
-        self.buf[: 4 * (self.height + self.width)] = 0
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         """Set ``cells``' ``w`` and fixedness, on the device at the next ``relax`` (``field``
