@@ -1,5 +1,5 @@
 """``harmonic_bench._count_faults``: the minor page faults of a route's path reads, counted
-around each call and handed out per step."""
+around each call and handed to the bench's note once per read, the plan's read first."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import mmap
 
 import pytest
 
-from sim.harmonic_bench import _count_faults
+from sim.harmonic_bench import _count_faults, _new_searches
 
 PAGES = 64
 
@@ -27,13 +27,22 @@ class Route:
 
 
 @pytest.mark.timeout(30)
-def test_the_path_reads_faults_are_counted_and_the_call_passes_through():
+def test_each_path_reads_faults_go_to_its_own_note_and_the_call_passes_through():
     route = Route()
-    pending = _count_faults(route)
+    notes: list[int] = []
+    _count_faults(route, notes.append)
+    route.touch = PAGES  # the plan: maps pages
     assert route.path_from(1, cell=(2, 3)) == ((1,), {"cell": (2, 3)})
-    quiet = pending[0]
-    assert quiet < PAGES // 4  # a read that maps nothing new
-    route.touch = PAGES
+    route.touch = 0  # step 0: maps nothing new
     route.path_from()
+    route.touch = PAGES  # step 1, the last: its note comes with its read, not a later step
     route.path_from()
-    assert pending[0] - quiet >= 2 * PAGES
+    assert len(notes) == 3
+    assert notes[0] >= PAGES and notes[2] >= PAGES
+    assert notes[1] < PAGES // 4
+
+
+def test_a_search_is_put_on_the_step_that_ran_it_not_the_plan_or_the_next():
+    # Running counts after each read: the plan's (none), then steps 0..3; step 2 searched.
+    assert _new_searches([0, 0, 0, 1, 1], 4) == [2]
+    assert _new_searches([1, 1, 2], 2) == [1]  # the plan's own search is not a step's
