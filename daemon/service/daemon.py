@@ -241,7 +241,7 @@ class Daemon:
                     "draining": self.admission.draining, "lag_p95_ms": round(adm.last_p95_ms, 1),
                     "lag_recent_p95_ms": round(adm.recent_p95_ms, 1),
                     "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
-                    "overloaded_now": len(self.admission.shed),
+                    "overloaded_now": len(self.admission.shed), "calm_s": adm.calm_wanted_s,
                 }},
             )  # fmt: skip
 
