@@ -311,6 +311,9 @@ class Admission:
                 cpu = self._calm_cpu if known is None else min(known, self._calm_cpu)
                 self._capacity = (cpu, now)
                 n = min(n, self._readmitted)
+                # Undone once: a lag that outlasts the undoing is not that readmission's (dev
+                # VM, 50 users: one readmitted user was shed three times in 3.3 s for it).
+                self._readmitted_at = -math.inf
             elif self.last_cpu_ms > 0 and now - self._joined_at > self.s.window_s:
                 # Late again while a capacity is remembered: the machine gives less than that
                 # measure said (other work came), so the lower of the two. Readmitting up to the

@@ -268,6 +268,28 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
     assert len([n for _, n in old if n <= -15]) >= 5
 
 
+def test_a_lag_that_outlasts_the_undone_readmission_is_shed_by_the_lag_rule():
+    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm = Admission(s)
+    users = [f"u{i:02d}" for i in range(20)]
+    for u in users:
+        adm.join(u, 0.0)
+    for t in (10.0, 11.0):
+        steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
+        shed, _ = adm.review(t)
+    assert len(shed) == 10
+    for t in (12.0, 13.0):
+        steps(adm, users[:10], t, cpu_ms=1.0, lag_ms=2.0)
+        back = adm.review(t)[1]
+    assert back == ["u10", "u11", "u12"]
+    decisions = []
+    for t in np.arange(14.0, 17.0, 0.5):  # late again, and it lasts
+        steps(adm, users[:13], t, cpu_ms=1.0, lag_ms=600.0)
+        decisions.append(len(adm.review(t)[0]))
+    # The three readmitted go first; the lag lasting a settle_s later, half of the ten left.
+    assert [n for n in decisions if n] == [3, 5] and adm.overshoots == 1
+
+
 def test_a_user_shed_while_late_comes_back_priced_at_what_a_guided_user_costs_now():
     """Shed while late, their inputs batched into fewer steps: 60 ms/s each then. Guided
     again, a user costs 90 (the dev VM: 7.3 ms/s each at 50 late users, ~10.4 at 25 calm)."""
