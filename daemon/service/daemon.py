@@ -237,11 +237,11 @@ class Daemon:
             log.warning(
                 "load",
                 extra={"fields": {
+                    "worker": -1 if self.worker is None else self.worker.index,
                     "shed": ",".join(shed), "guided_again": ",".join(back),
-                    "draining": self.admission.draining, "lag_p95_ms": round(adm.last_p95_ms, 1),
-                    "lag_recent_p95_ms": round(adm.recent_p95_ms, 1),
-                    "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
-                    "overloaded_now": len(self.admission.shed),
+                    "draining": adm.draining, "lag_p95_ms": round(adm.last_p95_ms, 1),
+                    "lag_recent_p95_ms": round(adm.recent_p95_ms, 1), "calm_s": adm.calm_wanted_s,
+                    "step_cpu_ms_per_s": round(adm.last_cpu_ms), "overloaded_now": len(adm.shed),
                 }},
             )  # fmt: skip
 
