@@ -277,7 +277,7 @@ class OccupancyMapper:
         arrived = self._pending_fit()
         last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
-               or float(np.hypot(*(cam[:2] - last[2][:2]))) > s.floor_refit_m)  # fmt: skip
+               or math.dist(cam[:2], last[2][:2]) > s.floor_refit_m)  # fmt: skip
         sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
                         scale, intr, rot, cam.copy()) if due else None  # fmt: skip
         if sample is not None and (last is None or not s.floor_async):

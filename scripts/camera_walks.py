@@ -35,7 +35,7 @@ def main() -> None:
             "seed": seed, "arrived": w.arrived, "reason": w.reason, "steps": w.steps,
             "collisions": w.collisions, "stops": w.stops, "frames": w.frames,
             "refused": w.refused, "people": w.people, "walk_s": round(w.walk_s, 1),
-            "actions": w.actions,
+            "actions": w.actions, "bumps": w.bumps,
             "mapper_ms_median": round(float(np.median(w.mapper_ms)), 2),
             "mapper_ms_p99": round(float(np.percentile(w.mapper_ms, 99)), 2),
         }  # fmt: skip

@@ -76,6 +76,14 @@ def step_hits(
 
     Samples the segment every tenth of a cell, ends included; leaving the map is a hit.
     """
+    return first_hit(occupancy, cell_m, x0, y0, x1, y1) is not None
+
+
+def first_hit(
+    occupancy: np.ndarray, cell_m: float, x0: float, y0: float, x1: float, y1: float
+) -> tuple[int, int] | None:
+    """The first OCCUPIED cell (row, col) the step (x0, y0) → (x1, y1) runs into, sampled
+    as ``step_hits`` does; ``(-1, -1)`` when the step leaves the map; None when it is free."""
     h, w = occupancy.shape
     n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / (0.1 * cell_m)))
     t = np.linspace(0.0, 1.0, n + 1)
@@ -83,9 +91,34 @@ def step_hits(
     ys = y0 + t * (y1 - y0)
     rows = h - 1 - np.floor(ys / cell_m).astype(np.int64)
     cols = np.floor(xs / cell_m).astype(np.int64)
-    if rows.min() < 0 or rows.max() >= h or cols.min() < 0 or cols.max() >= w:
-        return True
-    return bool(np.any(occupancy[rows, cols] == OCCUPIED))
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    blocked = ~inside
+    blocked[inside] = occupancy[rows[inside], cols[inside]] == OCCUPIED
+    hit = np.flatnonzero(blocked)
+    if hit.size == 0:
+        return None
+    i = hit[0]
+    return (int(rows[i]), int(cols[i])) if inside[i] else (-1, -1)
+
+
+@dataclass(frozen=True)
+class Bump:
+    """One collision, as the walker knows it: where it stood, where the step went, what it
+    felt. The walk adds what only the world knows (what the cell holds, how old the frame
+    was: ``camera_node``)."""
+
+    x: float
+    y: float
+    heading: float
+    """Radians, counter-clockwise from east: the step's intended direction."""
+    to_x: float
+    to_y: float
+    cell: tuple[int, int]
+    """The first occupied cell on the step (``first_hit``)."""
+    kind: str
+    """The pattern felt: ``guide`` (a step) is the only kind that moves the walker."""
+    motors: tuple[int, ...]
+    period_ms: int
 
 
 @dataclass
@@ -100,6 +133,7 @@ class BeltWalker:
     steps: int = 0
     turns: int = 0
     collisions: int = 0
+    bumps: list[Bump] = field(default_factory=list)
 
     def act(self, view: Any) -> str:
         """The world's walker seam (``world.py``): only ``view.belt`` and the true map are
@@ -135,9 +169,9 @@ class BeltWalker:
         if abs(rel) > math.radians(self.params.turn_in_place_deg):
             self.turns += 1
             return "turn"
-        return self._step(int(pattern.period_ms), occupancy)
+        return self._step(int(pattern.period_ms), occupancy, pattern)
 
-    def _step(self, period_ms: int, occupancy: np.ndarray) -> str:
+    def _step(self, period_ms: int, occupancy: np.ndarray, pattern: Any = None) -> str:
         p = self.params
         length = max(0.05, self.rng.normal(p.step_m, p.step_sd_m))
         if period_ms > 0:  # pulsing: an obstacle is near, shorter steps the faster it pulses
@@ -145,8 +179,13 @@ class BeltWalker:
         direction = self.heading + self._noise(p.gait_sd_deg)
         x1 = self.x + length * math.cos(direction)
         y1 = self.y + length * math.sin(direction)
-        if step_hits(occupancy, self.cell_m, self.x, self.y, x1, y1):
+        hit = first_hit(occupancy, self.cell_m, self.x, self.y, x1, y1)
+        if hit is not None:
             self.collisions += 1
+            kind = "guide" if pattern is None else str(pattern.kind)
+            motors = () if pattern is None else tuple(int(m) for m in pattern.motors)
+            self.bumps.append(Bump(self.x, self.y, direction, x1, y1, hit, kind, motors,
+                                   period_ms))  # fmt: skip
             return "bump"
         self.x, self.y = x1, y1
         self.walked_m += length

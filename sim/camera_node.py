@@ -23,18 +23,20 @@ from mapper.node import MapperNode
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
 from protocol import session as wire
 from protocol import topics as T
+from protocol.messages import BeltPattern, NavPath
 
 from .camera import SEED000_INTRINSICS, RgbdCamera
 from .courtyard import Scenario
 from .node import SimNode
 from .people import Movers
-from .scene3d import scene_from_scenario
+from .scene3d import BOX, FLOOR, PERSON, TABLE, WALL, scene_from_scenario
 
 DEMO_SCALE = 0.5
 """The walks render 320 x 240 (seed 000's camera at half resolution), so a 2-core machine
 walks in real time; the mapper's own benchmark takes 640 x 480."""
 STEP_DT_S = 0.5
 """Simulated seconds per walker action: a 0.5 m step at a cautious 1 m/s."""
+KINDS = {FLOOR: "floor", WALL: "wall", BOX: "box", TABLE: "table", PERSON: "person"}
 
 
 class CameraSimNode(SimNode):
@@ -57,6 +59,10 @@ class CameraSimNode(SimNode):
         self.map_node: MapperNode | None = None
         self.frame_ms: list[float] = []
         self._last_frame = 0.0
+        self._frame_seq = -1
+        """The mapper's last delta once the latest frame was mapped."""
+        self.bumps: list[dict] = []
+        """Every collision with what the world, the frame and the belt were then (``_bumped``)."""
 
     def _declare(self) -> None:
         s, u = self.session, self.user
@@ -93,10 +99,43 @@ class CameraSimNode(SimNode):
         t0 = time.perf_counter()
         self.map_node.feed(frame)
         self.frame_ms.append((time.perf_counter() - t0) * 1e3)
+        self._frame_seq = self.map_node.seq
 
     def _send_pose(self) -> float:
         self._frame()
         return super()._send_pose()
+
+    def _bumped(self, path: NavPath, belt: BeltPattern | None) -> None:
+        """What the step ran into (its kind; a person's distance), what the camera's map held
+        there, the pattern the walker stepped on and how old it and the frame were, the
+        frame's own proximity, and whether the daemon's step had that frame's delta."""
+        bumps = getattr(self.walker, "bumps", None)
+        if not bumps:
+            return
+        b = bumps[-1]
+        r, c = b.cell
+        inside = 0 <= r < self.shape[0] and 0 <= c < self.shape[1]
+        now = time.time()
+        framed = self._last_frame > 0.0
+        people = [math.hypot(x - b.x, y - b.y) for x, y in (p.where() for p in self.movers.people)]
+        last = self.map_node.last if self.map_node is not None else None
+        prox = last.proximity if last is not None else None
+        self.bumps.append({
+            "xy": [round(b.x, 3), round(b.y, 3)], "heading_deg": round(math.degrees(b.heading), 1),
+            "to": [round(b.to_x, 3), round(b.to_y, 3)], "cell": [r, c],
+            "kind": KINDS.get(int(self.movers.scene.kind[r, c]), "?") if inside else "edge",
+            "mapped": int(self.mapper.occupancy[r, c]) if inside else None,
+            "person_m": round(min(people), 3) if people else None,
+            "pattern": {"kind": b.kind, "motors": list(b.motors), "period_ms": b.period_ms,
+                        "age_ms": None if belt is None else round((now - belt.stamp) * 1e3, 1)},
+            "frame_age_ms": round((now - self._last_frame) * 1e3, 1) if framed else None,
+            "frame_to_pattern_ms": round((belt.stamp - self._last_frame) * 1e3, 1)
+            if framed and belt is not None else None,
+            "frame_proximity": None if prox is None
+            else {k: None if v is None else round(v, 3)
+                  for k, v in (("ahead_m", prox.ahead_m), ("nearest_m", prox.nearest_m))},
+            "step_had_frame_delta": path.map_seq >= self._frame_seq,
+        })  # fmt: skip
 
     def _sense(self, stop: threading.Event) -> None:
         """The frame goes with the next pose (``_send_pose``): nothing to do here."""

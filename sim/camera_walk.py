@@ -44,6 +44,9 @@ class CameraWalk:
     people: int
     actions: dict[str, int]
     """The walker's actions by kind (step, turn, stand, bump)."""
+    bumps: list[dict]
+    """What each collision ran into and what the walker, the frame and the belt knew then
+    (``CameraSimNode._bumped``)."""
 
 
 def camera_walk(seed: int, unknown: float = CAMERA_UNKNOWN, people: int = 3,
@@ -87,5 +90,5 @@ def camera_walk(seed: int, unknown: float = CAMERA_UNKNOWN, people: int = 3,
         collisions=int(getattr(node.walker, "collisions", 0)), stops=stops[0],
         frames=len(node.frame_ms), refused=sum(node.mapper.refused.values()),
         mapper_ms=np.array(node.frame_ms), walk_s=time.monotonic() - t0,
-        people=len(node.movers.people), actions=dict(result.actions),
+        people=len(node.movers.people), actions=dict(result.actions), bumps=node.bumps,
     )  # fmt: skip

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -91,9 +93,11 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             passes: list[int] = []
             searches: list[int] = []
             cuts: list[int] = []
+            faults: list[int] = []
 
-            def note(*_, nav=nav, residuals=residuals, filled=filled, passes=passes,
-                     searches=searches, cuts=cuts) -> None:  # fmt: skip
+            def note(n_faults: int, nav=nav, residuals=residuals, filled=filled, passes=passes,
+                     searches=searches, cuts=cuts, faults=faults) -> None:  # fmt: skip
+                faults.append(n_faults)
                 planner = nav.route.planner
                 residuals.append(float(getattr(planner, "residual", 0.0)))
                 filled.append(int(getattr(planner, "filled", 0)))
@@ -102,8 +106,8 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 searches.append(int(getattr(reach, "full_searches", 0)))
                 cuts.append(int(getattr(reach, "cut_searches", 0)))
 
-            r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav,
-                     on_step=note)  # fmt: skip
+            _count_faults(nav.route, note)
+            r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav)
             changed = r.changed > 0
             rows.append({
                 "planner": name, "step": step or "default", "backend": backend,
@@ -113,8 +117,8 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "step_ms": _pcts(r.step_ms), "step_ms_changed": _pcts(r.step_ms[changed]),
                 "sweeps": _pcts(r.iterations.astype(float)),
                 "residual": _pcts(np.array(residuals)),
-                # Steps that ended with a fill, and the basin cells each filled (every step of
-                # the navigator, the walk's set-up included).
+                # Steps that ended with a fill, and the basin cells each filled (every path
+                # read of the navigator, the plan included).
                 "fills": int(np.count_nonzero(filled)), "filled": _pcts(np.array(filled, float)),
                 # The device fill's passes on the steps that ran one (cuda).
                 "fill_passes": _pcts(np.array([p for p in passes if p], float)),
@@ -122,6 +126,9 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "full_searches": _new_searches(searches, len(r.changed)),
                 # ... and those whose cut-off cells were found from the change (cut_off.cut_off).
                 "cut_searches": _new_searches(cuts, len(r.changed)),
+                # Each step's minor page faults inside its replanning step (fresh pages the
+                # kernel mapped and zeroed, ~µs each): where a large step's time went.
+                "plan_faults": faults[len(faults) - len(r.changed) :],
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
@@ -130,10 +137,27 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
     return rows
 
 
+def _count_faults(route, note: Callable[[int], None]) -> None:
+    """Wrap ``route``'s path read (one a navigator step that plans or replans: the plan, then
+    one per entry of the walk's trace) to call ``note`` after each with the minor page faults
+    inside it; the counting is outside the window of ``step_ms``. Per read, not per walk step:
+    the walk's ``on_step`` does not follow its last step, so notes taken there put the plan's
+    faults (25 k at 2000², H100) in step 0's slot and each step's in the next one's."""
+    read = route.path_from
+
+    def counted(*args, **kwargs):
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        out = read(*args, **kwargs)
+        note(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+        return out
+
+    route.path_from = counted
+
+
 def _new_searches(counts: list[int], steps: int) -> list[int]:
     """The walk steps whose reach ran the whole-map search, from the planner's running count
-    after every navigator step (``counts``; the walk's set-up steps first, which its trace of
-    ``steps`` leaves out)."""
+    after every path read (``counts``; the plan first, which the walk's trace of ``steps``
+    leaves out)."""
     skip = len(counts) - steps
     return [i - skip for i in range(skip, len(counts)) if counts[i] > (counts[i - 1] if i else 0)]
 

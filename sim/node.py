@@ -275,6 +275,8 @@ class SimNode:
                 result.actions[action] = result.actions.get(action, 0) + 1
                 if action == "step":
                     result.walked.append(self.cell())
+                if action == "bump":
+                    self._bumped(path, belt)
                 if action in ("step", "turn", "bump"):  # a bump turned the user, too
                     self._sense(stop)
                 if on_step is not None:
@@ -291,11 +293,21 @@ class SimNode:
             self.close()
         return result
 
+    def _bumped(self, path: NavPath, belt: BeltPattern | None) -> None:
+        """A step ran into something; a node that knows more of its world records what."""
+
     def _wait_for_belt(self, stamp: float, stop: threading.Event) -> BeltPattern | None:
         """The pattern made in the same step as the path stamped ``stamp`` (the daemon sends
-        it first, but on another key), so the walker feels what that step decided."""
-        self._await(lambda: self._belt is not None and abs(self._belt.stamp - stamp) < 1e-6, stop)
-        return self._belt
+        it first, but on another key), so the walker feels what that step decided; None (the
+        walker stands) if it did not come: another step's pattern was decided on other data."""
+
+        def same() -> BeltPattern | None:
+            b = self._belt
+            return b if b is not None and abs(b.stamp - stamp) < 1e-6 else None
+
+        self._await(lambda: same() is not None, stop)
+        with self._cond:
+            return same()
 
     def _wait_for_path(self, stamp: float, stop: threading.Event) -> NavPath | None:
         """The path planned from the pose sent at ``stamp``; None on ARRIVED or timeout."""

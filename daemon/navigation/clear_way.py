@@ -83,7 +83,7 @@ def clear_headings(
     return out
 
 
-def _cone_clear(
+def cone_clear(
     occupancy: np.ndarray, x: float, y: float, headings: np.ndarray, reach_m: float, cell_m: float
 ) -> np.ndarray:
     spread = math.radians(SPREAD_DEG)
@@ -115,12 +115,12 @@ def keep_clear(
         return None
     dx, dy = target_xy[0] - x, target_xy[1] - y
     reach = min(max(math.hypot(dx, dy), STEP_MIN_M), STEP_MAX_M)
-    if _cone_clear(occupancy, x, y, np.array([pose.heading - felt]), reach, cell_m)[0]:
+    if cone_clear(occupancy, x, y, np.array([pose.heading - felt]), reach, cell_m)[0]:
         return None
     bearing = math.atan2(dy, dx)
     k = np.arange(1, int(180 / SEARCH_DEG) + 1)
     offsets = np.concatenate([[0.0], np.ravel(np.column_stack([k, -k]))]) * math.radians(SEARCH_DEG)
-    ok = _cone_clear(occupancy, x, y, bearing + offsets, reach, cell_m)
+    ok = cone_clear(occupancy, x, y, bearing + offsets, reach, cell_m)
     if not ok.any():
         return None
     heading = bearing + offsets[int(np.argmax(ok))]

@@ -85,6 +85,9 @@ class Navigator:
         self.pose_received = 0.0
         """When the daemon received ``pose`` (its clock): staleness is judged on this."""
         self.pose_cell: Cell | None = None
+        self._pose_stamp: float | None = None
+        self._pose_before: float | None = None
+        """The stamp of the pose before the latest: the camera must have looked since."""
         self._last_path_flat = np.empty(0, np.int64)
         self.session = SessionState()
         self.rejected_by_code: dict[str, int] = {}
@@ -157,7 +160,11 @@ class Navigator:
         if self.maps.map is not None and self.goal_cell is not None and self.pose_cell is not None:
             if self.maps.stale:
                 self._wait_for_map(now, out)
-            elif self.session.may_guide() and not self._pose_unsure(now, out):
+            elif (
+                self.session.may_guide()
+                and self.safety.looked_since(self._pose_before, now)  # else: the frame guides
+                and not self._pose_unsure(now, out)
+            ):
                 self._guide(now, out)
         elif self.pose is None and self.pose_received and self.goal_cell is not None:
             self._pose_missing(now, out)
@@ -218,6 +225,8 @@ class Navigator:
         self.goal_cell = where
 
     def _take_pose(self, pose: Pose, received: float, now: float, out: StepOutput) -> None:
+        if pose.stamp != self._pose_stamp:
+            self._pose_before, self._pose_stamp = self._pose_stamp, pose.stamp
         self.pose, self.pose_cell = None, None
         age = received - pose.stamp
         if age > self.settings.stale_pose_s or -age > FUTURE_SKEW_S:
@@ -309,6 +318,12 @@ class Navigator:
         if safe is not None:
             g = replace(g, pattern=safe)
             self.guidance.hysteresis.reset()  # the next direction is felt from this one
+        # After a STOP's hold: around what the frame shows ahead, which the map may not hold.
+        around = self.safety.lead_around(g.pattern, self.pose, grid.occupancy,
+                                         self.settings.cell_m, self.guidance, now)  # fmt: skip
+        if around is not None:
+            g = replace(g, pattern=around)
+            self.guidance.hysteresis.reset()
         out.belt.append(g.pattern)
         if g.cue is not None:
             out.voice.append(g.cue)

@@ -226,20 +226,22 @@ class Daemon:
     def _review_load(self) -> None:
         """Admission control's decision for this tick, applied: shed users step rarely and
         hear ``overloaded``; readmitted ones are guided from their next input."""
-        shed, back = self.admission.review(time.monotonic())
+        adm, waits = self.admission, self.admission.drain_waits
+        shed, back = adm.review(time.monotonic())
         for user, flag in [(u, True) for u in shed] + [(u, False) for u in back]:
             runner = self.runners.get(user)
             if runner is not None:
                 self._set_shed(runner, flag)
                 runner.tick()  # told now, not at their next input
-        if shed or back:
+        if shed or back or adm.drain_waits != waits:  # a lag waited out is said once too
             log.warning(
                 "load",
                 extra={"fields": {
+                    "worker": -1 if self.worker is None else self.worker.index,
                     "shed": ",".join(shed), "guided_again": ",".join(back),
-                    "lag_p95_ms": round(self.admission.last_p95_ms, 1),
-                    "step_cpu_ms_per_s": round(self.admission.last_cpu_ms),
-                    "overloaded_now": len(self.admission.shed),
+                    "draining": adm.draining, "lag_p95_ms": round(adm.last_p95_ms, 1),
+                    "lag_recent_p95_ms": round(adm.recent_p95_ms, 1), "calm_s": adm.calm_wanted_s,
+                    "step_cpu_ms_per_s": round(adm.last_cpu_ms), "overloaded_now": len(adm.shed),
                 }},
             )  # fmt: skip
 

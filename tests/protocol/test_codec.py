@@ -71,6 +71,9 @@ def test_delta_binary_round_trip_keeps_every_cell(h, w, n, seq, seed):
     assert (back.seq, back.height, back.width) == (seq, h, w)
     assert np.array_equal(back.cell_array(), cells)
     assert np.array_equal(back.value_array(), values)
+    # A producer's own arrays packed straight to bytes (the mapper's path) give the same bytes.
+    packed = codec.delta_bytes(seq, h, w, NOW, cells.astype("<u4").tobytes(), values.tobytes())
+    assert packed == data
 
 
 def header(magic=b"GBMD", version=1, seq=0, h=10, w=10, n=0) -> bytes:

@@ -98,6 +98,7 @@ def test_queryable_get_reply_and_liveliness(pair):
     changes: list[zenoh.SampleKind] = []
     watch = wire.watch_liveliness(b, T.ALIVE, lambda s: changes.append(s.kind))
     try:
+
         def answers() -> list:
             return [r.ok for r in wire.get(b, T.HEALTH, timeout=1.0) if r.ok is not None]
 
@@ -118,3 +119,50 @@ def test_a_topic_is_declared_only_as_what_it_is(pair):
         wire.declare_publisher(a, T.HEALTH, None)  # a queryable, not a publication
     with pytest.raises(ValueError):
         wire.declare_token(a, T.POSE)
+
+
+@pytest.mark.timeout(30)
+def test_a_lone_pose_survives_a_link_the_must_arrive_messages_have_filled(pair):
+    """A pose put while the link is congested with must-arrive messages (a map delta and a
+    goal just before it, a receiver slow to read) is queued, not dropped. With DROP at the
+    must-arrive messages' priority, zenoh found their queue full and dropped the pose after
+    ``wait_before_drop`` (1 ms): the daemon never heard a user's only pose (2 of 30 rounds
+    of ``test_goal_with_no_path_says_so`` with two busy loops beside it). Here the link is
+    stalled on purpose: the receiver's first must-arrive callback holds zenoh's reading
+    thread, so the sender's queue fills and stays full while the pose is put."""
+    listener, sender = pair
+    hold, poses = threading.Event(), threading.Event()
+
+    def on_status(_sample: zenoh.Sample) -> None:
+        hold.wait(10.0)  # only the first holds: later samples find the event set
+
+    subs = [
+        wire.declare_subscriber(listener, T.STATUS, Callback(on_status, indirect=False), "ann"),
+        wire.declare_subscriber(
+            listener, T.POSE, Callback(lambda _s: poses.set(), indirect=False), "ann"
+        ),
+    ]
+    progress = {"at": time.monotonic(), "stop": False}
+
+    def fill() -> None:  # must-arrive messages until a put blocks on the full link
+        payload = bytes(60_000)
+        while not progress["stop"]:
+            wire.put(sender, T.STATUS, "ann", payload)
+            progress["at"] = time.monotonic()
+
+    filler = threading.Thread(target=fill, daemon=True)
+    try:
+        time.sleep(0.3)  # the subscriptions reach the sender
+        filler.start()
+        assert _until(lambda: time.monotonic() - progress["at"] > 0.5, 10.0), "never congested"
+        wire.put(sender, T.POSE, "ann", b"the only pose")
+    finally:
+        progress["stop"] = True
+        hold.set()
+    try:
+        assert poses.wait(5.0), "the pose was dropped on the congested link"
+    finally:
+        filler.join(10.0)
+        for sub in subs:
+            sub.undeclare()
+    assert not filler.is_alive()

@@ -66,6 +66,13 @@ def test_qos_never_drops_what_steers_or_stops_the_user():
     # Latest-wins data may be dropped on a full queue.
     for topic in (T.POSE, T.PATH, T.BELT_HEALTH, T.RFID_STATS):
         assert topic.qos.congestion is Congestion.DROP, topic.name
+    # A pose never waits in (or is dropped from) a queue of messages that must arrive: zenoh
+    # drops a DROP sample that finds its priority's queue full (the lost-pose bug).
+    sharing = [
+        t.name for t in T.TOPICS if t.qos.priority is T.POSE.qos.priority and t is not T.POSE
+    ]
+    assert not sharing, sharing
+    assert order.index(T.POSE.qos.priority) > order.index(T.GOAL.qos.priority)
 
 
 def test_status_codes_are_an_enum_and_the_wire_is_unchanged():

@@ -66,6 +66,10 @@ def test_walker_counts_a_collision_and_does_not_walk_through() -> None:
     maker = PatternMaker()
     assert w.react(maker.guide(0.0, None, 0.0), world) == "bump"
     assert w.collisions == 1 and w.x == 2.55
+    (b,) = w.bumps  # what the walk records of it: from where, into which cell, on what pattern
+    assert (b.x, b.y, b.heading) == (2.55, 2.5, 0.0) and b.to_x == pytest.approx(3.05)
+    assert b.cell == (24, 30) and world[b.cell] == 1
+    assert b.kind == "guide" and b.motors == (200, 0, 0, 0) and b.period_ms == 0
 
 
 def test_walker_reads_the_belt_never_the_path() -> None:

@@ -27,6 +27,7 @@ fill's gather and scatter (cupy indexing with int64 indices), against 0.48 ms of
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from pathlib import Path
 
 import cupy as cp
@@ -36,8 +37,9 @@ import numpy as np
 from . import fill as fl
 from . import relax as rx
 
-SOURCES = tuple(Path(__file__).with_name("kernels") / name
-                for name in ("harmonic.cu", "harmonic_reach.cu"))
+SOURCES = tuple(
+    Path(__file__).with_name("kernels") / name for name in ("harmonic.cu", "harmonic_reach.cu")
+)
 """One module, compiled from these in order: the reach search uses the fill's tiling."""
 THREADS = 256
 FIRST_PITS = 64
@@ -173,8 +175,13 @@ class CudaField:
         self.tile_active = cp.zeros(tiles, dtype=cp.uint8)
         self.tile_stamp = cp.full(tiles, -2, dtype=cp.int32)
         # The whole-map reach search's map, mask before the change, result and changed cells.
-        self.blocked_dev = cp.empty(n, dtype=cp.uint8)
-        self.before_dev = cp.empty(n, dtype=cp.uint8)
+        # Its two masks (the map, the reach before the change) side by side, here and in
+        # pinned memory: one DMA that runs while the host goes on, where two 4 MB ``set``s
+        # from pageable memory held the host (the 2000² reveal's start took 1.9 ms with
+        # them, H100 host). The event says when the pinned copy may be written again.
+        self.masks_dev = cp.empty(2 * n, dtype=cp.uint8)
+        self.masks_host = _pinned(2 * n, np.uint8)
+        self.masks_up = cp.cuda.Event(disable_timing=True)
         self.reach_dev = cp.empty(n, dtype=cp.uint8)
         self.changed_dev = cp.empty(n, dtype=cp.int32)
         self.reach_kernel = _module(self.real).get_function("harmonic_reach")
@@ -254,25 +261,40 @@ class CudaField:
 
     def reach_search(self, blocked: np.ndarray, before: np.ndarray, goal: int) -> np.ndarray:
         """``Reach``'s whole-map search on the device (``harmonic_reach``): the padded flat
-        cells (sorted, int64) whose reach by the goal in ``blocked`` differs from ``before``
-        (both bool, the host's). One launch, the two masks up and the changed cells back: the
-        host's breadth-first search over the map took 1.4 ms of a 400² step and 55 ms of a
-        2000² one (H100 host, the bench walk)."""
-        self.blocked_dev.set(blocked.view(np.uint8))
-        self.before_dev.set(before.view(np.uint8))
+        cells (int64, in no set order) whose reach by the goal in ``blocked`` differs from
+        ``before`` (both bool, the host's). One launch, the two masks up and the changed
+        cells back: the host's breadth-first search over the map took 1.4 ms of a 400² step
+        and 55 ms of a 2000² one (H100 host, the bench walk)."""
+        return self.reach_search_start(blocked, before, goal)()
+
+    def reach_search_start(self, blocked: np.ndarray, before: np.ndarray,
+                           goal: int) -> Callable[[], np.ndarray]:  # fmt: skip
+        """``reach_search`` started: the masks are copied up (the host may change them once
+        this returns) and the search launched; the function returned waits for its answer.
+        ``Reach`` runs its cut-off try on the host meanwhile. A search never waited for is
+        harmless: the next launch on the stream follows it."""
+        n = blocked.size
+        self.masks_up.synchronize()  # the last search's copy has left the pinned masks
+        np.copyto(self.masks_host[:n], blocked.view(np.uint8))
+        np.copyto(self.masks_host[n:], before.view(np.uint8))
+        _copy(self.masks_dev.data.ptr, self.masks_host.ctypes.data, 2 * n, _H2D)
+        self.masks_up.record()
         self.reach_kernel(
             (self.reach_blocks,), (THREADS,),
-            (self.blocked_dev, self.before_dev, self.reach_dev, np.int32(self.height),
+            (self.masks_dev[:n], self.masks_dev[n:], self.reach_dev, np.int32(self.height),
              np.int32(self.width), np.int32(goal), self.fill_flags, self.result,
              self.changed_dev, self.tile_stamp),
         )  # fmt: skip
         self.launches += 1
+        return self._reach_changed
+
+    def _reach_changed(self) -> np.ndarray:
         _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
         cp.cuda.get_current_stream().synchronize()
         self.reach_passes = int(self.result_host[0])
-        changed = self.changed_dev[: int(self.result_host[3])].get().astype(np.int64)
-        changed.sort()
-        return changed
+        # In the device's order, not sorted: ``Reach`` and ``set`` take the cells in any
+        # order, and sorting ~140 k of them took ~1.2 ms (dev VM, numpy 2.4).
+        return self.changed_dev[: int(self.result_host[3])].get().astype(np.int64)
 
     def _pits(self) -> np.ndarray:
         """The pits the last launch listed (int32; read before the next launch's fetch)."""

@@ -28,12 +28,13 @@ def _root(parent, a):
 
 
 @numba.njit(cache=True, nogil=True)
-def cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
-    """The reached cells that the clusters ``new`` (those ``reach._joined_each`` could not clear)
-    cut off from the goal, into ``out`` and cleared in ``reach``; returns their count, or -1
-    for the whole-map search: past ``limit`` cells searched, or when the goal's region turns
-    out finite (its outside is then unknown). One breadth-first search from many groups at
-    once, each reached free neighbour of ``new`` one; groups that meet merge (union-find),
+def cut_off(blocked, reach, seeds, width, goal, group, queue, out, limit) -> int:
+    """The reached cells that the clusters ``reach._joined_each`` could not clear cut off from
+    the goal, into ``out`` and cleared in ``reach``; returns their count, or -1 for the
+    whole-map search: past ``limit`` cells searched, or when the goal's region turns out
+    finite (its outside is then unknown). ``seeds``: those clusters' reached free neighbours,
+    each once (``_joined_each`` lists them as it gathers the clusters). One breadth-first
+    search from many groups at once, each seed one; groups that meet merge (union-find),
     and a group whose frontier runs out is a whole region. A region cut off holds such a
     neighbour (its paths to the goal crossed these clusters, the others can be rerouted), and
     so does the goal's region when any was cut off (or else every neighbour is in it). So
@@ -43,25 +44,20 @@ def cut_off(blocked, reach, new, width, goal, group, queue, out, limit) -> int:
     zeroed.
 
     Seeds past ``limit`` end the try before it searches: it could only give up later. So the
-    groups' tables hold at most ``limit`` + 1 seeds, not 9 per cell of ``new``: on the 2000²
-    137 k-cell reveal those were two tables of ~1.2 M words, fresh pages each try."""
-    size = min(9 * new.size, limit + 1) + 1
+    groups' tables hold at most ``limit`` seeds: on the 2000² 137 k-cell reveal 9 per failed
+    cell were two tables of ~1.2 M words, fresh pages each try."""
+    if seeds.size > limit:
+        return -1
+    size = seeds.size + 1
     parent = np.empty(size, dtype=np.int64)
     count = np.zeros(size, dtype=np.int64)
     around = neighbour_offsets(width)
     groups = tail = 0
-    for i in new:
-        for o in around:
-            j = i + o
-            if not blocked[j] and reach[j] and group[j] == 0 and tail <= limit:
-                groups += 1
-                parent[groups], count[groups], group[j] = groups, 1, groups
-                queue[tail] = j
-                tail += 1
-        if tail > limit:
-            for k in range(tail):
-                group[queue[k]] = 0
-            return -1
+    for j in seeds:
+        groups += 1
+        parent[groups], count[groups], group[j] = groups, 1, groups
+        queue[tail] = j
+        tail += 1
     growing, head, found = groups, 0, 0
     while growing > 1 and head < tail and tail <= limit:
         cur = queue[head]

@@ -153,15 +153,19 @@ class HarmonicPlanner(GlobalPlanner):
         self.engine.load(fixed, w0, w + 2, g)
         # The GPU engine searches the whole map on the device when a change may cut cells off,
         # on maps large enough for that to pay.
-        search = getattr(self.engine, "reach_search", None)
+        search = getattr(self.engine, "reach_search_start", None)
         self.reach.search = search if flat.size >= DEVICE_SEARCH_CELLS else None
+        if search is not None:
+            self.reach.warm()  # on any map: the warm-up's is too small to search on the device
         return self._relax(t0, COLD_SWEEPS)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
         t0 = time.perf_counter()
         cells, values = checked_update_input(self._shape, cells, blocked)
         w = self._shape[1]
-        padded = (cells // w + 1) * (w + 2) + cells % w + 1
+        # (r + 1)(w + 2) + c + 1 for cell r·w + c, with one division, not two and a product:
+        # 137 k cells (the 2000² walk's step 36) 0.96 -> 0.32 ms (dev VM, CPU time).
+        padded = cells + 2 * (cells // w) + w + 3
         lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
         if lost.size == 0 and gained.size == 0:
             return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)

@@ -11,7 +11,7 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
   Otherwise the cells cut off are found from where the change happened (``cut_off``), and
-  only past a budget by one BFS over the whole map.
+  only past a budget by one search of the whole map (``floods.reached``, or the device's).
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
 """
@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from .cut_off import cut_off, neighbour_offsets
+from .floods import flood, reached
 from .relax import bfs_steps
 
 MARGIN = 16
@@ -33,6 +34,10 @@ CUT_SHARE = 8
 CUT_CELLS_BESIDE_SEARCH = 1 << 16
 """... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
 is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
+FIRST_TRY_SHARE = 16
+"""Beside ``Reach.search``, ``cut_off`` first tries 1/FIRST_TRY_SHARE of its budget; past
+that the device's search is started, and the try goes on to its whole budget while the
+device works (the 2000² bench walk's reveal: a try that fails, then the device's search)."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,10 +80,15 @@ def _joined(blocked, new, width, height, margin, mark, queue, around, first, wan
     while head < tail and wanted > 0:
         cur = queue[head]
         head += 1
-        for o in around:
-            j = cur + o
-            r, c = j // width, j % width
-            if blocked[j] or mark[j] == 1 or r < r0 or r > r1 or c < c0 or c > c1:
+        # The window's bounds from the cell's own row and column, one division a cell, not
+        # two for each of its 8 neighbours: on a 2000² delta of 143 walls whose windows all
+        # fail, ``_joined_each`` 55 → 30 ms (dev VM, CPU time, median of 6).
+        r, c = cur // width, cur % width
+        for d in range(8):
+            j = cur + around[d]
+            e = d + (d >= 4)  # around skips the cell itself: e is the 3×3 block's index
+            rr, cc = r + e // 3 - 1, c + e % 3 - 1
+            if blocked[j] or mark[j] == 1 or rr < r0 or rr > r1 or cc < c0 or cc > c1:
                 continue
             if mark[j] == 2:
                 wanted -= 1
@@ -96,21 +106,26 @@ def _joined(blocked, new, width, height, margin, mark, queue, around, first, wan
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, failed,
+def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, contacts,
                  group) -> int:  # fmt: skip
     """``_joined`` for each 8-connected cluster of the newly blocked cells in its own window;
-    the cells of the clusters whose contacts do not join there go into ``failed``, and their
-    count is returned (0: every cluster's contacts join). Sound: a path through new
-    obstacles crosses each cluster from one contact to another, and each joined cluster's
+    the contacts (reached free neighbours) of the clusters whose contacts do not join there
+    go into ``contacts``, each once, in the order ``cut_off``'s seeding would meet them
+    walking those clusters' cells; their count is returned (0: every cluster's contacts
+    join; a cluster that fails has two or more). Handing ``cut_off`` its seeds spares each
+    try a walk over the failed cells' neighbours: the 2000² bench walk's 137 k-cell reveal's
+    short try took 2.1 ms on the H100 host, nearly all of it that walk. Sound: a path through
+    new obstacles crosses each cluster from one contact to another, and each joined cluster's
     contacts still join (in the map with every change applied), so a path that crossed only
     joined clusters can be rerouted round them. One window round all of a step's changes
     spans the sensor's sweep (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's
-    spans the cluster. ``label``: scratch of zeros, left zeroed; ``group``: scratch as long
-    as ``new`` (allocated here, its fresh pages cost the 2000² first sweep ~1 ms)."""
+    spans the cluster. ``label``: scratch of zeros, left zeroed (1, 2: a new cell not yet
+    and already gathered; 3: a contact listed); ``group``: scratch as long as ``new``
+    (allocated here, its fresh pages cost the 2000² first sweep ~1 ms)."""
     around = neighbour_offsets(width)
     for i in new:
         label[i] = 1
-    n_failed = 0
+    n_contacts = 0
     for s in new:
         if label[s] != 1:
             continue
@@ -120,28 +135,40 @@ def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label,
         # The cluster's contacts (reached free neighbours) are met in the same pass that
         # gathers it, in the order a second pass over its cells would meet them (that pass
         # was ~1 ms of this function's ~3.8 on the 2000² first sweep, dev VM CPU time).
-        first, wanted = -1, 0
+        first, wanted, listed = -1, 0, 0
         while head < n:
             cur = group[head]
             head += 1
             for o in around:
                 j = cur + o
-                if label[j] == 1:
+                # A neighbour already gathered (2) is a new, blocked cell: no other read.
+                # Most of a large cluster's are: the 2000² walk's two largest deltas
+                # 2.1–3.7 -> 1.3–1.4 and 3.7–6.4 -> 2.8–2.9 ms (dev VM, CPU time, medians).
+                lj = label[j]
+                if lj == 1:
                     label[j] = 2
                     group[n] = j
                     n += 1
-                elif not blocked[j] and reach[j] and mark[j] == 0:
+                elif lj != 2 and not blocked[j] and reach[j] and mark[j] == 0:
                     mark[j] = 2  # a contact, still to be met by _joined's search
                     wanted += 1
                     if first < 0:
                         first = j
-        if not _joined(blocked, group[:n], width, height, margin, mark, queue, around, first,
-                       wanted):  # fmt: skip
-            failed[n_failed : n_failed + n] = group[:n]
-            n_failed += n
+                    if label[j] == 0:  # not listed by an earlier cluster that failed
+                        label[j] = 3
+                        contacts[n_contacts + listed] = j
+                        listed += 1
+        if _joined(blocked, group[:n], width, height, margin, mark, queue, around, first,
+                   wanted):  # fmt: skip
+            for k in range(n_contacts, n_contacts + listed):
+                label[contacts[k]] = 0
+        else:
+            n_contacts += listed
     for i in new:
         label[i] = 0
-    return n_failed
+    for k in range(n_contacts):
+        label[contacts[k]] = 0
+    return n_contacts
 
 
 @numba.njit(cache=True, nogil=True)
@@ -159,26 +186,8 @@ def _grow(blocked, reach, freed, width, queue, out) -> int:
                 queue[tail] = i
                 tail += 1
                 break
-    tail = _flood(blocked, reach, width, queue, 0, tail)
+    tail = flood(blocked, reach, width, queue, 0, tail)
     out[:tail] = queue[:tail]
-    return tail
-
-
-@numba.njit(cache=True, nogil=True)
-def _flood(blocked, reach, width, queue, head, tail) -> int:
-    """Breadth-first from ``queue[head:tail]`` (already marked in ``reach``) over the free
-    cells (8-connected, padded flat map); every cell reached is marked and queued. Returns
-    the new tail."""
-    around = neighbour_offsets(width)
-    while head < tail:
-        cur = queue[head]
-        head += 1
-        for o in around:
-            nxt = cur + o
-            if not reach[nxt] and not blocked[nxt]:
-                reach[nxt] = True
-                queue[tail] = nxt
-                tail += 1
     return tail
 
 
@@ -189,13 +198,21 @@ def _flips(blocked, reach, cells, values, mark, out, was) -> tuple[int, int]:
     old reach in ``was``, then cleared in ``reach``), the freed at its back; returns the two
     counts. One pass over the delta, not a sort (``np.unique`` took ~0.2 ms of a 400² step)
     nor numpy's indexing of the flips once per use (~2 ms of the 2000² first sweep's 119 k
-    cells). ``mark``: scratch of zeros, left zeroed."""
+    cells). ``mark``: scratch of zeros, left zeroed; only a delta not strictly increasing
+    needs it (the navigator's flipped cells are, so no cell is named twice): its two passes
+    of scattered writes were ~0.4 of this function's time on the 2000² first sweep."""
+    ordered = True
+    for k in range(1, cells.size):
+        if cells[k] <= cells[k - 1]:
+            ordered = False
+            break
     nb = nf = 0
     for k in range(cells.size - 1, -1, -1):
         c = cells[k]
-        if mark[c]:
-            continue
-        mark[c] = 1
+        if not ordered:
+            if mark[c]:
+                continue
+            mark[c] = 1
         if blocked[c] == values[k]:
             continue
         blocked[c] = values[k]
@@ -207,23 +224,32 @@ def _flips(blocked, reach, cells, values, mark, out, was) -> tuple[int, int]:
         else:
             nf += 1
             out[out.size - nf] = c
-    for k in range(cells.size):
-        mark[cells[k]] = 0
+    if not ordered:
+        for k in range(cells.size):
+            mark[cells[k]] = 0
     return nb, nf
 
 
 @numba.njit(cache=True, nogil=True)
-def _reached(blocked, goal, width, reach, queue) -> int:
-    """Every free cell the goal reaches (8-connected) into ``reach``; returns their count. The
-    whole-map search of a change that may have cut cells off: ``bfs_steps`` also counts steps
-    (int64, a plan's first guess, not needed here) into a queue it allocates, 32 MB at 2000²
-    (dev VM, CPU time, an open 2000² map: 70–83 ms against 37 ms)."""
-    reach[:] = False
-    if blocked[goal]:
-        return 0
-    reach[goal] = True
-    queue[0] = goal
-    return _flood(blocked, reach, width, queue, 0, 1)
+def _answered(reach, changed, now_blocked, was, lost, gained) -> tuple[int, int]:
+    """The whole-map search's answer (``changed``: the cells whose reach differs from the
+    reach before the change) applied to ``reach``, which holds the reach after ``_flips``
+    (``now_blocked`` cleared; their old reach ``was``): the cells lost and gained, in
+    ``changed``'s order, into ``lost`` and ``gained``; returns the two counts. One pass, not
+    numpy's six scatters and gathers of up to ~137 k cells on the 2000² walk's reveal."""
+    for k in range(now_blocked.size):
+        reach[now_blocked[k]] = was[k]
+    n_lost = n_gained = 0
+    for c in changed:
+        if reach[c]:
+            reach[c] = False
+            lost[n_lost] = c
+            n_lost += 1
+        else:
+            reach[c] = True
+            gained[n_gained] = c
+            n_gained += 1
+    return n_lost, n_gained
 
 
 class Reach:
@@ -244,12 +270,26 @@ class Reach:
         self._flips = np.empty(blocked.size, dtype=np.int64)
         # Only the newly blocked cells' old reach is kept (a whole copy costs ~1 ms at 2000²).
         self._was = np.empty(blocked.size, dtype=np.bool_)
+        # Written now, so the kernel maps their pages at plan, not in a step (np.zeros and
+        # np.empty leave each 4 KiB page to a fault on its first write): the scratch indexed
+        # by cell whole, as a sweep's changes spread over the map write it nearly everywhere;
+        # the lists only as far as a large step reaches (1/CUT_SHARE of the map, the cut-off
+        # budget; a sweep's delta), 4 MB each at 2000² where whole they would hold ~130 MB
+        # more a user. The 2000² walk's first sweep and reveal, replayed (dev VM): 818–896
+        # and 313–339 minor faults -> 0 and 0 (~3 µs of CPU each there).
+        for scratch in (self._mark, self._label, self._group):
+            scratch.fill(0)
+        front = blocked.size // CUT_SHARE
+        for scratch in (self._queue, self._failed, self._out, self._flips):
+            scratch[:front] = 0
+        self._was[:front] = False
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
-        self.search: Callable[[np.ndarray, np.ndarray, int], np.ndarray] | None = None
-        """The whole-map search elsewhere (the GPU engine's ``reach_search``): given the map,
-        the reach before the change and the goal, the cells whose reach changed (sorted);
-        None: the host's breadth-first search."""
+        self.search: Callable[[np.ndarray, np.ndarray, int], Callable[[], np.ndarray]] | None = None
+        """The whole-map search elsewhere (the GPU engine's ``reach_search_start``): given the
+        map, the reach before the change and the goal (both read before it returns), it
+        starts the search and returns what waits for its answer, the cells whose reach
+        changed (in any order); None: the host's (``floods.reached``)."""
         self.cut_searches = 0
         """Changes whose cut-off cells ``cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
@@ -259,23 +299,44 @@ class Reach:
         self.count = int(self.reach.sum())
         """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
 
-    def _afresh(self, now_blocked: np.ndarray, was: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def warm(self) -> None:
+        """Compile ``_answered`` (or load it from numba's cache) now: only a ``search``'s answer
+        runs it, and the warm-up's small map searches on the host, so a walk's first device
+        search paid it (H100, the 2000² bench walk's reveal: 223 ms with the compile)."""
+        none = np.empty(0, dtype=np.int64)
+        _answered(self.reach, none, none, self._was[:0], self._out, self._failed)
+
+    def _start(self, now_blocked: np.ndarray, was: np.ndarray) -> Callable[[], np.ndarray]:
+        """``search`` started on the reach before the change; ``reach`` is left as it was."""
+        assert self.search is not None
+        self.reach[now_blocked] = was
+        wait = self.search(self.blocked, self.reach, self.goal)
+        self.reach[now_blocked] = False
+        return wait
+
+    def _afresh(
+        self, now_blocked: np.ndarray, was: np.ndarray, wait: Callable[[], np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Every reached cell found afresh (a change may have cut some off): ``(lost,
-        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``)."""
+        gained)`` against the reach before the change (``now_blocked``'s old reach ``was``);
+        ``wait``: the answer of a ``search`` already started."""
         self.full_searches += 1
         if self.search is not None:
-            self.reach[now_blocked] = was  # the reach before the change
-            changed = self.search(self.blocked, self.reach, self.goal)
-            lost = self.reach[changed]
-            self.reach[changed] = ~lost
-            n_lost = int(np.count_nonzero(lost))
-            self.count += changed.size - 2 * n_lost
-            return changed[lost], changed[~lost]
+            if wait is None:
+                wait = self._start(now_blocked, was)
+            n_lost, n_gained = _answered(self.reach, wait(), now_blocked, was, self._out,
+                                         self._failed)  # fmt: skip
+            self.count += n_gained - n_lost
+            return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
         before = self.reach.copy()
         before[now_blocked] = was
-        self.count = _reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+        self.count = reached(self.blocked, self.goal, self.width, self.reach, self._queue)
         changed = np.flatnonzero(before != self.reach)
         return changed[~self.reach[changed]], changed[self.reach[changed]]
+
+    def _cut_off(self, seeds: int, limit: int) -> int:
+        return cut_off(self.blocked, self.reach, self._failed[:seeds], self.width, self.goal,
+                       self._group, self._queue, self._out, limit)  # fmt: skip
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
@@ -290,20 +351,28 @@ class Reach:
         if not self.blocked[self.goal] and not self.reach[self.goal]:
             return self._afresh(now_blocked, was)  # the goal itself freed
         cut = 0
-        failed = 0
+        seeds = 0  # the contacts of the clusters that failed, listed in self._failed
         if nb and not self.blocked[self.goal]:
-            failed = _joined_each(self.blocked, self.reach, now_blocked, self.width, self.height,
+            seeds = _joined_each(self.blocked, self.reach, now_blocked, self.width, self.height,
                                   MARGIN, self._mark, self._queue, self._label,
                                   self._failed, self._out)  # fmt: skip
-        if nb and (self.blocked[self.goal] or failed):
+        if nb and (self.blocked[self.goal] or seeds):
+            wait = None
             if not self.blocked[self.goal]:
                 limit = self.blocked.size // CUT_SHARE
                 if self.search is not None:
+                    # A short try first; if it gives up, the device's search starts, and the
+                    # try goes on to the whole budget meanwhile (each try is the same search,
+                    # so it ends as the one try with the whole budget would: the same cuts).
                     limit = min(limit, CUT_CELLS_BESIDE_SEARCH)
-                cut = cut_off(self.blocked, self.reach, self._failed[:failed], self.width,
-                               self.goal, self._group, self._queue, self._out, limit)  # fmt: skip
+                    cut = self._cut_off(seeds, limit // FIRST_TRY_SHARE)
+                    if cut < 0:
+                        wait = self._start(now_blocked, was)
+                        cut = self._cut_off(seeds, limit)
+                else:
+                    cut = self._cut_off(seeds, limit)
             if self.blocked[self.goal] or cut < 0:
-                return self._afresh(now_blocked, was)
+                return self._afresh(now_blocked, was, wait)
             self.cut_searches += 1
         lost = now_blocked[was]
         if cut:

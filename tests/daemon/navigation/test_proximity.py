@@ -112,3 +112,37 @@ def test_no_look_when_the_target_is_seen_a_camera_does_not_look_or_guidance_is_o
     out = s.step(Inbox(pose=pose(25, 15, now + 0.1), proximity=looking(False, now + 0.1)),
                  now + 0.1)  # fmt: skip
     assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+
+
+def test_a_pose_that_overtook_its_frame_waits_for_it_and_the_frame_decides():
+    # The daemon takes a pose straight into the inbox while the frame's proximity waits for
+    # the loop: the step of pose 2 may come before frame 2, which was taken before pose 2.
+    now = time.time()
+    s = guiding(now)  # pose 0 at now, no camera yet
+    out = s.step(Inbox(proximity=near(None, now + 0.05), pose=pose(25, 15, now + 0.06)), now + 0.06)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]  # frame 1 after pose 0
+    ahead = s.step(Inbox(pose=pose(24, 15, now + 0.16)), now + 0.16)  # frame 2 not read yet
+    assert ahead.belt == [] and ahead.path_cells is None  # no GUIDE from frame 1's view
+    assert s.safety.overtaken == 1
+    stop = s.step(Inbox(proximity=near(0.3, now + 0.15)), now + 0.17)  # frame 2 sees it
+    assert [b.kind for b in stop.belt] == [PatternKind.STOP]
+    # The same with a clear frame: it guides, from pose 2.
+    s = guiding(now)
+    s.step(Inbox(proximity=near(None, now + 0.05), pose=pose(25, 15, now + 0.06)), now + 0.06)
+    assert s.step(Inbox(pose=pose(24, 15, now + 0.16)), now + 0.16).belt == []
+    go = s.step(Inbox(proximity=near(None, now + 0.15)), now + 0.17)
+    assert [b.kind for b in go.belt] == [PatternKind.GUIDE]
+    assert go.path_meta["pose_stamp"] == now + 0.16
+
+
+def test_a_frame_stamped_as_its_pose_covers_that_pose_not_the_next():
+    now = time.time()
+    s = guiding(now)
+    out = s.step(Inbox(proximity=near(None, now + 0.1), pose=pose(25, 15, now + 0.1)), now + 0.1)
+    assert [b.kind for b in out.belt] == [PatternKind.GUIDE]
+    again = s.step(Inbox(pose=pose(25, 15, now + 0.1)), now + 0.12)  # the same pose again
+    assert [b.kind for b in again.belt] == [PatternKind.GUIDE]
+    assert s.step(Inbox(pose=pose(24, 15, now + 0.2)), now + 0.2).belt == []
+    # A camera that stopped (frames older than max_age_s) is not waited for, as before.
+    late = s.step(Inbox(pose=pose(24, 15, now + 1.5)), now + 1.5)
+    assert [b.kind for b in late.belt] == [PatternKind.GUIDE]

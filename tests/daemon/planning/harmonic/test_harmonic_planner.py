@@ -197,21 +197,23 @@ def test_a_cell_named_twice_in_one_delta_takes_its_last_value():
 
 
 def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
-    # An engine with ``reach_search`` (the GPU's) takes the reach's whole-map searches on a map
-    # past DEVICE_SEARCH_CELLS: the same reach, field and descents as the host's own search.
+    # An engine with ``reach_search_start`` (the GPU's) takes the reach's whole-map searches
+    # on a map past DEVICE_SEARCH_CELLS: the same reach, field and descents as the host's.
     from daemon.planning.harmonic import HarmonicPlanner
     from daemon.planning.harmonic import planner as hp
     from daemon.planning.harmonic.cpu import CpuField
-    from daemon.planning.harmonic.reach import _reached
+    from daemon.planning.harmonic.floods import reached
 
     calls = []
 
     class Searching(CpuField):
-        def reach_search(self, blocked, before, goal):
+        def reach_search_start(self, blocked, before, goal):
+            # Answered as the device does: from the masks as they were when it started.
             calls.append(goal)
             fresh = np.zeros(blocked.size, dtype=np.bool_)
-            _reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
-            return np.flatnonzero(fresh != before)
+            reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
+            changed = np.flatnonzero(fresh != before)
+            return lambda: changed
 
     monkeypatch.setattr(hp, "DEVICE_SEARCH_CELLS", 0)
     blocked = np.zeros((30, 30), dtype=bool)
@@ -232,3 +234,31 @@ def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
         assert np.array_equal(handed.field(), own.field())
         maps.descents_hold(handed, blocked, maps.reachable(blocked, goal), steps=True)
     assert len(calls) == handed.reach.full_searches >= 1
+
+
+def test_an_engine_that_searches_has_the_answers_pass_run_at_plan_on_any_map(monkeypatch):
+    # Only a device search's answer runs ``_answered``; the warm-up's map is too small to
+    # search on the device, so ``plan`` runs it (compiled or loaded from numba's cache) for
+    # any engine that can search, and the walk's first device search does not pay for it.
+    from daemon.planning.harmonic import HarmonicPlanner
+    from daemon.planning.harmonic import reach as hr
+    from daemon.planning.harmonic.cpu import CpuField
+
+    answered = []
+    real = hr._answered
+    monkeypatch.setattr(hr, "_answered", lambda *a: answered.append(a) or real(*a))
+
+    class Searching(CpuField):
+        def reach_search_start(self, blocked, before, goal):
+            raise AssertionError("a 20² map searches on the host")
+
+    blocked = np.zeros((20, 20), dtype=bool)
+    HarmonicPlanner(CpuField()).plan(blocked, (2, 2))
+    assert not answered
+    planner = HarmonicPlanner(Searching())
+    planner.plan(blocked, (2, 2))
+    assert planner.reach.search is None and len(answered) == 1
+    assert answered[0][0] is planner.reach.reach and answered[0][1].size == 0
+    reach = planner.reach.reach.copy()
+    planner.update(15 * 20 + np.arange(20), True)  # a wall across: the host's search
+    assert (planner.reach.reach != reach).any() and len(answered) == 1

@@ -4,12 +4,15 @@ rings that close a pocket off, walls that cut the map in two, and the cells free
 
 from __future__ import annotations
 
+import resource
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.harmonic.reach import Reach, _reached
+from daemon.planning.harmonic.floods import reached
+from daemon.planning.harmonic.reach import MARGIN, Reach, _joined_each
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -54,11 +57,18 @@ def shape_cells(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
 
 
 def host_search(blocked: np.ndarray, before: np.ndarray, goal: int, width: int) -> np.ndarray:
-    """A ``Reach.search`` as the GPU engine's answers: the cells whose reach differs from
-    ``before`` in a fresh search of ``blocked``, sorted."""
+    """A ``Reach.search``'s answer as the GPU engine gives it: the cells whose reach differs
+    from ``before`` in a fresh search of ``blocked``, in no set order (its compaction's)."""
     fresh = np.zeros(blocked.size, dtype=np.bool_)
-    _reached(blocked, goal, width, fresh, np.empty(blocked.size, dtype=np.int64))
-    return np.flatnonzero(fresh != before)
+    reached(blocked, goal, width, fresh, np.empty(blocked.size, dtype=np.int64))
+    changed = np.flatnonzero(fresh != before)
+    return np.random.default_rng(changed.size).permutation(changed)
+
+
+def started(changed: np.ndarray):
+    """What ``Reach.search`` returns: the wait for an answer found from the masks as they
+    were when the search started (the device copies them up before the host goes on)."""
+    return lambda: changed
 
 
 @settings(
@@ -75,7 +85,7 @@ def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density,
     blocked[goal] = False
     reach = reach_on(blocked, goal)
     if elsewhere:
-        reach.search = lambda b, before, g: host_search(b, before, g, w + 2)
+        reach.search = lambda b, before, g: started(host_search(b, before, g, w + 2))
     for _ in range(6):
         cells = shape_cells(rng, h, w)
         values = np.full(cells.size, rng.random() < 0.75)
@@ -135,3 +145,112 @@ def test_a_try_with_more_seeds_than_its_budget_gives_up_before_it_searches(maps)
     assert not reach._group.any()
     assert_fresh(reach, maps, blocked, goal)
     assert lost.size == cells.size + 16 * 23 * 23 and gained.size == 0
+
+
+def test_the_clusters_that_fail_list_their_contacts_once_for_the_cut_off_search(maps):
+    # Two rings one free column apart (each closes a pocket: its contacts inside and outside
+    # do not join) and a blob in the open (its contacts join): the seeds listed are the
+    # rings' reached free neighbours, the column between them once, none of the blob's; the
+    # scratch is left zeroed.
+    h = w = 60
+    reach = reach_on(np.zeros((h, w), dtype=bool), (1, 1))
+    rr, cc = np.mgrid[0:h, 0:w]
+    rings = (np.maximum(np.abs(rr - 20), np.abs(cc - 20)) == 5) | (
+        np.maximum(np.abs(rr - 20), np.abs(cc - 32)) == 5
+    )
+    blob = np.maximum(np.abs(rr - 45), np.abs(cc - 45)) <= 2
+    new = pad(np.flatnonzero((rings | blob).reshape(-1)), w)
+    reach.blocked[new] = True  # as ``apply``'s flips leave them
+    reach.reach[new] = False
+    contacts = np.empty(reach.blocked.size, dtype=np.int64)
+    n = _joined_each(reach.blocked, reach.reach, new, w + 2, h + 2, MARGIN, reach._mark,
+                     reach._queue, reach._label, contacts, reach._out)  # fmt: skip
+    ring_cells = padded(rings)
+    ring_cells[padded(np.zeros((h, w), dtype=bool))] = False  # the border is not a ring
+    near = np.zeros_like(ring_cells)
+    for o in (-w - 3, -w - 2, -w - 1, -1, 1, w + 1, w + 2, w + 3):
+        near |= np.roll(ring_cells, o)
+    want = np.flatnonzero(near & reach.reach)
+    assert n == want.size == np.unique(contacts[:n]).size
+    assert set(contacts[:n].tolist()) == set(want.tolist())
+    assert not reach._label.any() and not reach._mark.any()
+
+
+def test_beside_a_search_a_long_try_runs_while_the_search_it_started_works(maps):
+    # Beside ``Reach.search``, a try first gets 1/FIRST_TRY_SHARE of its budget. A ring whose
+    # pocket needs more starts the search (from the reach before the change) and still finds
+    # the pocket itself; a wall across the map, which no budget clears, waits for the
+    # search's answer. Each ends with the one try's outcome: the same reach and counts.
+    h = w = 100
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (2, 2)
+    reach = Reach(padded(blocked), (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2)
+    started, waited = [], []
+
+    def search(b, before, g):
+        started.append(before.copy())  # the masks as the device would have copied them up
+        changed = host_search(b, before, g, w + 2)
+        return lambda: waited.append(g) or changed
+
+    reach.search = search
+    rr, cc = np.mgrid[0:h, 0:w]
+    ring = np.flatnonzero((np.maximum(np.abs(rr - 60), np.abs(cc - 60)) == 8).reshape(-1))
+    wall = np.flatnonzero((rr == 30).reshape(-1))
+    for cells, cut, full in ((ring, 1, 0), (wall, 1, 1)):
+        before = reach.reach.copy()
+        lost, gained = reach.apply((cells // w + 1) * (w + 2) + cells % w + 1,
+                                   np.ones(cells.size, bool))  # fmt: skip
+        blocked.reshape(-1)[cells] = True
+        fresh = padded(~maps.reachable(blocked, goal) | blocked)
+        assert (reach.reach == ~fresh).all() and reach.count == int(reach.reach.sum())
+        assert set(np.flatnonzero(before & ~reach.reach).tolist()) == set(lost.tolist())
+        assert gained.size == 0 and not reach._group.any()
+        assert (reach.cut_searches, reach.full_searches) == (cut, full)
+        assert np.array_equal(started[-1], before)  # started from the reach before the change
+    assert len(started) == 2 and len(waited) == 1
+
+
+@pytest.mark.parametrize("density", [0.0, 0.2, 0.45, 0.6])
+def test_the_whole_map_search_by_spans_is_the_breadth_first_search(maps, density):
+    # ``reached`` takes runs along rows and reads the rows beside them one cell past each end:
+    # corner-only gaps (a diagonal step between two blocked cells) count, as in the
+    # breadth-first search; and its count is the cells it marked.
+    rng = np.random.default_rng(int(density * 100))
+    for _ in range(10):
+        h, w = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        blocked = maps.random_map(rng, h, w, density)
+        goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+        flat = padded(blocked)
+        out = np.ones(flat.size, dtype=np.bool_)  # reached clears what it does not reach
+        count = reached(flat, (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2, out,
+                        np.empty(flat.size, dtype=np.int64))  # fmt: skip
+        want = padded(~maps.reachable(blocked, goal) | blocked)
+        assert (out == ~want).all() and count == int(out.sum())
+
+
+def test_the_scratch_is_mapped_at_construction_not_by_the_first_sweep():
+    """A sweep's changes spread over the map write ``_label`` and ``_mark`` on every page, and
+    a pocket closed in the same sweep runs the cut-off search: the pages are the kernel's to
+    fault in at construction, not inside the first step."""
+    h = w = 1024
+    blocked = np.zeros((h, w), dtype=bool)
+    goal = (h // 2, w // 2)
+    warm = reach_on(blocked[:64, :64], (32, 32))  # numba's compile or cache load, outside
+    warm.apply(pad(np.array([5 * 64 + 5]), 64), np.ones(1, dtype=bool))
+    reach = reach_on(blocked, goal)
+    # One isolated new obstacle every 4 rows (each 4 KiB page of the masks holds ~4 rows),
+    # a ring round a pocket, and a 200² block (its 40 k cells fill the lists' fronts).
+    scattered = np.array([r * w + (r * 37) % (w - 2) + 1 for r in range(2, h - 2, 4)])
+    rr, cc = np.mgrid[0:h, 0:w]
+    d = np.maximum(np.abs(rr - 100), np.abs(cc - 900)).reshape(-1)
+    ring = np.flatnonzero(d == 20)
+    block = np.flatnonzero(((rr >= 700) & (rr < 900) & (cc >= 100) & (cc < 300)).reshape(-1))
+    cells = np.union1d(np.union1d(scattered, ring), block)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    lost, gained = reach.apply(pad(cells, w), np.ones(cells.size, dtype=bool))
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    assert reach.cut_searches == 1 and reach.full_searches == 0
+    assert lost.size == cells.size + (d < 20).sum() and gained.size == 0
+    # Mapped on first write: 830–1 050 faults here, ~190 of them the lists' fronts (dev VM;
+    # fewer where transparent huge pages serve the lists, 8 MB each).
+    assert faults < 64
