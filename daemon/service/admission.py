@@ -331,6 +331,14 @@ class Admission:
         """How long the lag must stay calm before the next readmission."""
         return min(self.s.max_calm_s, self.s.calm_s * 2.0**self.overshoots)
 
+    def said(self) -> dict[str, float | int | bool]:
+        """The measures behind a decision, as the daemon's ``load`` log line gives them."""
+        return {
+            "draining": self.draining, "lag_p95_ms": round(self.last_p95_ms, 1),
+            "lag_recent_p95_ms": round(self.recent_p95_ms, 1), "calm_s": self.calm_wanted_s,
+            "step_cpu_ms_per_s": round(self.last_cpu_ms), "overloaded_now": len(self._shed),
+        }  # fmt: skip
+
     def _threshold(self, now: float) -> float:
         """The lag's p95 past which users are shed: ``shed_fraction`` of the budget, or the
         whole budget while users join. A join's first steps (a whole map taken, often a

@@ -234,16 +234,9 @@ class Daemon:
                 self._set_shed(runner, flag)
                 runner.tick()  # told now, not at their next input
         if shed or back or adm.drain_waits != waits:  # a lag waited out is said once too
-            log.warning(
-                "load",
-                extra={"fields": {
-                    "worker": -1 if self.worker is None else self.worker.index,
-                    "shed": ",".join(shed), "guided_again": ",".join(back),
-                    "draining": adm.draining, "lag_p95_ms": round(adm.last_p95_ms, 1),
-                    "lag_recent_p95_ms": round(adm.recent_p95_ms, 1), "calm_s": adm.calm_wanted_s,
-                    "step_cpu_ms_per_s": round(adm.last_cpu_ms), "overloaded_now": len(adm.shed),
-                }},
-            )  # fmt: skip
+            worker = -1 if self.worker is None else self.worker.index
+            fields = {"worker": worker, "shed": ",".join(shed), "guided_again": ",".join(back)}
+            log.warning("load", extra={"fields": fields | adm.said()})
 
     def _forget(self, user: str) -> None:
         """A user silent for ``user_idle_s`` and not being guided: free the session."""

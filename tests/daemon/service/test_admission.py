@@ -34,6 +34,16 @@ def steps(adm: Admission, users, now: float, cpu_ms: float, lag_ms: float, n: in
             adm.record(u, lag_ms, cpu_ms, now - 0.9 + i * 0.9 / n)
 
 
+def joined(n: int, width: int = 1, **settings: float) -> tuple[Admission, list[str]]:
+    """An Admission with these settings and ``n`` users (u0, u1, … or u00, … at ``width``)
+    joined at time 0, in that order."""
+    adm = Admission(AdmissionSettings(**settings))
+    users = [f"u{i:0{width}d}" for i in range(n)]
+    for u in users:
+        adm.join(u, 0.0)
+    return adm, users
+
+
 def test_over_the_cpu_budget_the_newest_users_are_shed_until_the_rest_fit():
     adm = Admission(AdmissionSettings(cpu_budget_ms=100.0))
     users = [f"u{i}" for i in range(8)]
@@ -46,10 +56,7 @@ def test_over_the_cpu_budget_the_newest_users_are_shed_until_the_rest_fit():
 
 
 def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_never_shed():
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))  # threshold 30 ms
-    users = [f"u{i}" for i in range(20)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5)  # threshold 30 ms
     steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=40.0)
     assert adm.review(10.0) == ([], [])  # over, but not for sustain_s yet
     steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=40.0)
@@ -93,10 +100,7 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
 
 
 def test_the_backlog_left_from_before_a_shedding_does_not_shed_again():
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, settle_s=1.0))
-    users = [f"u{i}" for i in range(20)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5, settle_s=1.0)
     for t in (10.0, 10.6):
         steps(adm, users, t, cpu_ms=0.1, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -152,11 +156,7 @@ def test_a_burst_that_has_passed_is_waited_out_and_a_lasting_lag_is_not():
 
 
 def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once():
-    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
-    adm = Admission(s)
-    users = [f"u{i}" for i in range(20)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     for t in (10.0, 11.0):  # a burst of lag: half are shed at once
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -169,11 +169,7 @@ def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once()
 
 
 def test_no_user_comes_back_past_the_capacity_the_lag_measured():
-    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
-    adm = Admission(s)
-    users = [f"u{i}" for i in range(8)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     for t in (10.0, 11.0):  # 8 × 40 = 320 ms/s of CPU, far under the budget, yet late
         steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
         shed, _ = adm.review(t)
@@ -194,11 +190,7 @@ def test_late_again_above_the_remembered_capacity_keeps_the_lower_one():
     """Late at 320 ms/s; three come back (280), and long after (past ``overshoot_s``) cost
     more than before and the lag is over again at 340. The machine gave less than 340 both
     times: readmission stays within 0.9 × 320, or the same users would be shed again."""
-    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
-    adm = Admission(s)
-    users = [f"u{i}" for i in range(8)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     for t in (10.0, 11.0):
         steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
         adm.review(t)
@@ -269,11 +261,7 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
 
 
 def test_a_lag_that_outlasts_the_undone_readmission_is_shed_by_the_lag_rule():
-    s = AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
-    adm = Admission(s)
-    users = [f"u{i:02d}" for i in range(20)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(20, width=2, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     for t in (10.0, 11.0):
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -293,11 +281,9 @@ def test_a_lag_that_outlasts_the_undone_readmission_is_shed_by_the_lag_rule():
 def test_a_user_shed_while_late_comes_back_priced_at_what_a_guided_user_costs_now():
     """Shed while late, their inputs batched into fewer steps: 60 ms/s each then. Guided
     again, a user costs 90 (the dev VM: 7.3 ms/s each at 50 late users, ~10.4 at 25 calm)."""
-    s = AdmissionSettings(cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5)
-    adm = Admission(s)
-    users = [f"u{i:02d}" for i in range(20)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(
+        20, width=2, cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5
+    )
     for t in (10.0, 11.0):  # 20 × 60 = 1200 ms/s and late: half shed, capacity 1200
         steps(adm, users, t, cpu_ms=6.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -311,11 +297,7 @@ def test_a_user_shed_while_late_comes_back_priced_at_what_a_guided_user_costs_no
 
 
 def test_calm_brings_back_the_user_shed_longest_ago_one_at_a_time():
-    s = AdmissionSettings(cpu_budget_ms=100.0, calm_s=2.0, min_shed_s=5.0, settle_s=1.0)
-    adm = Admission(s)
-    users = [f"u{i}" for i in range(4)]
-    for u in users:
-        adm.join(u, 0.0)
+    adm, users = joined(4, cpu_budget_ms=100.0, calm_s=2.0, min_shed_s=5.0, settle_s=1.0)
     steps(adm, users, 10.0, cpu_ms=4.0, lag_ms=5.0)  # 4 × 40 = 160 ms/s
     assert adm.review(10.0)[0] == ["u2", "u3"]
     back = []
