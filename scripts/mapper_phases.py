@@ -68,6 +68,7 @@ def instrument() -> None:
     om.check_header = timed("check_header", om.check_header)
     om.check_depth = timed("check_late", om.check_depth)
     om.merge_frame = timed("merge", om.merge_frame)
+    om.proximity_of = timed("proximity", om.proximity_of)
     OccupancyMapper._floor_for = timed("floor", OccupancyMapper._floor_for)
     OccupancyMapper.window = timed("window", OccupancyMapper.window)
     OccupancyMapper.fit_pending_floor = timed("fit_handoff", OccupancyMapper.fit_pending_floor)
@@ -79,7 +80,8 @@ def instrument() -> None:
 
         cb.FramePass.stage = timed("stage", cb.FramePass.stage)
         cb.FramePass.launch = timed("launch", cb.FramePass.launch)
-        cb.FramePass.read = timed("wait", cb.FramePass.read)
+        cb.FramePass.wait = timed("wait", cb.FramePass.wait)
+        cb.MergeTail.result = timed("readback", cb.MergeTail.result)
     except ImportError:  # no CuPy: the cpu pass is one call
         pass
 
