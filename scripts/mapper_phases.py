@@ -30,7 +30,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from mapper import node as node_mod
 from mapper import occupancy_mapper as om
 from mapper.node import MapperNode
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
@@ -73,7 +72,7 @@ def instrument() -> None:
     OccupancyMapper.window = timed("window", OccupancyMapper.window)
     OccupancyMapper.fit_pending_floor = timed("fit_handoff", OccupancyMapper.fit_pending_floor)
     MapperNode._deltas = timed("delta_msg", MapperNode._deltas)
-    node_mod.Proximity = timed("prox_msg", node_mod.Proximity)
+    codec.proximity_bytes = timed("prox_bytes", codec.proximity_bytes)
     codec.encode = timed("encode", codec.encode)
     try:
         from mapper import cuda_binning as cb
