@@ -85,15 +85,23 @@ class FramePass:
         self.stream = cp.cuda.Stream(non_blocking=True)  # capture needs a stream of its own
         bin_pixels, read_bins = _functions(np.dtype(dtype))  # loaded before the capture
         s, rt = self.stream, cp.cuda.runtime
+
+        def resets() -> None:
+            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
+            rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
+            rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
+
+        if dmap is not None:  # the merge resets them after each frame: once here, for the first
+            resets()
+            s.synchronize()
         # The copies and resets through the runtime itself: CuPy's own copy methods refuse
         # any host transfer while a stream captures (they cannot tell page-locked memory).
         s.begin_capture()
         try:
             rt.memcpyAsync(up.data.ptr, self.up.ctypes.data, up.nbytes, rt.memcpyHostToDevice,
                            s.ptr)  # fmt: skip
-            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
-            rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
-            rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
+            if dmap is None:
+                resets()
             bin_pixels(
                 ((h * w + THREADS - 1) // THREADS,), (THREADS,),
                 (depth, np.int32(h), np.int32(w), params, np.int32(side),
@@ -111,7 +119,7 @@ class FramePass:
                                rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
             else:  # the merge runs here too: only its changed cells come back
                 self.merge = MergeTail(side, dmap)
-                self.merge.capture(s, out, params, bins)
+                self.merge.capture(s, out, params, bins, hit_key, far_key)
         finally:
             self.graph = s.end_capture()
         self._device = (out, hit_key, far_key, up)  # alive as long as the graph

@@ -2,7 +2,10 @@
 // read_bins: the clearing rays, the range-noise tails, the log-odds update with its
 // hysteresis, the forgetting and the frame's proximity, against the global map kept on the
 // device. Only the changed cells leave, compacted in merge_frame's order (the window's
-// changes row by row, then the forgotten cells in flat order), with the proximity's figures.
+// changes row by row, then the forgotten cells in flat order), each one word (flat index << 2 |
+// value), with the proximity's figures. Last it resets the pass's counts and bin keys for the
+// next frame, so the graph holds no memsets: five nodes (the upload, three kernels, one
+// read-back), and each node costs the host's launch time.
 // One block: the window is a few thousand cells, and one block can order its output with a
 // scan and reduce its nearest cell without a second launch.
 //
@@ -148,12 +151,13 @@ __device__ int block_scan(int mine, int* buf, int& total) {
 }
 
 // out: bin_pixels' counts (obstacle, floor), valid, present, then read_bins' hit and far.
-// scratch: 3 side^2 bytes (rays, occupied, tails). cells / values: the changes, the window's
-// then the forgotten ones; head: HEAD_INTS ints, the doubles from head + 6.
+// scratch: 3 side^2 bytes (rays, occupied, tails). head: HEAD_INTS ints (the doubles from
+// head + 6), then the changes' words, the window's then the forgotten ones.
 extern "C" __global__ void __launch_bounds__(THREADS)
-merge_cells(const int* out, const double* P, int side, int bins, int map_rows, int map_cols,
+merge_cells(int* out, const double* P, int side, int bins, int map_rows, int map_cols,
             unsigned char* occ, float* lo, double* seen_at, const unsigned char* fixed,
-            unsigned char* scratch, int* head, unsigned int* cells, unsigned char* values) {
+            unsigned char* scratch, int* head, unsigned long long* hit_key,
+            unsigned long long* far_key) {
     __shared__ int scan[THREADS];
     __shared__ double best_d[THREADS], best_a[THREADS];
     __shared__ int best_i[THREADS];
@@ -162,7 +166,8 @@ merge_cells(const int* out, const double* P, int side, int bins, int map_rows, i
     const double* hit = (const double*)(out + 2 * n + 2);
     const double* far = hit + 3 * bins;
     unsigned char *fr = scratch, *occd = scratch + n, *tl = scratch + 2 * n;
-    int present = HOST_PRESENT >= 0.0 ? (int)HOST_PRESENT : out[2 * n + 1];
+    unsigned int* cells = (unsigned int*)(head + HEAD_INTS);
+    int valid = out[2 * n], present = HOST_PRESENT >= 0.0 ? (int)HOST_PRESENT : out[2 * n + 1];
     // check_depth and check_motion: a refused frame leaves the map as it was.
     bool commit = MOTION_OK != 0.0 && !(present < NEED_PRESENT);
 
@@ -217,7 +222,7 @@ merge_cells(const int* out, const double* P, int side, int bins, int map_rows, i
     for (int j = j0; j < j1; ++j) {
         int mr = ra + j / wc, mc = ca + j % wc, flat = mr * map_cols + mc;
         Cell x = cell_of((mr - R0) * side + mc - C0, flat, obst, flo, fr, occd, tl, occ, lo, P);
-        if (x.seen && x.value != x.old) cells[at] = flat, values[at++] = x.value;
+        if (x.seen && x.value != x.old) cells[at++] = (unsigned int)flat << 2 | x.value;
     }
 
     // The forgotten: obstacles not fixed, not seen since forget_before and not seen now.
@@ -236,7 +241,7 @@ merge_cells(const int* out, const double* P, int side, int bins, int map_rows, i
             if (pass == 0)
                 ++mine;
             else
-                cells[at] = f, values[at++] = UNKNOWN;
+                cells[at++] = (unsigned int)f << 2 | UNKNOWN;
         }
         if (pass == 0) at = k + block_scan(mine, scan, g);
     }
@@ -254,12 +259,15 @@ merge_cells(const int* out, const double* P, int side, int bins, int map_rows, i
         }
         __syncthreads();
         for (int i = k + t; i < k + g; i += THREADS) {
-            occ[cells[i]] = UNKNOWN;
-            lo[cells[i]] = 0.0f;  // forgotten
+            occ[cells[i] >> 2] = UNKNOWN;
+            lo[cells[i] >> 2] = 0.0f;  // forgotten
         }
     }
+    __syncthreads();  // every read of this frame's counts is done: ready them for the next
+    for (int i = t; i < 2 * n + 2; i += THREADS) out[i] = 0;
+    for (int b = t; b < bins; b += THREADS) hit_key[b] = 0xffffffffffffffffULL, far_key[b] = 0ULL;
     if (t == 0) {
-        head[0] = k, head[1] = g, head[2] = out[2 * n], head[3] = present, head[4] = commit;
+        head[0] = k, head[1] = g, head[2] = valid, head[3] = present, head[4] = commit;
         double* hd = (double*)(head + 6);
         int i = best_i[0];
         double cx = 0, cy = 0;

@@ -54,7 +54,8 @@ class DeviceMergeOfCpuBins:
         p[27 : 27 + len(params)] = params
         tail = cm.MergeTail(win.side, self.dmap)
         # Uncaptured, the calls the graph holds run at once on the stream.
-        tail.capture(self.stream, cp.asarray(out), cp.asarray(p), bins)
+        keys = cp.empty(bins, cp.uint64), cp.empty(bins, cp.uint64)  # reset, unused here
+        tail.capture(self.stream, cp.asarray(out), cp.asarray(p), bins, *keys)
         self.stream.synchronize()
         return tail.result()
 
