@@ -2,8 +2,9 @@
 
 ``cpu`` is the numba loop of ``binning.py``; ``cuda`` the CUDA graph of ``cuda_binning.py``
 (``cupy`` is optional: imported only when asked for, or when ``auto`` finds a device).
-Both take the same arguments and return the same ``Binned``, so the mapper never knows
-which one ran. ``auto`` takes cuda when a device answers, else cpu, as the planner does.
+Both take the same arguments and return the same ``Binned``; cuda also merges the frame
+into the map it keeps on the device, with the same result as ``merge.merge_frame``.
+``auto`` takes cuda when a device answers, else cpu, as the planner does.
 """
 
 from __future__ import annotations
@@ -17,14 +18,25 @@ BACKENDS = ("auto", "cpu", "cuda")
 
 
 class Binner:
-    def __init__(self, name: str, fn: Callable[..., Binned], counts_valid: bool = False) -> None:
+    def __init__(self, name: str, fn: Callable[..., Binned], counts_valid: bool = False,
+                 merges: bool = False) -> None:  # fmt: skip
         self.name, self._fn = name, fn
         self.counts_valid = counts_valid
         """The pass also counts the pixels the frame check counts (``Binned.present``): the
         mapper then checks the depth and the motion once the pass is back, not before."""
+        self.merges = merges
+        """The pass also merges the frame into a map it keeps (``merge``, ``pull``: cuda,
+        ``cuda_merge``); the mapper then calls ``merge`` instead of the pass and
+        ``merge.merge_frame``."""
 
     def __call__(self, *args: Any) -> Binned:
         return self._fn(*args)
+
+    def merge(self, maps: tuple, params: list[float], *args: Any) -> tuple:
+        return self._fn.merge(maps, params, *args)  # type: ignore[attr-defined]
+
+    def pull(self, logodds: Any, seen_at: Any) -> None:
+        self._fn.pull(logodds, seen_at)  # type: ignore[attr-defined]
 
 
 def cuda_usable() -> bool:
@@ -42,5 +54,5 @@ def make_binner(name: str = "auto") -> Binner:
     if name == "cuda" or (name == "auto" and cuda_usable()):
         from .cuda_binning import CudaBinner
 
-        return Binner("cuda", CudaBinner(), counts_valid=True)  # its own buffers and graph
+        return Binner("cuda", CudaBinner(), counts_valid=True, merges=True)  # its own graphs
     return Binner("cpu", bin_frame_cpu)

@@ -19,11 +19,14 @@ launch and one wait instead of the eight calls through CuPy (three memsets, two 
 two launches, a read-back, each with its Python wrapping) that were most of the pass's
 0.25 ms on the host, and whose tail (p99 1.16 ms in an H100 call) was the frame's.
 Everything that varies from frame to frame, the window's corner included, is in the
-uploaded parameters, so the captured graph stays valid.
+uploaded parameters, so the captured graph stays valid. The mapper's passes also merge the
+frame into the map kept on the device (``cuda_merge``): their read-back is then only the
+changed cells and the proximity's figures, not the window's counts.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import cupy as cp
@@ -31,13 +34,15 @@ import cupyx
 import numpy as np
 
 from .binning import MIN_DEPTH_M, PUSH_M, TAN_LIMIT, Binned, Window
+from .cuda_merge import DeviceMap, MergeTail
 from .frame import count_valid
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
 PARAMS = 27
-"""The kernel's double parameters (``kernels/bin_pixels.cu``'s P)."""
-HEAD = 256
+"""The kernel's double parameters (``kernels/bin_pixels.cu``'s P); the merge's follow them
+(``kernels/merge_cells.cu``, ``cuda_merge.merge_params``)."""
+HEAD = 512
 """Bytes the parameters take ahead of the depth in the one upload (keeps the depth aligned)."""
 _MODULES: dict[str, tuple] = {}
 
@@ -57,7 +62,7 @@ class FramePass:
     page-locked host twins, the pass's own stream and the frame's work captured on it."""
 
     def __init__(self, side: int, bins: int, h: int, w: int, map_rows: int,
-                 dtype: np.dtype) -> None:  # fmt: skip
+                 dtype: np.dtype, dmap: DeviceMap | None = None) -> None:  # fmt: skip
         n = 2 * side * side
         # counts | valid, present | hit, far (doubles). n is even, so the doubles start at
         # an even int32 offset: 8-byte aligned.
@@ -70,7 +75,6 @@ class FramePass:
         self.host = cupyx.empty_pinned(size, np.int32)
         self.up = cupyx.empty_pinned(HEAD + depth_bytes, np.uint8)
         self.params = self.up[:HEAD].view(np.float64)
-        self.params[PARAMS - 1] = TAN_LIMIT  # the one constant: set once, uploaded with each frame
         self.depth = self.up[HEAD:].view(dtype).reshape(h, w)
         # The merge's views of the read-back, made once, and the one Binned that holds them
         # (valid until this pass's next frame: the mapper merges it at once).
@@ -81,15 +85,23 @@ class FramePass:
         self.stream = cp.cuda.Stream(non_blocking=True)  # capture needs a stream of its own
         bin_pixels, read_bins = _functions(np.dtype(dtype))  # loaded before the capture
         s, rt = self.stream, cp.cuda.runtime
+
+        def resets() -> None:
+            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
+            rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
+            rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
+
+        if dmap is not None:  # the merge resets them after each frame: once here, for the first
+            resets()
+            s.synchronize()
         # The copies and resets through the runtime itself: CuPy's own copy methods refuse
         # any host transfer while a stream captures (they cannot tell page-locked memory).
         s.begin_capture()
         try:
             rt.memcpyAsync(up.data.ptr, self.up.ctypes.data, up.nbytes, rt.memcpyHostToDevice,
                            s.ptr)  # fmt: skip
-            rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
-            rt.memsetAsync(hit_key.data.ptr, 0xFF, hit_key.nbytes, s.ptr)  # keys at uint64's max
-            rt.memsetAsync(far_key.data.ptr, 0, far_key.nbytes, s.ptr)
+            if dmap is None:
+                resets()
             bin_pixels(
                 ((h * w + THREADS - 1) // THREADS,), (THREADS,),
                 (depth, np.int32(h), np.int32(w), params, np.int32(side),
@@ -102,30 +114,38 @@ class FramePass:
                  out[n + 2 : n + 2 + 6 * bins].view(cp.float64),
                  out[n + 2 + 6 * bins :].view(cp.float64)), stream=s,
             )  # fmt: skip
-            rt.memcpyAsync(self.host.ctypes.data, out.data.ptr, out.nbytes,
-                           rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
+            if dmap is None:
+                rt.memcpyAsync(self.host.ctypes.data, out.data.ptr, out.nbytes,
+                               rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
+            else:  # the merge runs here too: only its changed cells come back
+                self.merge = MergeTail(side, dmap)
+                self.merge.capture(s, out, params, bins, hit_key, far_key)
         finally:
             self.graph = s.end_capture()
         self._device = (out, hit_key, far_key, up)  # alive as long as the graph
 
     def stage(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
               floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
-              min_depth: float) -> None:  # fmt: skip
+              min_depth: float, merge: Sequence[float] = ()) -> None:  # fmt: skip
         """The frame's parameters and depth into the page-locked upload buffer (the last
         frame's graph has finished with it: its read-back was waited for). One numpy call
-        for the parameters; the depth is cast on the way in where it is float64."""
-        self.params[: PARAMS - 1] = [
+        for the parameters (``merge``: the merge's, ``cuda_merge.merge_params``); the depth
+        is cast on the way in where it is float64."""
+        self.params[: PARAMS + len(merge)] = [
             intr.fx, intr.fy, intr.cx, intr.cy, *np.ravel(rot).tolist(), *np.ravel(t).tolist(),
             floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale,
-            win.r0, win.c0,
+            win.r0, win.c0, TAN_LIMIT, *merge,
         ]  # fmt: skip
         np.copyto(self.depth, depth, casting="same_kind")
 
     def launch(self) -> None:
         self.graph.launch(self.stream)
 
-    def read(self) -> Binned:
+    def wait(self) -> None:
         self.stream.synchronize()  # the frame's one wait on the device
+
+    def read(self) -> Binned:
+        self.wait()
         b = self.binned
         b.valid, b.present = int(self.host[self.n]), int(self.host[self.n + 1])
         return b
@@ -138,25 +158,54 @@ class CudaBinner:
 
     def __init__(self) -> None:
         self._passes: dict[tuple, FramePass] = {}
+        self._maps: dict[tuple[int, int], DeviceMap] = {}
 
     def prepare(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
                 floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
                 cols_per_bin: int, stride: int,
-                min_depth: float = MIN_DEPTH_M) -> FramePass:  # fmt: skip
+                min_depth: float = MIN_DEPTH_M, dmap: DeviceMap | None = None,
+                merge: Sequence[float] = ()) -> FramePass:  # fmt: skip
         """The frame's pass with the frame staged, ready to launch (apart from the call, so
-        the bench can time the graph alone: ``scripts/mapper_bench.py --split``)."""
+        the bench can time the graph alone: ``scripts/mapper_bench.py --split``); with
+        ``dmap``, the pass that also merges into it (``merge``: its parameters)."""
         if stride != 1:
             depth = depth[::stride, ::stride]
             intr = intr.scaled(1.0 / stride)
         h, w = depth.shape
         bins = (w + cols_per_bin - 1) // cols_per_bin
         dtype = np.dtype(np.float32) if depth.dtype == np.float64 else depth.dtype
-        key = (win.side, bins, h, w, win.map_rows, dtype)
+        key = (win.side, bins, h, w, win.map_rows, dtype, dmap and dmap.shape)
         fp = self._passes.get(key)
         if fp is None:
-            fp = self._passes[key] = FramePass(win.side, bins, h, w, win.map_rows, dtype)
-        fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth)
+            fp = self._passes[key] = FramePass(win.side, bins, h, w, win.map_rows, dtype, dmap)
+        fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth,
+                 merge)  # fmt: skip
         return fp
+
+    def merge(self, maps: tuple, merge: list[float], *args) -> tuple:
+        """The frame binned and merged into the map kept on the device (``cuda_merge``):
+        ``maps`` the mapper's host occupancy, log-odds, seen-at and fixed cells (uploaded
+        when they are not the ones the device holds), ``merge`` the merge's parameters
+        (``merge.merge_params``), ``args`` the pass's. One launch and one wait; returns
+        ``MergeTail.result``."""
+        occupancy = maps[0]
+        dmap = self._maps.get(occupancy.shape)
+        if dmap is None:
+            dmap = self._maps[occupancy.shape] = DeviceMap(occupancy.shape)
+        dmap.attach(*maps)
+        depth, stride = args[0], args[11]
+        if stride != 1 or depth.dtype == np.float64:
+            # The device sees a subsampled or float32 copy: the check counts the original.
+            merge = list(merge)
+            merge[8] = float(count_valid(depth))
+        fp = self.prepare(*args, dmap=dmap, merge=merge)
+        fp.launch()
+        fp.wait()
+        return fp.merge.result()
+
+    def pull(self, logodds: np.ndarray, seen_at: np.ndarray) -> None:
+        """The device map's log-odds and seen-at into the mapper's host arrays."""
+        self._maps[logodds.shape].pull(logodds, seen_at)
 
     def __call__(self, *args) -> Binned:
         """The frame binned; its arrays are this binner's page-locked read-back, valid until

@@ -26,14 +26,15 @@ FREE, OCCUPIED, UNKNOWN = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def merge_frame(obst, floor, hit, far, cam_x, cam_y, heading, r0, c0, map_rows, cell,
+def merge_frame(obst, floor, hit, far, cam_x, cam_y, cos_h, sin_h, r0, c0, map_rows, cell,
                 occupancy, logodds, seen_at, fixed, stamp, forget_before,
                 min_points, min_share, tail_share, l_hit, l_pass, l_occupied, l_free,
                 l_min, l_max, corridor):  # fmt: skip
     """Merge one binned frame into ``occupancy``, ``logodds`` and ``seen_at`` (in place, at
     the end). ``forget_before`` (-inf: not this frame) also sends back to UNKNOWN every
     obstacle not fixed, not seen since then and not seen now. Returns the changed flat
-    cells, their values and the proximity's (ahead, nearest, bearing), NaN where none."""
+    cells, their values and the proximity's (ahead, nearest, side, fwd), NaN where none
+    (``proximity.nearest_cells``; ``cos_h``, ``sin_h``: the heading's)."""
     side = obst.shape[0]
     h, w = occupancy.shape
     free = clear_rays(hit, far, cam_x, cam_y, r0, c0, side, map_rows, cell, 0.5 * cell)
@@ -46,8 +47,7 @@ def merge_frame(obst, floor, hit, far, cam_x, cam_y, heading, r0, c0, map_rows, 
         for c in range(side):
             o = obst[r, c]
             occupied[r, c] = o >= min_points and o >= min_share * (o + floor[r, c])
-    ahead, nearest, bearing = nearest_cells(occupied, r0, c0, map_rows, cell, cam_x, cam_y,
-                                         heading, corridor)  # fmt: skip
+    near = nearest_cells(occupied, r0, c0, map_rows, cell, cam_x, cam_y, cos_h, sin_h, corridor)
     # The map keeps float32 log-odds: the update is done in float32, as numpy did it.
     hit32, pass32 = np.float32(l_hit), np.float32(l_pass)
     occ32, free32 = np.float32(l_occupied), np.float32(l_free)
@@ -124,4 +124,18 @@ def merge_frame(obst, floor, hit, far, cam_x, cam_y, heading, r0, c0, map_rows, 
     flat_seen = seen_at.reshape(-1)
     for i in range(ns):
         flat_seen[seen[i]] = stamp
-    return cells, values, ahead, nearest, bearing
+    return cells, values, near[0], near[1], near[2], near[3]
+
+
+def merge_params(settings, cos_h: float, sin_h: float, cam_row: float, cam_col: float,
+                 stamp: float, forget_before: float, need: float,
+                 motion_ok: bool) -> list[float]:  # fmt: skip
+    """What ``merge_frame`` takes beyond the pass's output, for the device's merge
+    (``kernels/merge_cells.cu``'s P[27..46]): the frame's, then the mapper's settings. P[35],
+    the host's pixel count, is -1 (the device's own) unless the binner sets it."""
+    s = settings
+    return [
+        cos_h, sin_h, cam_row, cam_col, stamp, forget_before, need, float(motion_ok), -1.0,
+        float(s.min_points), s.min_share, s.tail_share, s.l_hit, s.l_pass, s.l_occupied,
+        s.l_free, s.l_min, s.l_max, s.corridor_m, _BEYOND_COS,
+    ]  # fmt: skip

@@ -26,7 +26,7 @@ from zenoh.handlers import Callback
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import MAX_DELTA_CELLS, MapSnapshot, Proximity
+from protocol.messages import MAX_DELTA_CELLS, MapSnapshot
 
 from .frame import DepthFrame, FrameRejected
 from .occupancy_mapper import OCCUPIED, FrameResult, OccupancyMapper
@@ -74,9 +74,9 @@ class MapperNode:
         if result is None:
             return None
         p = result.proximity
-        msg = Proximity(ahead_m=p.ahead_m, nearest_m=p.nearest_m, bearing=p.bearing,
-                        frame_stamp=frame.stamp, stamp=time.time())  # fmt: skip
-        self._prox.put(codec.encode(msg))
+        # Packed without the model, as the deltas: the daemon checks it on arrival.
+        self._prox.put(codec.proximity_bytes(p.ahead_m, p.nearest_m, p.bearing, frame.stamp,
+                                             time.time()))  # fmt: skip
         self.last = result
         # The frame is out: a floor fit it left due runs now, off its path (floor_async).
         self.mapper.fit_pending_floor()

@@ -43,8 +43,8 @@ from .frame import (
     check_header,
     check_motion,
 )
-from .merge import merge_frame
-from .proximity import Proximity
+from .merge import merge_frame, merge_params
+from .proximity import Proximity, proximity_of
 
 FREE, OCCUPIED, UNKNOWN = 0, 1, 2
 """As ``protocol.messages.OCCUPANCY_VALUES`` and ``daemon.planning.grid``."""
@@ -160,12 +160,12 @@ class OccupancyMapper:
         else:
             self.occupancy = np.full(s.shape, UNKNOWN, np.uint8)
         self._fixed = self.occupancy == OCCUPIED
-        self.logodds = np.zeros(s.shape, np.float32)
-        """Each cell's fused evidence; the start map's cells start at their threshold."""
-        self.logodds[self.occupancy == OCCUPIED] = s.l_occupied
-        self.logodds[self.occupancy == FREE] = s.l_free
-        self.seen_at = np.zeros(s.shape, np.float64)
-        """When each cell was last seen occupied or free."""
+        self._logodds = np.zeros(s.shape, np.float32)
+        self._logodds[self.occupancy == OCCUPIED] = s.l_occupied
+        self._logodds[self.occupancy == FREE] = s.l_free
+        self._seen_at = np.zeros(s.shape, np.float64)
+        self._on_device = False
+        """The binner merged the last frame on the device: log-odds and seen-at are there."""
         self._forgot_at = 0.0
         self.binner = make_binner(s.backend)
         self.refused: Counter[str] = Counter()
@@ -187,6 +187,25 @@ class OccupancyMapper:
     @property
     def backend(self) -> str:
         return self.binner.name
+
+    @property
+    def logodds(self) -> np.ndarray:
+        """Each cell's fused evidence; the start map's cells start at their threshold."""
+        self._pull()
+        return self._logodds
+
+    @property
+    def seen_at(self) -> np.ndarray:
+        """When each cell was last seen occupied or free."""
+        self._pull()
+        return self._seen_at
+
+    def _pull(self) -> None:
+        """Where the device merges (cuda), its log-odds and seen-at into the host's arrays:
+        only when read, never on a frame's path. The occupancy is kept current every frame."""
+        if self._on_device:
+            self.binner.pull(self._logodds, self._seen_at)
+            self._on_device = False
 
     def window(self, x: float, y: float) -> Window:
         h = self.settings.shape[0]
@@ -223,29 +242,33 @@ class OccupancyMapper:
         fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam)
         t2 = time.perf_counter()
         win = self.window(cam[0], cam[1])
-        binned = self.binner(depth, scale, intr, floor_rot, cam, floor_z, win,
-                             s.min_height_m, s.max_height_m, s.max_range_m, s.cols_per_bin,
-                             s.stride)  # fmt: skip
-        t3 = time.perf_counter()
-        if late:  # check_frame's last two rules, in its order; nothing was kept of the frame yet
-            assert binned.present is not None
-            check_depth(binned.present, depth.size, s.limits)
-            check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
-        t3b = time.perf_counter()
+        args = (depth, scale, intr, floor_rot, cam, floor_z, win, s.min_height_m,
+                s.max_height_m, s.max_range_m, s.cols_per_bin, s.stride)  # fmt: skip
         forget_before = -math.inf
         if s.forget_s > 0 and frame.stamp - self._forgot_at >= 1.0:  # the whole map, once a second
             forget_before = frame.stamp - s.forget_s
-        cells, values, ahead, nearest, bearing = merge_frame(
-            binned.counts[0], binned.counts[1], binned.hit, binned.far, cam[0], cam[1],
-            pose.heading, win.r0, win.c0, win.map_rows, win.cell_m, self.occupancy,
-            self.logodds, self.seen_at, self._fixed, frame.stamp, forget_before,
-            s.min_points, s.min_share, s.tail_share, s.l_hit, s.l_pass, s.l_occupied, s.l_free,
-            s.l_min, s.l_max, s.corridor_m,
-        )  # fmt: skip
+        if self.binner.merges:  # the pass merges too, into the device's map, and checks late
+            cells, values, valid, near = self._merge_on_device(frame, pose, args, forget_before)
+            t3 = t3b = time.perf_counter()
+        else:
+            binned = self.binner(*args)
+            t3 = time.perf_counter()
+            if late:  # check_frame's last two rules, in its order; nothing was kept yet
+                assert binned.present is not None
+                check_depth(binned.present, depth.size, s.limits)
+                check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
+            t3b = time.perf_counter()
+            cells, values, *near = merge_frame(
+                binned.counts[0], binned.counts[1], binned.hit, binned.far, cam[0], cam[1],
+                math.cos(pose.heading), math.sin(pose.heading), win.r0, win.c0, win.map_rows,
+                win.cell_m, self.occupancy, self._logodds, self._seen_at, self._fixed,
+                frame.stamp, forget_before, s.min_points, s.min_share, s.tail_share, s.l_hit,
+                s.l_pass, s.l_occupied, s.l_free, s.l_min, s.l_max, s.corridor_m,
+            )  # fmt: skip
+            valid = binned.valid
         if forget_before > -math.inf:
             self._forgot_at = frame.stamp
-        prox = Proximity(*(None if math.isnan(v) else v for v in (ahead, nearest, bearing)),
-                         frame.stamp)  # fmt: skip
+        prox = proximity_of(*near, frame.stamp)
         t4 = time.perf_counter()
         self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
         if arrived is not None:  # the fit the last frame left due, taken by this frame
@@ -260,7 +283,37 @@ class OccupancyMapper:
             "check": (t1 - t0 + t3b - t3) * 1e3, "floor": (t2 - t1) * 1e3,
             "bin": (t3 - t2) * 1e3, "merge": (t4 - t3b) * 1e3, "total": (t4 - t0) * 1e3,
         }  # fmt: skip
-        return FrameResult(cells, values, prox, fit, binned.valid, ms)
+        return FrameResult(cells, values, prox, fit, valid, ms)
+
+    def _merge_on_device(self, frame: DepthFrame, pose, args: tuple,
+                         forget_before: float) -> tuple:  # fmt: skip
+        """The frame binned and merged on the device (``cuda_merge``): its changed cells,
+        values, valid pixels and (ahead, nearest, side, fwd). ``check_motion`` is worked out
+        here before the launch, ``check_depth`` on the device from its own pixel count: the
+        device writes the map only if both pass, and a refusal is raised here in
+        ``check_frame``'s order."""
+        s = self.settings
+        jump: FrameRejected | None = None
+        try:
+            check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
+        except FrameRejected as exc:
+            jump = exc
+        win, cam = args[6], args[4]
+        inv = 1.0 / win.cell_m  # merge_frame's camera cell, in its operations' order
+        cam_row = win.map_rows - 1 - float(cam[1]) * inv + 0.5 - win.r0
+        cam_col = float(cam[0]) * inv - 0.5 - win.c0
+        need = s.limits.min_valid_share * frame.depth.size
+        params = merge_params(s, math.cos(pose.heading), math.sin(pose.heading), cam_row,
+                              cam_col, frame.stamp, forget_before, need, jump is None)  # fmt: skip
+        maps = (self.occupancy, self._logodds, self._seen_at, self._fixed)
+        cells, values, valid, present, written, near = self.binner.merge(maps, params, *args)
+        self._on_device = True
+        if not written:
+            check_depth(present, frame.depth.size, s.limits)
+            assert jump is not None, "the device kept the map for a frame the host passed"
+            raise jump
+        self.occupancy.reshape(-1)[cells] = values
+        return cells, values, valid, near
 
     def _floor_for(
         self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray

@@ -25,12 +25,22 @@ class Proximity:
     stamp: float
 
 
+def proximity_of(ahead: float, nearest: float, side: float, fwd: float,
+                 stamp: float) -> Proximity:  # fmt: skip
+    """The message from ``nearest_cells``' figures (NaN: none), on either backend: the
+    bearing's atan2 is taken here, on the host, so the device's merge gives the same bits."""
+    bearing = math.nan if math.isnan(nearest) else math.atan2(side, fwd)
+    return Proximity(*(None if math.isnan(v) else v for v in (ahead, nearest, bearing)), stamp)
+
+
 @njit(cache=True, nogil=True)
-def nearest_cells(occupied, r0, c0, map_rows, cell, x, y, heading, corridor):
-    """``Proximity``'s three figures from this frame's obstacle cells (NaN: none): the
-    nearest cell edge in the corridor ahead, the nearest in any direction and its bearing."""
-    ch, sh = math.cos(heading), math.sin(heading)
-    nearest, bearing, ahead = np.inf, np.nan, np.inf
+def nearest_cells(occupied, r0, c0, map_rows, cell, x, y, ch, sh, corridor):
+    """``Proximity``'s figures from this frame's obstacle cells (NaN: none): the nearest
+    cell edge in the corridor ahead, the nearest in any direction, and that cell's side and
+    forward offsets (its bearing is ``atan2(side, fwd)``). ``ch``, ``sh``: the heading's
+    cosine and sine. ``kernels/merge_cells.cu`` does the same operations in the same order."""
+    nearest, ahead = np.inf, np.inf
+    near_side, near_fwd = np.nan, np.nan
     side_n = occupied.shape[0]
     for r in range(side_n):
         for c in range(side_n):
@@ -39,15 +49,15 @@ def nearest_cells(occupied, r0, c0, map_rows, cell, x, y, heading, corridor):
             cx = (c + c0 + 0.5) * cell - x
             cy = (map_rows - (r + r0) - 0.5) * cell - y
             # Distance to the cell's nearest edge, not its centre: contact happens at the edge.
-            dist = max(math.hypot(cx, cy) - cell / 2, 0.0)
+            dist = max(math.sqrt(cx * cx + cy * cy) - cell / 2, 0.0)
             fwd = cx * ch + cy * sh
             side = -cx * sh + cy * ch
             if dist < nearest:
-                nearest, bearing = dist, math.atan2(side, fwd)
+                nearest, near_side, near_fwd = dist, side, fwd
             if fwd > -cell / 2 and abs(side) <= corridor + cell / 2:
                 ahead = min(ahead, max(fwd - cell / 2, 0.0))
     if nearest == np.inf:
         nearest = np.nan
     if ahead == np.inf:
         ahead = np.nan
-    return ahead, nearest, bearing
+    return ahead, nearest, near_side, near_fwd

@@ -132,6 +132,22 @@ def delta_bytes(seq: int, height: int, width: int, stamp: float, cells: bytes, v
     return b"".join((head, tail, cells, values))
 
 
+def proximity_bytes(ahead_m: float | None, nearest_m: float | None, bearing: float | None,
+                    frame_stamp: float, stamp: float) -> bytes:  # fmt: skip
+    """A ``Proximity``'s wire bytes from its figures, for the mapper on its frame's path
+    (the model and its JSON dump were 60 µs of a paced frame's host time on an H100 host):
+    the JSON of ``encode(Proximity(...))`` with Python's shortest float repr, which any JSON
+    reader parses to the same floats; ``decode`` checks it as any message on arrival. The
+    figures must be finite (the mapper's are: none is None)."""
+    a = "null" if ahead_m is None else repr(float(ahead_m))
+    n = "null" if nearest_m is None else repr(float(nearest_m))
+    b = "null" if bearing is None else repr(float(bearing))
+    return (
+        f'{{"ahead_m":{a},"nearest_m":{n},"bearing":{b},"target_seen":null,'
+        f'"frame_stamp":{float(frame_stamp)!r},"stamp":{float(stamp)!r}}}'
+    ).encode()
+
+
 def _header(data: bytes, magic: bytes) -> tuple[int, int | None, int, int, float, int, int]:
     """seq, epoch, height, width, stamp, count or nbytes, and where the body starts."""
     if len(data) < HEADER.size:

@@ -30,7 +30,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from mapper import node as node_mod
 from mapper import occupancy_mapper as om
 from mapper.node import MapperNode
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
@@ -68,18 +67,20 @@ def instrument() -> None:
     om.check_header = timed("check_header", om.check_header)
     om.check_depth = timed("check_late", om.check_depth)
     om.merge_frame = timed("merge", om.merge_frame)
+    om.proximity_of = timed("proximity", om.proximity_of)
     OccupancyMapper._floor_for = timed("floor", OccupancyMapper._floor_for)
     OccupancyMapper.window = timed("window", OccupancyMapper.window)
     OccupancyMapper.fit_pending_floor = timed("fit_handoff", OccupancyMapper.fit_pending_floor)
     MapperNode._deltas = timed("delta_msg", MapperNode._deltas)
-    node_mod.Proximity = timed("prox_msg", node_mod.Proximity)
+    codec.proximity_bytes = timed("prox_bytes", codec.proximity_bytes)
     codec.encode = timed("encode", codec.encode)
     try:
         from mapper import cuda_binning as cb
 
         cb.FramePass.stage = timed("stage", cb.FramePass.stage)
         cb.FramePass.launch = timed("launch", cb.FramePass.launch)
-        cb.FramePass.read = timed("wait", cb.FramePass.read)
+        cb.FramePass.wait = timed("wait", cb.FramePass.wait)
+        cb.MergeTail.result = timed("readback", cb.MergeTail.result)
     except ImportError:  # no CuPy: the cpu pass is one call
         pass
 

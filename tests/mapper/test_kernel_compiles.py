@@ -15,3 +15,13 @@ def test_bin_pixels_compiles_for_sm90(nvrtc, defines):
     rc, log = nvrtc.compile_file(KERNEL, defines)
     assert rc == 0, log
     assert "warning" not in log.lower(), log
+
+
+def test_merge_cells_compiles_for_sm90_without_fused_multiply_adds(nvrtc):
+    """The device's merge, built as ``cuda_merge.merge_kernel`` builds it (no fused
+    multiply-adds: the CPU's rounding), compiles clean."""
+    path = KERNEL.with_name("merge_cells.cu")
+    opts = [b"--std=c++17", b"--gpu-architecture=sm_90", b"--fmad=false"]
+    rc, log = nvrtc.compile(path.read_bytes(), path.name, opts)
+    assert rc == 0, log
+    assert "warning" not in log.lower(), log

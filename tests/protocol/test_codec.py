@@ -27,6 +27,7 @@ from protocol.messages import (
     NavStatus,
     PatternKind,
     Pose,
+    Proximity,
     VoiceCue,
 )
 
@@ -74,6 +75,24 @@ def test_delta_binary_round_trip_keeps_every_cell(h, w, n, seq, seed):
     # A producer's own arrays packed straight to bytes (the mapper's path) give the same bytes.
     packed = codec.delta_bytes(seq, h, w, NOW, cells.astype("<u4").tobytes(), values.tobytes())
     assert packed == data
+
+
+def _maybe(lo: float, hi: float):
+    return st.none() | st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=100, deadline=None)
+@given(ahead=_maybe(0.0, 50.0), nearest=_maybe(0.0, 50.0), bearing=_maybe(-4.0, 4.0),
+       frame_stamp=st.floats(0.0, 4e9), stamp=st.floats(0.0, 4e9))  # fmt: skip
+def test_proximity_bytes_decode_to_the_models_message(ahead, nearest, bearing, frame_stamp,
+                                                      stamp):  # fmt: skip
+    """The mapper's packed proximity is read back as the model it stands for, to the bit:
+    tiny, huge and negative-zero figures, and None, included."""
+    msg = Proximity(ahead_m=ahead, nearest_m=nearest, bearing=bearing, frame_stamp=frame_stamp,
+                    stamp=stamp)  # fmt: skip
+    data = codec.proximity_bytes(ahead, nearest, bearing, frame_stamp, stamp)
+    assert codec.decode(Proximity, data) == msg
+    assert json.loads(data) == json.loads(codec.encode(msg))
 
 
 def header(magic=b"GBMD", version=1, seq=0, h=10, w=10, n=0) -> bytes:
