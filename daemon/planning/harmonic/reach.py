@@ -42,6 +42,23 @@ device works (the 2000² bench walk's reveal: a try that fails, then the device'
 
 
 @numba.njit(cache=True, nogil=True)
+def padded_cells(cells, width):
+    """Cells ``r · width + c`` of a map ``width`` wide as cells of its padded map, ``(r + 1) ·
+    (width + 2) + c + 1``, in one pass: the row by a floating-point product, corrected by
+    one, not an integer division (numpy's division and two temporaries took 0.43 ms of the
+    2000² walk's first sweep, 119 514 cells, dev VM)."""
+    out = np.empty(cells.size, dtype=np.int64)
+    inv = 1.0 / width
+    for k in range(cells.size):
+        c = cells[k]
+        r = np.int64(c * inv)
+        r += (r + 1) * width <= c
+        r -= r * width > c
+        out[k] = c + 2 * r + width + 3
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
 def _grow(blocked, reach, freed, width, queue, out) -> int:
     """Cells newly reached through the freed cells; written to ``out``, count returned."""
     around = neighbour_offsets(width)

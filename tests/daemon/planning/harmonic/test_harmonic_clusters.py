@@ -1,6 +1,7 @@
 """The newly blocked cells' clusters by row runs (``clusters.py``): which runs make one
 8-connected cluster, and that the order a delta comes in changes neither the clusters nor
-the contacts listed for the cut-off search."""
+the contacts listed for the cut-off search; and the cells of a delta as cells of the padded
+map."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from daemon.planning.harmonic.clusters import _joined_each, _linked, _runs
-from daemon.planning.harmonic.reach import MARGIN, Reach
+from daemon.planning.harmonic.reach import MARGIN, Reach, padded_cells
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -72,3 +73,14 @@ def test_the_order_of_a_delta_changes_neither_the_clusters_nor_the_contacts_list
                 if 0 <= r + dr < h and 0 <= c + dc < w and not ring[(r + dr) * w + c + dc]:
                     near[(r + dr + 1) * (w + 2) + c + dc + 1] = True
     assert seen[0] == seen[1] == seen[2] == np.flatnonzero(near).tolist()
+
+
+def test_padded_cells_match_the_exact_division_at_every_row_end_and_in_any_order():
+    # The row comes from a floating-point product corrected by one: the cells either side
+    # of each row's end are where a product off by one would show.
+    for width in (1, 49, 400, 2000, 4099):  # 1/49 rounds low: 49 · (1/49) < 1
+        ends = np.arange(1, 2001, dtype=np.int64) * width
+        cells = np.unique(np.concatenate((ends - 1, ends, ends + 1, [0])))
+        cells = np.random.default_rng(width).permutation(cells)
+        want = (cells // width + 1) * (width + 2) + cells % width + 1
+        assert np.array_equal(padded_cells(cells, width), want)
