@@ -31,7 +31,18 @@ from .relax import bfs_steps
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
 CUT_SHARE = 8
-"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map where
+``Reach.search`` (the device's) is at hand, ..."""
+HOST_CUT_SHARE = 64
+"""... and past 1/HOST_CUT_SHARE where the whole-map search is the host's (``floods.reached``,
+by spans: ~4 ns a cell of the map, dev VM), as a try costs ~12 times that a cell it searches
+(~47 ns): a try that gives up past 1/8 of the map cost more than the search it then needs.
+The 400² bench walk's recorded deltas, replayed (dev VM, idle, min of 7): the delta that
+needs the whole-map search (26) 1.57 → 0.67 ms, two others now searched whole instead
+(0.24 / 0.62 → 0.67 / 0.61), the walk's 59 deltas 5.43 → 3.88 ms in all."""
+SCRATCH_SHARE = 8
+"""``Reach``'s lists are written at construction as far as a large step reaches, 1/8 of the
+map (the 2000² walk's first sweep and reveal: 119 514 and 137 243 of 4 M cells)."""
 CUT_CELLS_BESIDE_SEARCH = 1 << 16
 """... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
 is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
@@ -160,13 +171,14 @@ class Reach:
         # Written now, so the kernel maps their pages at plan, not in a step (np.zeros and
         # np.empty leave each 4 KiB page to a fault on its first write): the scratch indexed
         # by cell whole, as a sweep's changes spread over the map write it nearly everywhere;
-        # the lists only as far as a large step reaches (1/CUT_SHARE of the map, the cut-off
-        # budget; a sweep's delta), 4 MB each at 2000² where whole they would hold ~130 MB
-        # more a user. The 2000² walk's first sweep and reveal, replayed (dev VM): 818–896
-        # and 313–339 minor faults -> 0 and 0 (~3 µs of CPU each there).
+        # the lists only as far as a large step reaches (1/SCRATCH_SHARE of the map: the
+        # cut-off budget beside a device search; a sweep's delta), 4 MB each at 2000² where
+        # whole they would hold ~130 MB more a user. The 2000² walk's first sweep and
+        # reveal, replayed (dev VM): 818–896 and 313–339 minor faults -> 0 and 0 (~3 µs of
+        # CPU each there).
         for scratch in (self._mark, self._label, self._group):
             scratch.fill(0)
-        front = blocked.size // CUT_SHARE
+        front = blocked.size // SCRATCH_SHARE
         for scratch in (self._queue, self._failed, self._out, self._flips):
             scratch[:front] = 0
         self._was[:front] = False
@@ -246,7 +258,8 @@ class Reach:
         if nb and (self.blocked[self.goal] or seeds):
             wait = None
             if not self.blocked[self.goal]:
-                limit = self.blocked.size // CUT_SHARE
+                share = CUT_SHARE if self.search is not None else HOST_CUT_SHARE
+                limit = self.blocked.size // share
                 if self.search is not None:
                     # A short try first; if it gives up, the device's search starts, and the
                     # try goes on to the whole budget meanwhile (each try is the same search,
