@@ -265,6 +265,22 @@ def main() -> None:
     if a.json:
         with open(a.json, "w") as f:
             f.write(text + "\n")
+    print("\n".join(summary(rows)))
+
+
+def summary(rows: list[dict]) -> list[str]:
+    """One line a replanning row, printed after the JSON: the device check keeps only a log's
+    tail, which the JSON's last trace fills (round 15's A/B figures were lost so)."""
+    lines = []
+    for r in rows:
+        if "step_ms" not in r or "planner" not in r:
+            continue
+        ms, trace = r["step_ms"], r.get("trace", [])
+        top = sorted(trace, key=lambda t: -t[2])[:2]
+        lines.append(f"{r['planner']} {r['grid']}² median {ms['median']} p99 {ms['p99']} "
+                     f"max {ms['max']} total {sum(t[2] for t in trace):.2f} largest {top} "
+                     f"full {r.get('full_searches')} cut {r.get('cut_searches')}")  # fmt: skip
+    return lines
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import mmap
 
 import pytest
 
-from sim.harmonic_bench import _count_faults, _new_searches
+from sim.harmonic_bench import _count_faults, _new_searches, summary
 
 PAGES = 64
 
@@ -46,3 +46,16 @@ def test_a_search_is_put_on_the_step_that_ran_it_not_the_plan_or_the_next():
     # Running counts after each read: the plan's (none), then steps 0..3; step 2 searched.
     assert _new_searches([0, 0, 0, 1, 1], 4) == [2]
     assert _new_searches([1, 1, 2], 2) == [1]  # the plan's own search is not a step's
+
+
+@pytest.mark.timeout(10)
+def test_the_summary_gives_each_replanning_row_its_figures_in_one_line():
+    rows = [
+        {"planner": "harmonic", "grid": 400, "step_ms": {"median": 0.5, "p99": 1.6, "max": 1.7},
+         "trace": [[206, 20, 1.7], [4669, 20, 1.6], [90, 20, 0.5]], "full_searches": [0],
+         "cut_searches": []},
+        {"what": "a plateau row, no step"},
+    ]  # fmt: skip
+    (line,) = summary(rows)
+    assert line.startswith("harmonic 400² median 0.5 p99 1.6 max 1.7 total 3.80")
+    assert "[[206, 20, 1.7], [4669, 20, 1.6]]" in line and "full [0] cut []" in line

@@ -114,6 +114,17 @@ def _walk(idx: np.ndarray, width: int, start: int, goal: int, out: np.ndarray) -
     return -1
 
 
+@numba.njit(cache=True, nogil=True)
+def _queue(cells, code, fixed, fixed_host, queued, start) -> None:
+    """``set``'s cells queued (``cell << 2 | code`` from ``start``) and their host fixedness
+    written, in one pass: numpy's scatter and packing took 0.55 ms of the 2000² walk's first
+    sweep, 119 514 cells (dev VM; 0.27 so)."""
+    for k in range(cells.size):
+        c = cells[k]
+        fixed_host[c] = fixed
+        queued[start + k] = (c << 2) | code
+
+
 class CudaField:
     backend = "cuda"
 
@@ -198,18 +209,17 @@ class CudaField:
         if cells.size == 0:
             return
         cells = np.ascontiguousarray(cells, dtype=np.int64)
-        self.fixed_host[cells] = fixed
         code = _CODES.get((w >= rx.BLOCKED_W, bool(fixed))) if w in (0.0, rx.BLOCKED_W) else None
         if code is None or self.n_queued + cells.size > self.queued.size:
             self._flush()
         if code is None or cells.size > self.queued.size:
+            self.fixed_host[cells] = fixed
             dev = cp.asarray(cells)
             self.w[dev] = self.dtype.type(min(w, rx.BLOCKED_W))
             self.fixed[dev] = np.uint8(fixed)
             return
-        end = self.n_queued + cells.size
-        self.queued[self.n_queued : end] = (cells << 2) | code
-        self.n_queued, self.late = end, self.late or code == 2
+        _queue(cells, code, np.uint8(fixed), self.fixed_host, self.queued, self.n_queued)
+        self.n_queued, self.late = self.n_queued + cells.size, self.late or code == 2
 
     def _flush(self) -> None:
         """Apply the queued changes without a relaxation (the kernel does, with no sweep)."""

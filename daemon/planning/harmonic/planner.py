@@ -50,7 +50,7 @@ from ..grid import INF, Cell, checked_plan_input, checked_update_input, in_bound
 from ..interface import GlobalPlanner, UpdateStats
 from . import fill as fl
 from . import relax as rx
-from .reach import Reach
+from .reach import Reach, padded_cells
 
 TOL = 1e-4
 """Residual (log units) below which the field counts as converged."""
@@ -163,9 +163,7 @@ class HarmonicPlanner(GlobalPlanner):
         t0 = time.perf_counter()
         cells, values = checked_update_input(self._shape, cells, blocked)
         w = self._shape[1]
-        # (r + 1)(w + 2) + c + 1 for cell r·w + c, with one division, not two and a product:
-        # 137 k cells (the 2000² walk's step 36) 0.96 -> 0.32 ms (dev VM, CPU time).
-        padded = cells + 2 * (cells // w) + w + 3
+        padded = padded_cells(cells, w)
         lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
         if lost.size == 0 and gained.size == 0:
             return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)

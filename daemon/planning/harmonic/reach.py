@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from .clusters import _joined_each
 from .cut_off import cut_off, neighbour_offsets
 from .floods import flood, reached
 from .relax import bfs_steps
@@ -30,7 +31,18 @@ from .relax import bfs_steps
 MARGIN = 16
 """Cells the connectivity window extends past the change's bounding box."""
 CUT_SHARE = 8
-"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map."""
+"""``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map where
+``Reach.search`` (the device's) is at hand, ..."""
+HOST_CUT_SHARE = 64
+"""... and past 1/HOST_CUT_SHARE where the whole-map search is the host's (``floods.reached``,
+by spans: ~4 ns a cell of the map, dev VM), as a try costs ~12 times that a cell it searches
+(~47 ns): a try that gives up past 1/8 of the map cost more than the search it then needs.
+The 400² bench walk's recorded deltas, replayed (dev VM, idle, min of 7): the delta that
+needs the whole-map search (26) 1.57 → 0.67 ms, two others now searched whole instead
+(0.24 / 0.62 → 0.67 / 0.61), the walk's 59 deltas 5.43 → 3.88 ms in all."""
+SCRATCH_SHARE = 8
+"""``Reach``'s lists are written at construction as far as a large step reaches, 1/8 of the
+map (the 2000² walk's first sweep and reveal: 119 514 and 137 243 of 4 M cells)."""
 CUT_CELLS_BESIDE_SEARCH = 1 << 16
 """... and past this many cells where ``Reach.search`` (the device's whole-map search, ~1 ms)
 is at hand: a host search that runs on into 1/8 of a 2000² map costs more than it."""
@@ -41,134 +53,20 @@ device works (the 2000² bench walk's reveal: a try that fails, then the device'
 
 
 @numba.njit(cache=True, nogil=True)
-def _joined(blocked, new, width, height, margin, mark, queue, around, first, wanted) -> bool:
-    """True when the reached free neighbours of the newly blocked cells ``new`` all connect
-    inside the window around them. ``_joined_each`` met them as it gathered ``new``: the
-    ``wanted`` of them are marked 2 in ``mark`` (scratch of zeros, left zeroed), ``first``
-    the first met (-1: none). ``around``: ``neighbour_offsets(width)``."""
-    if wanted <= 1:
-        if first >= 0:
-            mark[first] = 0
-        return True
-    head, tail = 0, 1
-    queue[0] = first
-    mark[first] = 1
-    wanted -= 1
-    # The contacts alone first: round a cluster in the open they form one ring, which joins
-    # them in O(ring) where the window's breadth-first search covers the cluster's area and
-    # more. Then, only if some are still apart, the window from every cell met so far.
-    while head < tail and wanted > 0:
-        cur = queue[head]
-        head += 1
-        for o in around:
-            j = cur + o
-            if mark[j] == 2:
-                wanted -= 1
-                mark[j] = 1
-                queue[tail] = j
-                tail += 1
-    # The window (and its bounding box, two divisions a cell) only when the ring left some
-    # apart: on the 2000² first sweep the ring joined every cluster, up to 84 k cells.
-    r0, r1, c0, c1 = height, -1, width, -1
-    if wanted > 0:
-        for i in new:
-            r, c = i // width, i % width
-            r0, r1, c0, c1 = min(r0, r), max(r1, r), min(c0, c), max(c1, c)
-        r0, r1 = max(1, r0 - margin), min(height - 2, r1 + margin)
-        c0, c1 = max(1, c0 - margin), min(width - 2, c1 + margin)
-    head = 0
-    while head < tail and wanted > 0:
-        cur = queue[head]
-        head += 1
-        # The window's bounds from the cell's own row and column, one division a cell, not
-        # two for each of its 8 neighbours: on a 2000² delta of 143 walls whose windows all
-        # fail, ``_joined_each`` 55 → 30 ms (dev VM, CPU time, median of 6).
-        r, c = cur // width, cur % width
-        for d in range(8):
-            j = cur + around[d]
-            e = d + (d >= 4)  # around skips the cell itself: e is the 3×3 block's index
-            rr, cc = r + e // 3 - 1, c + e % 3 - 1
-            if blocked[j] or mark[j] == 1 or rr < r0 or rr > r1 or cc < c0 or cc > c1:
-                continue
-            if mark[j] == 2:
-                wanted -= 1
-            mark[j] = 1
-            queue[tail] = j
-            tail += 1
-    # Every cell marked 1 is queued; contacts still at 2 exist only when some were not met.
-    for k in range(tail):
-        mark[queue[k]] = 0
-    if wanted > 0:
-        for i in new:
-            for o in around:
-                mark[i + o] = 0
-    return wanted == 0
-
-
-@numba.njit(cache=True, nogil=True)
-def _joined_each(blocked, reach, new, width, height, margin, mark, queue, label, contacts,
-                 group) -> int:  # fmt: skip
-    """``_joined`` for each 8-connected cluster of the newly blocked cells in its own window;
-    the contacts (reached free neighbours) of the clusters whose contacts do not join there
-    go into ``contacts``, each once, in the order ``cut_off``'s seeding would meet them
-    walking those clusters' cells; their count is returned (0: every cluster's contacts
-    join; a cluster that fails has two or more). Handing ``cut_off`` its seeds spares each
-    try a walk over the failed cells' neighbours: the 2000² bench walk's 137 k-cell reveal's
-    short try took 2.1 ms on the H100 host, nearly all of it that walk. Sound: a path through
-    new obstacles crosses each cluster from one contact to another, and each joined cluster's
-    contacts still join (in the map with every change applied), so a path that crossed only
-    joined clusters can be rerouted round them. One window round all of a step's changes
-    spans the sensor's sweep (at 2000² a BFS over ~1 M cells: ~4 ms a step); a cluster's
-    spans the cluster. ``label``: scratch of zeros, left zeroed (1, 2: a new cell not yet
-    and already gathered; 3: a contact listed); ``group``: scratch as long as ``new``
-    (allocated here, its fresh pages cost the 2000² first sweep ~1 ms)."""
-    around = neighbour_offsets(width)
-    for i in new:
-        label[i] = 1
-    n_contacts = 0
-    for s in new:
-        if label[s] != 1:
-            continue
-        label[s] = 2
-        group[0] = s
-        head, n = 0, 1
-        # The cluster's contacts (reached free neighbours) are met in the same pass that
-        # gathers it, in the order a second pass over its cells would meet them (that pass
-        # was ~1 ms of this function's ~3.8 on the 2000² first sweep, dev VM CPU time).
-        first, wanted, listed = -1, 0, 0
-        while head < n:
-            cur = group[head]
-            head += 1
-            for o in around:
-                j = cur + o
-                # A neighbour already gathered (2) is a new, blocked cell: no other read.
-                # Most of a large cluster's are: the 2000² walk's two largest deltas
-                # 2.1–3.7 -> 1.3–1.4 and 3.7–6.4 -> 2.8–2.9 ms (dev VM, CPU time, medians).
-                lj = label[j]
-                if lj == 1:
-                    label[j] = 2
-                    group[n] = j
-                    n += 1
-                elif lj != 2 and not blocked[j] and reach[j] and mark[j] == 0:
-                    mark[j] = 2  # a contact, still to be met by _joined's search
-                    wanted += 1
-                    if first < 0:
-                        first = j
-                    if label[j] == 0:  # not listed by an earlier cluster that failed
-                        label[j] = 3
-                        contacts[n_contacts + listed] = j
-                        listed += 1
-        if _joined(blocked, group[:n], width, height, margin, mark, queue, around, first,
-                   wanted):  # fmt: skip
-            for k in range(n_contacts, n_contacts + listed):
-                label[contacts[k]] = 0
-        else:
-            n_contacts += listed
-    for i in new:
-        label[i] = 0
-    for k in range(n_contacts):
-        label[contacts[k]] = 0
-    return n_contacts
+def padded_cells(cells, width):
+    """Cells ``r · width + c`` of a map ``width`` wide as cells of its padded map, ``(r + 1) ·
+    (width + 2) + c + 1``, in one pass: the row by a floating-point product, corrected by
+    one, not an integer division (numpy's division and two temporaries took 0.43 ms of the
+    2000² walk's first sweep, 119 514 cells, dev VM)."""
+    out = np.empty(cells.size, dtype=np.int64)
+    inv = 1.0 / width
+    for k in range(cells.size):
+        c = cells[k]
+        r = np.int64(c * inv)
+        r += (r + 1) * width <= c
+        r -= r * width > c
+        out[k] = c + 2 * r + width + 3
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -273,13 +171,14 @@ class Reach:
         # Written now, so the kernel maps their pages at plan, not in a step (np.zeros and
         # np.empty leave each 4 KiB page to a fault on its first write): the scratch indexed
         # by cell whole, as a sweep's changes spread over the map write it nearly everywhere;
-        # the lists only as far as a large step reaches (1/CUT_SHARE of the map, the cut-off
-        # budget; a sweep's delta), 4 MB each at 2000² where whole they would hold ~130 MB
-        # more a user. The 2000² walk's first sweep and reveal, replayed (dev VM): 818–896
-        # and 313–339 minor faults -> 0 and 0 (~3 µs of CPU each there).
+        # the lists only as far as a large step reaches (1/SCRATCH_SHARE of the map: the
+        # cut-off budget beside a device search; a sweep's delta), 4 MB each at 2000² where
+        # whole they would hold ~130 MB more a user. The 2000² walk's first sweep and
+        # reveal, replayed (dev VM): 818–896 and 313–339 minor faults -> 0 and 0 (~3 µs of
+        # CPU each there).
         for scratch in (self._mark, self._label, self._group):
             scratch.fill(0)
-        front = blocked.size // CUT_SHARE
+        front = blocked.size // SCRATCH_SHARE
         for scratch in (self._queue, self._failed, self._out, self._flips):
             scratch[:front] = 0
         self._was[:front] = False
@@ -359,7 +258,8 @@ class Reach:
         if nb and (self.blocked[self.goal] or seeds):
             wait = None
             if not self.blocked[self.goal]:
-                limit = self.blocked.size // CUT_SHARE
+                share = CUT_SHARE if self.search is not None else HOST_CUT_SHARE
+                limit = self.blocked.size // share
                 if self.search is not None:
                     # A short try first; if it gives up, the device's search starts, and the
                     # try goes on to the whole budget meanwhile (each try is the same search,

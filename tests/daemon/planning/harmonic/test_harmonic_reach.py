@@ -102,21 +102,28 @@ def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density,
 
 def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
     # A ring: its contacts inside and outside do not join in the window round it, and the
-    # pocket inside is found from the ring (both sides searched ~20 cells deep), not by a
-    # search of the map.
+    # pocket inside is found from the ring (both sides searched ~8 cells deep, within the
+    # host's budget of 1/64 of the map), not by a search of the map.
     h = w = 300
     blocked = np.zeros((h, w), dtype=bool)
     goal = (5, 5)
     reach = reach_on(blocked, goal)
     rr, cc = np.mgrid[0:h, 0:w]
     d = np.maximum(np.abs(rr - 150), np.abs(cc - 150))
-    ring = np.flatnonzero((d == 20).reshape(-1))
+    ring = np.flatnonzero((d == 8).reshape(-1))
     lost, gained = reach.apply(pad(ring, w), np.ones(ring.size, bool))
     blocked.reshape(-1)[ring] = True
     assert reach.cut_searches == 1 and reach.full_searches == 0
     assert_fresh(reach, maps, blocked, goal)
-    pocket = (d < 20).sum()
+    pocket = (d < 8).sum()
     assert lost.size == ring.size + pocket and gained.size == 0
+    # A ring round a pocket of 39² needs more than the host's try may search (1/8 would
+    # have done): the whole-map search, by spans, costs less than such a try.
+    big = np.flatnonzero((np.maximum(np.abs(rr - 200), np.abs(cc - 200)) == 20).reshape(-1))
+    reach.apply(pad(big, w), np.ones(big.size, bool))
+    blocked.reshape(-1)[big] = True
+    assert reach.cut_searches == 1 and reach.full_searches == 1
+    assert_fresh(reach, maps, blocked, goal)
     # A wall across the goal's own side of the map leaves the goal's region finite: the
     # whole-map search follows, and is right.
     wall = np.flatnonzero((cc == 20).reshape(-1))
@@ -127,8 +134,8 @@ def test_a_ring_that_closes_a_pocket_is_found_without_the_whole_map(maps):
 
 def test_a_try_with_more_seeds_than_its_budget_gives_up_before_it_searches(maps):
     # 16 rings at once on a 120² map: ~3 000 contacts, past the cut-off search's budget
-    # (1/8 of the padded map, 1 860 cells). The try ends after its seeds, leaves its scratch
-    # zeroed, and the whole-map search finds the 16 pockets.
+    # (1/64 of the padded map on the host, 232 cells). The try ends after its seeds, leaves
+    # its scratch zeroed, and the whole-map search finds the 16 pockets.
     h = w = 120
     blocked = np.zeros((h, w), dtype=bool)
     goal = (0, 0)
