@@ -103,13 +103,13 @@ def run(session, frames: list, backend: str, fps: float, depth: str = "copied") 
     switches = []
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=3000.0 + 0.1 * i)
-        time.sleep(max(0.0, due - time.perf_counter()))
-        while time.perf_counter() < due:
-            pass
-        if depth == "lent":  # its producer writes it where the pass uploads it from, untimed
+        if depth == "lent":  # written by its producer before the wait, as the bench does
             lent = mapper.depth_buffer(*f.depth.shape, f.depth.dtype.type)
             np.copyto(lent, f.depth)
             f = dataclasses.replace(f, depth=lent)
+        time.sleep(max(0.0, due - time.perf_counter()))
+        while time.perf_counter() < due:
+            pass
         FRAME.clear()
         r0 = resource.getrusage(resource.RUSAGE_THREAD)
         w0, c0 = time.perf_counter(), time.thread_time()
