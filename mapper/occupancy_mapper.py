@@ -103,7 +103,7 @@ class OccupancyMapper:
         self.last_stamp: float | None = None
         self.last_xy: tuple[float, float] | None = None
         self._jumps = 0
-        self._floor: tuple[FloorFit, np.ndarray, np.ndarray] | None = None
+        self._floor: tuple[FloorFit, np.ndarray, tuple] | None = None
         """The last fit, its correction in the camera's frame, and where the camera was."""
         self._floor_age = 0
         self._floor_due: tuple | None = None
@@ -186,7 +186,8 @@ class OccupancyMapper:
         cam = np.asarray(pose.position, np.float64)
         x, y = cam[:2].tolist()  # plain floats for the scalar work: numpy's scalars are slower
         t1 = time.perf_counter()
-        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam)
+        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam,
+                                                                  (x, y))  # fmt: skip
         t2 = time.perf_counter()
         win = self.window(x, y)
         args = (depth, scale, intr, floor_rot, cam, floor_z, win, s.min_height_m,
@@ -265,7 +266,13 @@ class OccupancyMapper:
         return cells, values, valid, near
 
     def _floor_for(
-        self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray
+        self,
+        depth: np.ndarray,
+        scale: float,
+        intr: Intrinsics,
+        rot: np.ndarray,
+        cam: np.ndarray,
+        xy: tuple[float, float],
     ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None, tuple | None]:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
@@ -279,7 +286,7 @@ class OccupancyMapper:
         arrived = self._pending_fit()
         last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
-               or math.dist(cam[:2], last[2][:2]) > s.floor_refit_m)  # fmt: skip
+               or math.dist(xy, last[2]) > s.floor_refit_m)  # fmt: skip
         sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
                         scale, intr, rot, cam.copy()) if due else None  # fmt: skip
         if sample is not None and (last is None or not s.floor_async):
@@ -290,17 +297,18 @@ class OccupancyMapper:
         fit, in_cam, _ = last
         return fit, rot @ in_cam, fit.floor_z, sample, arrived
 
-    def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, np.ndarray]:
+    def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, tuple]:
         """The fit of one frame's sample, to keep: the fit, the camera's own tilt and where
-        the camera stood. World = fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that
-        last factor is the camera's own tilt, valid whichever way the camera turns next."""
+        the camera stood (x, y as plain floats, for each frame's distance check). World =
+        fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that last factor is the camera's
+        own tilt, valid whichever way the camera turns next."""
         s, rot = self.settings, sample.rot
         pts = points_of(sample.sub, s.floor_sample_step, sample.scale, sample.intr, rot,
                         sample.cam)  # fmt: skip
         fit = fit_floor(pts, sample.cam, max_tilt_deg=s.max_tilt_deg)
-        return fit, rot.T @ fit.rotation @ rot, sample.cam
+        return fit, rot.T @ fit.rotation @ rot, tuple(sample.cam[:2].tolist())
 
-    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, np.ndarray] | None:
+    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, tuple] | None:
         """The fit the last merged frame left due (``floor_async``), for this frame: waited
         for if the worker has not finished it, made here if nobody started it (a caller that
         never calls ``fit_pending_floor``), so the frame that takes it never depends on the
