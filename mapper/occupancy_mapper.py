@@ -34,6 +34,7 @@ from .binning import Window
 from .camera_model import Intrinsics
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
 from .frame import (
+    UINT16,
     DepthFrame,
     FrameRejected,
     Refusal,
@@ -181,7 +182,7 @@ class OccupancyMapper:
         else:
             intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
         depth = frame.depth
-        scale = intr.depth_scale if depth.dtype == np.uint16 else 1.0
+        scale = intr.depth_scale if depth.dtype == UINT16 else 1.0
         rot = pose.world_from_optical()
         cam = np.asarray(pose.position, np.float64)
         x, y = cam[:2].tolist()  # plain floats for the scalar work: numpy's scalars are slower
