@@ -22,10 +22,12 @@ from __future__ import annotations
 import argparse
 import json
 import resource
+import sys
 import time
 from collections.abc import Callable
 
 import numpy as np
+from numba.core.registry import CPUDispatcher
 
 from daemon.planning import make_planner
 from daemon.planning.harmonic import relax as rx
@@ -94,10 +96,15 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             searches: list[int] = []
             cuts: list[int] = []
             faults: list[int] = []
+            loaded: list[list[str]] = []
+            off_cpu: list[float] = []
 
-            def note(n_faults: int, nav=nav, residuals=residuals, filled=filled, passes=passes,
-                     searches=searches, cuts=cuts, faults=faults) -> None:  # fmt: skip
+            def note(n_faults: int, new: list[str], off_ms: float, nav=nav,
+                     residuals=residuals, filled=filled, passes=passes, searches=searches,
+                     cuts=cuts, faults=faults, loaded=loaded, off_cpu=off_cpu) -> None:  # fmt: skip
                 faults.append(n_faults)
+                loaded.append(new)
+                off_cpu.append(off_ms)
                 planner = nav.route.planner
                 residuals.append(float(getattr(planner, "residual", 0.0)))
                 filled.append(int(getattr(planner, "filled", 0)))
@@ -106,9 +113,10 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 searches.append(int(getattr(reach, "full_searches", 0)))
                 cuts.append(int(getattr(reach, "cut_searches", 0)))
 
-            _count_faults(nav.route, note)
+            _watch_reads(nav.route, note)
             r = walk(scenario, backend=backend, mode=name, max_steps=max_steps, navigator=nav)
             changed = r.changed > 0
+            skip = len(loaded) - len(r.changed)  # the plan's read: no step of the trace
             rows.append({
                 "planner": name, "step": step or "default", "backend": backend,
                 "grid": grid, "unknown": unknown,
@@ -128,7 +136,14 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 "cut_searches": _new_searches(cuts, len(r.changed)),
                 # Each step's minor page faults inside its replanning step (fresh pages the
                 # kernel mapped and zeroed, ~µs each): where a large step's time went.
-                "plan_faults": faults[len(faults) - len(r.changed) :],
+                "plan_faults": faults[skip:],
+                # The steps whose read compiled or loaded a numba function of the product
+                # (after the warm-up, none should): {step: names}.
+                "loaded": {str(i - skip): new for i, new in enumerate(loaded)
+                           if new and i >= skip},
+                # Each step's wall time off the CPU (wall clock less the thread's CPU time):
+                # a step slow for want of the CPU, not for more work (the host's other load).
+                "off_cpu_ms": [round(x, 3) for x in off_cpu[skip:]],
                 "wall_s": round(time.perf_counter() - t0, 1),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
@@ -137,21 +152,43 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
     return rows
 
 
-def _count_faults(route, note: Callable[[int], None]) -> None:
-    """Wrap ``route``'s path read (one a navigator step that plans or replans: the plan, then
-    one per entry of the walk's trace) to call ``note`` after each with the minor page faults
-    inside it; the counting is outside the window of ``step_ms``. Per read, not per walk step:
-    the walk's ``on_step`` does not follow its last step, so notes taken there put the plan's
-    faults (25 k at 2000², H100) in step 0's slot and each step's in the next one's."""
-    read = route.path_from
+def numba_signatures() -> dict[str, int]:
+    """The signatures each numba function of the product (``daemon.*``) holds so far: a call
+    that compiles one, or loads it from numba's cache, adds one."""
+    out = {}
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("daemon.") or module is None:
+            continue
+        for attr, value in vars(module).items():
+            if isinstance(value, CPUDispatcher):
+                out[f"{name}.{attr}"] = len(value.signatures)
+    return out
 
-    def counted(*args, **kwargs):
+
+def _watch_reads(route, note: Callable[[int, list[str], float], None]) -> None:
+    """Wrap ``route``'s path read (one a navigator step that plans or replans: the plan, then
+    one per entry of the walk's trace) to call ``note`` after each with what happened inside
+    it: the minor page faults, the numba functions that compiled or loaded (``numba_signatures``
+    grew), and the ms its thread was off the CPU (wall clock less ``time.thread_time``). The
+    counting is outside the window of ``step_ms``. Per read, not per walk step: the walk's
+    ``on_step`` does not follow its last step, so notes taken there put the plan's faults
+    (25 k at 2000², H100) in step 0's slot and each step's in the next one's."""
+    read = route.path_from
+    seen = numba_signatures()
+
+    def watched(*args, **kwargs):
         before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        wall, cpu = time.perf_counter(), time.thread_time()
         out = read(*args, **kwargs)
-        note(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+        cpu, wall = time.thread_time() - cpu, time.perf_counter() - wall
+        faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+        now = numba_signatures()
+        new = sorted(k for k, n in now.items() if n > seen.get(k, 0))
+        seen.update(now)
+        note(faults, new, max(0.0, wall - cpu) * 1e3)
         return out
 
-    route.path_from = counted
+    route.path_from = watched
 
 
 def _new_searches(counts: list[int], steps: int) -> list[int]:
@@ -270,16 +307,22 @@ def main() -> None:
 
 def summary(rows: list[dict]) -> list[str]:
     """One line a replanning row, printed after the JSON: the device check keeps only a log's
-    tail, which the JSON's last trace fills (round 15's A/B figures were lost so)."""
+    tail, which the JSON's last trace fills (round 15's A/B figures were lost so). It ends
+    with the steps that loaded compiled code and the longest time a step was off the CPU: what
+    tells a slow step's own work from a first use or the host's other load."""
     lines = []
     for r in rows:
         if "step_ms" not in r or "planner" not in r:
             continue
         ms, trace = r["step_ms"], r.get("trace", [])
         top = sorted(trace, key=lambda t: -t[2])[:2]
+        off = r.get("off_cpu_ms") or [0.0]
+        worst = int(np.argmax(off))
         lines.append(f"{r['planner']} {r['grid']}² median {ms['median']} p99 {ms['p99']} "
                      f"max {ms['max']} total {sum(t[2] for t in trace):.2f} largest {top} "
-                     f"full {r.get('full_searches')} cut {r.get('cut_searches')}")  # fmt: skip
+                     f"full {r.get('full_searches')} cut {r.get('cut_searches')} "
+                     f"loaded {sorted(int(k) for k in r.get('loaded', {}))} "
+                     f"off-cpu max {off[worst]} at {worst}")  # fmt: skip
     return lines
 
 

@@ -39,7 +39,12 @@ by spans: ~4 ns a cell of the map, dev VM), as a try costs ~12 times that a cell
 (~47 ns): a try that gives up past 1/8 of the map cost more than the search it then needs.
 The 400² bench walk's recorded deltas, replayed (dev VM, idle, min of 7): the delta that
 needs the whole-map search (26) 1.57 → 0.67 ms, two others now searched whole instead
-(0.24 / 0.62 → 0.67 / 0.61), the walk's 59 deltas 5.43 → 3.88 ms in all."""
+(0.24 / 0.62 → 0.67 / 0.61), the walk's 59 deltas 5.43 → 3.88 ms in all. On the H100 (the
+bench's walk, one call, against c81ad7b's 1/8, whose other host code differs little at 400²:
+step 0 1.00 there, 1.07 here): step 26 1.95 → 1.51 ms, 34 and 40 0.60 / 0.80 → 1.23 /
+1.24, so the walk's total is ~0.6 ms more, but its p99 (at 59 steps the largest two steps)
+1.40 → 1.36 and its max 1.95 → 1.51: at 1/8 the one step whose try fails pays the try and the
+search together."""
 SCRATCH_SHARE = 8
 """``Reach``'s lists are written at construction as far as a large step reaches, 1/8 of the
 map (the 2000² walk's first sweep and reveal: 119 514 and 137 243 of 4 M cells)."""
