@@ -49,6 +49,9 @@ class AdmissionSettings:
     lag (dev VM, 100 users on two workers, quiet: worker 0 shed 12 at 39.3 s after worker 1 had
     readmitted at 29.8 and 34.9 s; 14 at 46.5 s, 13 s after worker 1 readmitted 4). One
     readmission at a time, each seen by the others before the next."""
+    peer_yield_s: float = 10.0
+    """How long a worker lets another that has waited longer for a readmission go first, before
+    taking its own turn anyway (the other may be held by its own lag)."""
     peer_stale_s: float = 2.0
     """What the other workers said, older than this, is not heard: a worker being restarted, or
     a parent that stopped relaying; each worker then judges by its own lag alone."""

@@ -230,9 +230,10 @@ class Worker:
 
 def peer_view(workers: list[Worker], to: Worker, now: float) -> dict[str, float | None]:
     """What worker ``to`` hears of the others' admission (their latest reports, at most
-    ``REPORT_FRESH_S`` old): the worst lag p95, and the latest readmission and lag-driven
-    shedding of any of them, in seconds before ``now`` (None: none)."""
-    lags, ages = [0.0], {"readmitted_s_ago": [], "shed_s_ago": []}
+    ``REPORT_FRESH_S`` old): the worst lag p95, the latest readmission and lag-driven shedding
+    of any of them, and the longest any has waited for its turn to readmit, in seconds before
+    ``now`` (None: none)."""
+    lags, ages = [0.0], {"readmitted_s_ago": [], "shed_s_ago": [], "waiting_s": []}
     for w in workers:
         said, late = w.admission, now - w.reported_at
         if w is to or said is None or late > REPORT_FRESH_S:
@@ -242,7 +243,7 @@ def peer_view(workers: list[Worker], to: Worker, now: float) -> dict[str, float 
             if said.get(key) is not None:
                 seen.append(float(said[key]) + late)
     out: dict[str, float | None] = {k: min(v, default=None) for k, v in ages.items()}
-    return out | {"lag_p95_ms": max(lags)}
+    return out | {"lag_p95_ms": max(lags), "waiting_s": max(ages["waiting_s"], default=None)}
 
 
 def worker_config(config: DaemonConfig, endpoint: str) -> str:

@@ -24,13 +24,18 @@ def steps(adm: Admission, users, now: float, lag_ms: float, span: float = 0.25) 
             adm.record(u, lag_ms, 1.0, now - span + (i + 1) * span / n)
 
 
-def view(lag_ms: float, readmitted: float | None = None, shed: float | None = None) -> dict:
-    return {"lag_p95_ms": lag_ms, "readmitted_s_ago": readmitted, "shed_s_ago": shed}
+def view(
+    lag_ms: float, readmitted: float | None = None, shed: float | None = None, waiting=None
+) -> dict:
+    return {
+        "lag_p95_ms": lag_ms, "readmitted_s_ago": readmitted, "shed_s_ago": shed,
+        "waiting_s": waiting,
+    }  # fmt: skip
 
 
 def shed_half(n: int = 20, **settings: float) -> tuple[Admission, list[str]]:
     """A worker of ``n`` users that shed half for a lag at 10-11 s and is calm from 12 s."""
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, min_shed_s=1.0, **settings))
+    adm = Admission(AdmissionSettings(**({"lag_budget_ms": 50.0, "min_shed_s": 1.0} | settings)))
     users = [f"u{i:02d}" for i in range(n)]
     for u in users:
         adm.join(u, 0.0)
@@ -75,6 +80,31 @@ def test_one_worker_readmits_at_a_time():
     assert back2
 
 
+def test_the_worker_that_waited_longer_for_its_turn_readmits_first():
+    """Dev VM, 50 users (the first version of the rule): worker 0 readmitted at 37.7 and 41.2
+    s; worker 1, its 12 shed at 32.9 s, was held by each and readmitted nobody by the end."""
+    adm, users = shed_half(calm_s=1.0, min_shed_s=0.5)  # shed at 11 s
+    back_at = []
+    for t in [12.0 + 0.25 * i for i in range(60)]:  # 12-27 s
+        steps(adm, users[:10], t, lag_ms=3.0)
+        # The other worker's users have waited since 10 s (its shedding; no readmission yet),
+        # it is calm, and it readmits nobody: held by its own reasons.
+        adm.peers(view(3.0, shed=round(t - 10.0, 3), waiting=round(t - 10.0, 3)), t)
+        if adm.review(t)[1]:
+            back_at.append(t)
+    # This worker waited from 11 s, after the other: first after peer_yield_s of its own wait.
+    assert back_at[0] >= 21.0  # 11 s + peer_yield_s (10 s)
+    # Another worker that has waited less (since 11.5 s) does not hold this one back.
+    adm2, users2 = shed_half(calm_s=1.0)
+    for t in [12.0 + 0.25 * i for i in range(12)]:
+        steps(adm2, users2[:10], t, lag_ms=3.0)
+        adm2.peers(view(3.0, waiting=round(t - 11.5, 3)), t)  # waiting since after 11 s
+        back = adm2.review(t)[1]
+        if back:
+            break
+    assert back and t < 14.0
+
+
 def _neighbour_readmits(late_until: float) -> dict[float, int]:
     """A guides 18 (none waiting); its neighbour readmits at 10.5 s and the machine is late
     for both from 11 s until ``late_until``. (when, how many A shed)."""
@@ -110,7 +140,8 @@ def test_the_parent_relays_each_workers_word_to_the_others():
         w.proc = object()  # type: ignore[assignment]
         w.tell = told[w.index].append  # type: ignore[method-assign]
     w0, w1, w2 = sup.workers
-    w2.admission, w2.reported_at = view(70.0, readmitted=None, shed=4.0), time.monotonic() - 0.5
+    w2.admission = view(70.0, readmitted=None, shed=4.0, waiting=6.0)
+    w2.reported_at = time.monotonic() - 0.5
     sup._on_report(w0, w0.proc, {"admission": view(20.0, readmitted=1.0)})  # type: ignore[arg-type]
     (to1,), (to2,) = told[1], told[2]
     assert told[0] == []  # not back to the one that spoke
@@ -119,7 +150,8 @@ def test_the_parent_relays_each_workers_word_to_the_others():
     assert to1["peers"]["lag_p95_ms"] == 70.0 and to1["peers"]["readmitted_s_ago"] == 1.0
     now = w0.reported_at
     assert math.isclose(to1["peers"]["shed_s_ago"], 4.0 + now - w2.reported_at)
-    assert to2["peers"] == view(20.0, readmitted=1.0) | {"shed_s_ago": None}
+    assert math.isclose(to1["peers"]["waiting_s"], 6.0 + now - w2.reported_at)
+    assert to2["peers"] == view(20.0, readmitted=1.0)
     # A report older than REPORT_FRESH_S says nothing; nor does a worker that never reported.
     w2.reported_at = now - 5.0
     assert peer_view(sup.workers, w1, now) == view(20.0, readmitted=1.0)
