@@ -58,7 +58,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .admission_settings import AdmissionSettings
-from .peer_word import PeerWord
+from .peer_word import PeerWord, said_to_peers
 
 
 class Admission:
@@ -138,16 +138,8 @@ class Admission:
 
     def for_peers(self, now: float) -> dict[str, float | None]:
         """What the other workers are told of this one (through the parent, every tick)."""
-
-        def ago(t: float) -> float | None:
-            return None if t == -math.inf else round(now - t, 3)
-
-        return {
-            "lag_p95_ms": round(self.last_p95_ms, 1),
-            "readmitted_s_ago": ago(self._back_at),
-            "shed_s_ago": ago(self._shed_at),
-            "waiting_s": ago(self._turn_since()) if self._shed else None,
-        }
+        waiting = self._turn_since() if self._shed else None
+        return said_to_peers(self.last_p95_ms, self._back_at, self._shed_at, waiting, now)
 
     def peers(self, view: Mapping[str, float | None], now: float) -> None:
         """The other workers' word (``workers.peer_view``), heard ``now``."""
@@ -359,9 +351,8 @@ class Admission:
         now: as many at once as fit, up to ``readmit_share`` of the guided users, so a daemon
         that shed half at a burst is back in a few rounds; after ``calm_wanted_s`` of calm."""
         peers = self._peer_word(now)
-        # Not while another worker is late (its cores are this one's too): past its threshold
-        # to shed, not this one's calm level, which on the busy dev VM held readmissions 11 s
-        # (50 users: 7 brought back where main brought 25 back).
+        # Not while another worker is late (its cores are these): past its threshold to shed;
+        # its calm level held readmissions 11 s on the busy dev VM (50 users: 7 back, main 25).
         calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms and (
             peers is None or peers.lag_ms <= self._threshold(now)
         )
@@ -374,11 +365,8 @@ class Admission:
             self.overshoots = 0  # a long calm: what overshot then says little now
         if now - self._calm_since < self.calm_wanted_s:
             return []
-        # One worker's readmission at a time: another's, or its shedding, is measured first
-        # (held, not reset: the calm already seen here still counts once the hold is over);
-        # a worker that has waited longer for its turn goes first (dev VM, 50 users: worker 0
-        # readmitted every 3.6 s while worker 1's 12 waited 15 s), unless it cannot for
-        # ``peer_yield_s`` (its own lag).
+        # One readmission at a time, the longest wait first (dev VM, 50 users: worker 0 came
+        # back every 3.6 s while worker 1's 12 waited 15 s). Held, not reset: calm still counts.
         holding = peers is not None and (
             now - max(peers.back_at, peers.shed_at) < self.s.peer_hold_s
             or (

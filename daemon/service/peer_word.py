@@ -33,3 +33,17 @@ class PeerWord:
         since = None if waited is None else now - float(waited)
         lag = float(view.get("lag_p95_ms") or 0.0)
         return cls(now, lag, at("readmitted_s_ago"), at("shed_s_ago"), since)
+
+
+def said_to_peers(
+    lag_ms: float, back_at: float, shed_at: float, waiting_since: float | None, now: float
+) -> dict[str, float | None]:
+    """A worker's word for the others (``PeerWord``'s fields as seconds before ``now``)."""
+
+    def ago(t: float | None) -> float | None:
+        return None if t is None or t == -math.inf else round(now - t, 3)
+
+    return {
+        "lag_p95_ms": round(lag_ms, 1), "readmitted_s_ago": ago(back_at),
+        "shed_s_ago": ago(shed_at), "waiting_s": ago(waiting_since),
+    }  # fmt: skip
