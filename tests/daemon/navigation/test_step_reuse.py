@@ -49,7 +49,7 @@ def _walk() -> list[Inbox]:
         if k % 40 >= 25:  # stands still for a while, as the load generator's users do
             pass
         else:
-            r -= 0.06
+            r -= 0.25  # cells: 0.5 m/s
         sigma = 0.25 if 60 <= k < 70 else None
         inbox = Inbox(pose=_pose(r, 20.2, t, sigma), pose_received=t)
         if k % 2 == 0:
@@ -70,7 +70,21 @@ def _walk() -> list[Inbox]:
     return inboxes
 
 
-def test_turning_points_kept_between_steps_guide_as_points_worked_out_afresh(monkeypatch):
+def _counted(obj, name: str) -> list[int]:
+    calls = [0]
+    real = getattr(obj, name)
+
+    def counting(*args, **kwargs):
+        calls[0] += 1
+        return real(*args, **kwargs)
+
+    setattr(obj, name, counting)
+    return calls
+
+
+def test_what_a_step_keeps_from_the_last_guides_as_working_it_out_afresh(monkeypatch):
+    """Turning points and the path read are kept between steps; a navigator that works
+    both out afresh at every step publishes the same bytes over the whole walk."""
     kept = Navigator("kept", NavigatorSettings(backend="cpu", cell_m=CELL_M))
     fresh = Navigator("fresh", NavigatorSettings(backend="cpu", cell_m=CELL_M))
     guided = [0]
@@ -80,21 +94,36 @@ def test_turning_points_kept_between_steps_guide_as_points_worked_out_afresh(mon
         return turning_points(path, blocked, max_leg_cells=max_leg_cells)
 
     fresh.guidance._kept_points = afresh  # type: ignore[assignment]
-    computed = [0]
+    path_from = fresh.route.path_from
 
-    def counted(*args, **kwargs):
-        computed[0] += 1
+    def path_afresh(*args, **kwargs):
+        fresh.route._kept = None
+        return path_from(*args, **kwargs)
+
+    fresh.route.path_from = path_afresh  # type: ignore[method-assign]
+    points = [0]
+
+    def counted_points(*args, **kwargs):
+        points[0] += 1
         return turning_points(*args, **kwargs)
 
     # Only the kept navigator's points go through the module's name.
-    monkeypatch.setattr(tp, "turning_points", counted)
-    for inbox in _walk():
+    monkeypatch.setattr(tp, "turning_points", counted_points)
+    inboxes = _walk()
+    first, rest = inboxes[0], inboxes[1:]
+    for nav in (kept, fresh):
+        nav.step(first, first.pose.stamp)
+    reads = {"kept": _counted(kept.route.planner, "path"),
+             "fresh": _counted(fresh.route.planner, "path")}  # fmt: skip
+    for inbox in rest:
         now = inbox.pose.stamp if inbox.pose is not None else 0.0
         assert _wire(kept.step(inbox, now)) == _wire(fresh.step(inbox, now))
     assert kept.steps == fresh.steps == 161
     assert guided[0] > 120  # guided on most steps (the unsure poses WAIT)
     # Reused where the path ahead and the map were the last step's: most pose-only steps.
-    assert computed[0] < 0.75 * guided[0]
+    assert points[0] < 0.75 * guided[0]
+    assert reads["fresh"][0] > 60
+    assert reads["kept"][0] < 0.75 * reads["fresh"][0]
 
 
 def test_kept_points_are_worked_out_again_when_the_map_changes_in_place():
