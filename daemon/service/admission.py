@@ -35,12 +35,6 @@ Every review (the daemon's tick):
   the CPU the guided users took, calm, just before it, and the calm wanted before the next
   readmission doubles (up to ``max_calm_s``). Until the lag has forced no shedding for
   ``overshoot_memory_s``, users come back one at a time once that capacity is forgotten.
-- with several workers (processes sharing the machine's cores; ``peers``: what the parent
-  relays of the others' reports): a worker readmits only while no other's lag is over the
-  threshold to shed, not within ``peer_hold_s`` of another's readmission or lag-driven
-  shedding (one readmission at a time, measured before the next), and after any that has
-  waited longer for its turn (for up to ``peer_yield_s``); a lag that begins within
-  ``overshoot_s`` of another's readmission is left to that worker to undo for ``peer_hold_s``.
 
 A shed user hears ``overloaded`` and feels WAIT (never a false ``stale_pose``); their map,
 goal and pose are kept, so guidance resumes where it was. Users admitted first stay guided
@@ -53,12 +47,71 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
-from .admission_settings import AdmissionSettings
-from .peer_word import PeerWord, said_to_peers
+BYTES_PER_CELL = 64
+"""What one map cell costs a user, all told, for the memory budget: the map keeper's occupancy,
+cover and inflation (~8 B), the CPU planner's state (17 B at 2000²), the CUDA planner's host
+and device copies, with room for the copies a step makes."""
+
+
+def map_too_big(
+    cells: int | None, others: list[int], max_map_cells: int, memory_budget_mb: float
+) -> str | None:
+    """Why a map of ``cells`` cells may not be taken (None: it may): past the per-user cap, or
+    past the memory budget with the other users' maps (``others``, cells each) as they are."""
+    if cells is None:
+        return None  # no header: the decoder says what is wrong with it
+    if cells > max_map_cells:
+        return f"a map of {cells} cells exceeds max_map_cells {max_map_cells}"
+    need_mb = (sum(others) + cells) * BYTES_PER_CELL / 2**20
+    if need_mb > memory_budget_mb:
+        return (
+            f"a map of {cells} cells would bring all users' maps to {need_mb:.0f} MB, "
+            f"past memory_budget_mb {memory_budget_mb:g}"
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class AdmissionSettings:
+    lag_budget_ms: float = 50.0
+    """The delay every guided user should stay within (the p99 the daemon promises)."""
+    cpu_budget_ms: float = 600.0
+    """CPU ms per second all guided users' steps may take together."""
+    window_s: float = 1.0
+    shed_fraction: float = 0.6
+    readmit_fraction: float = 0.3
+    sustain_s: float = 0.5
+    settle_s: float = 1.0
+    calm_s: float = 2.0
+    min_shed_s: float = 5.0
+    min_samples: int = 20
+    """Fewer lags than this in a window say nothing about the lag (a quiet daemon)."""
+    max_shed_share: float = 0.5
+    """The most of the guided users one lag-driven decision sheds: the lag is a queue's, not
+    linear in the load, so the next round measures again rather than trusting one ratio."""
+    capacity_memory_s: float = 30.0
+    readmit_share: float = 0.25
+    """The most users guided again at once, as a share of those guided (at least one): each
+    comes back with a snapshot to take and a whole path to plan."""
+    drain_ratio: float = 0.8
+    """The newer half-window's lag p95 under this share of the older half's: the lag is
+    draining (a burst that passes), not a load the daemon cannot carry."""
+    drain_patience_s: float = 2.0
+    """How long a draining lag over the threshold is waited out before shedding anyway. A lag
+    that grows or holds sheds after ``sustain_s`` as before."""
+    overshoot_s: float = 10.0
+    """A lag-driven shedding this soon after a readmission was that readmission's doing: at 100
+    users on two workers (dev VM, quiet) sheds of 8-25 users came 1-9 s after readmissions of
+    5-7, every 2-3 s."""
+    max_calm_s: float = 16.0
+    """The longest calm wanted before a readmission, however often readmissions overshot."""
+    overshoot_memory_s: float = 60.0
+    """How long an overshoot is remembered: until then the calm wanted stays doubled, and once
+    the capacity it measured is forgotten users come back one at a time."""
 
 
 class Admission:
@@ -93,9 +146,6 @@ class Admission:
         """Readmissions a lag-driven shedding followed within ``overshoot_s`` since the last
         long calm: each doubles the calm wanted before the next."""
         self._calm_since: float | None = None
-        self._back_at = -math.inf  # the last readmission, for the other workers (kept)
-        self._peers: PeerWord | None = None  # what the other workers said, when heard
-        self.peer_holds, self._holding = 0, False  # readmissions held for another worker
         self.sheddings = 0
         self.draining = False
         """The lag's newer half-window is well under its older half (``drain_ratio``)."""
@@ -133,26 +183,6 @@ class Admission:
     @property
     def shed(self) -> list[str]:
         return list(self._shed)
-
-    # -- the other workers ----------------------------------------------------------------
-
-    def for_peers(self, now: float) -> dict[str, float | None]:
-        """What the other workers are told of this one (through the parent, every tick)."""
-        waiting = self._turn_since() if self._shed else None
-        return said_to_peers(self.last_p95_ms, self._back_at, self._shed_at, waiting, now)
-
-    def peers(self, view: Mapping[str, float | None], now: float) -> None:
-        """The other workers' word (``workers.peer_view``), heard ``now``."""
-        self._peers = PeerWord.heard_now(view, now)
-
-    def _peer_word(self, now: float) -> PeerWord | None:
-        fresh = self._peers is not None and now - self._peers.heard <= self.s.peer_stale_s
-        return self._peers if fresh else None
-
-    def _turn_since(self) -> float:
-        """Since when users here have waited for a readmission: the last one, or the oldest
-        shedding of those still waiting if none came since."""
-        return max(self._back_at, min(self._shed.values(), default=-math.inf))
 
     # -- measurements ---------------------------------------------------------------------
 
@@ -260,15 +290,6 @@ class Admission:
                     self._waited = self._over_since
                     self.drain_waits += 1
                 return []  # a burst passing: those shed for it would come back in seconds
-            peers, mine = self._peer_word(now), now - self._readmitted_at
-            if (
-                peers is not None
-                and 0.0 <= self._over_since - peers.back_at <= self.s.overshoot_s < mine
-                and now - self._over_since < self.s.peer_hold_s
-            ):
-                # Late soon after another worker's readmission (none here): that worker undoes
-                # it. Dev VM, 100 users: worker 0 shed 12 of its own 4.4 s after worker 1's.
-                return []
             threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not
             # the steady load, so a tenth at a time then (those who join later wait anyway);
@@ -316,8 +337,6 @@ class Admission:
             "draining": self.draining, "lag_p95_ms": round(self.last_p95_ms, 1),
             "lag_recent_p95_ms": round(self.recent_p95_ms, 1), "calm_s": self.calm_wanted_s,
             "step_cpu_ms_per_s": round(self.last_cpu_ms), "overloaded_now": len(self._shed),
-            "peer_lag_p95_ms": None if self._peers is None else self._peers.lag_ms,
-            "peer_holds": self.peer_holds,
         }  # fmt: skip
 
     def _threshold(self, now: float) -> float:
@@ -350,12 +369,7 @@ class Admission:
         priced at the more of what they cost when last guided and what a guided user costs
         now: as many at once as fit, up to ``readmit_share`` of the guided users, so a daemon
         that shed half at a burst is back in a few rounds; after ``calm_wanted_s`` of calm."""
-        peers = self._peer_word(now)
-        # Not while another worker is late (its cores are these): past its threshold to shed;
-        # its calm level held readmissions 11 s on the busy dev VM (50 users: 7 back, main 25).
-        calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms and (
-            peers is None or peers.lag_ms <= self._threshold(now)
-        )
+        calm = self.last_p95_ms <= self.s.readmit_fraction * self.s.lag_budget_ms
         if not self._shed or not calm:
             self._calm_since = None
             return []
@@ -364,20 +378,6 @@ class Admission:
         if now - self._shed_at > self.s.overshoot_memory_s:
             self.overshoots = 0  # a long calm: what overshot then says little now
         if now - self._calm_since < self.calm_wanted_s:
-            return []
-        # One readmission at a time, the longest wait first (dev VM, 50 users: worker 0 came
-        # back every 3.6 s while worker 1's 12 waited 15 s). Held, not reset: calm still counts.
-        holding = peers is not None and (
-            now - max(peers.back_at, peers.shed_at) < self.s.peer_hold_s
-            or (
-                peers.waiting_since is not None
-                and peers.waiting_since < self._turn_since()
-                and now - self._turn_since() < self.s.peer_yield_s
-            )
-        )
-        self.peer_holds += int(holding and not self._holding)
-        self._holding = holding
-        if holding:
             return []
         most = max(1, math.ceil(self.s.readmit_share * len(self._admitted)))
         if self.overshoots and self._remembered(now) is None:
@@ -397,5 +397,4 @@ class Admission:
             extra += cost
         if back:
             self._readmitted_at, self._calm_cpu, self._readmitted = now, self.last_cpu_ms, len(back)
-            self._back_at = now
         return back

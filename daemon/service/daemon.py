@@ -32,10 +32,9 @@ from protocol.messages import Health, NavState, NavStatus, StatusCode
 from protocol.session import open_session
 from protocol.topics import Topic
 
-from .admission import Admission, AdmissionSettings
+from .admission import Admission, AdmissionSettings, map_too_big
 from .bridge import Bridge
 from .config import DaemonConfig
-from .memory_budget import map_too_big
 from .persistence import Persistence
 from .queries import QueryAnswers, daemon_health, say_who_may_connect
 from .runner import Pacing, UserRunner

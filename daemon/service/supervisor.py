@@ -43,7 +43,7 @@ from .embedded import free_port
 from .queries import say_who_may_connect
 from .sdnotify import Notifier
 from .state_db import StateDB
-from .workers import Worker, owner_of, peer_view, worker_config
+from .workers import Worker, owner_of, worker_config
 
 log = logging.getLogger("guidebelt.supervisor")
 
@@ -230,11 +230,6 @@ class Supervisor:
             worker.ready = True
             self._all_serving()
         worker.reported_at = time.monotonic()
-        if isinstance(msg.get("admission"), dict):  # relayed: the others readmit in turn
-            worker.admission = msg["admission"]
-            for other in self.workers:
-                if other is not worker:
-                    other.tell({"peers": peer_view(self.workers, other, worker.reported_at)})
         if isinstance(msg.get("health"), dict):
             worker.health = msg["health"]
             keys = {

@@ -28,7 +28,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 import zlib
 from typing import Any, Protocol
 
@@ -37,14 +36,11 @@ from protocol import topics as T
 from protocol.messages import Health
 from protocol.topics import Topic
 
-from .admission import Admission
 from .config import DaemonConfig
 
 
 class Served(Protocol):
     """The daemon, as its role sees it (the daemon imports this module, not the reverse)."""
-
-    admission: Admission
 
     def health(self) -> Health: ...
     def hear(self, topic: Topic, key: str, payload: bytes, arrived: float) -> None: ...
@@ -92,10 +88,8 @@ class WorkerRole:
 
     def report(self, daemon: Served) -> None:
         """Each tick: the users served here and their health, for the parent's health answer
-        and its routing of new users; what admission says for the other workers (``peers``),
-        sent just after this tick's decision, so they hear of a readmission within the tick."""
-        health = daemon.health().model_dump(mode="json")
-        self._send({"health": health, "admission": daemon.admission.for_peers(time.monotonic())})
+        and its routing of new users."""
+        self._send({"health": daemon.health().model_dump(mode="json")})
 
     def _send(self, message: dict[str, Any]) -> None:
         # The parent gone: its end of stdin stops this worker.
@@ -106,15 +100,9 @@ class WorkerRole:
         for line in sys.stdin.buffer:
             try:
                 msg = json.loads(line)
-                if isinstance(msg.get("peers"), dict):  # the other workers' admission
-                    view = {k: None if v is None else float(v) for k, v in msg["peers"].items()}
-                    with contextlib.suppress(RuntimeError):  # the loop closed: stopping
-                        loop.call_soon_threadsafe(daemon.admission.peers, view, time.monotonic())
-                    continue
                 key, arrived = str(msg["key"]), float(msg["arrived"])
                 topic, payload = T.topic_of(key), base64.b64decode(msg["payload"])
-            except (ValueError, KeyError, TypeError, AttributeError) as exc:
-                # The parent's bug: say it, go on.
+            except (ValueError, KeyError, TypeError) as exc:  # the parent's bug: say it, go on
                 log.error("bad line from the parent", extra={"fields": {"err": str(exc)[:200]}})
                 continue
             with contextlib.suppress(RuntimeError):  # the loop closed: stopping
@@ -132,10 +120,6 @@ def die_with(parent: int) -> None:
     if os.getppid() != parent:
         os._exit(1)
 
-
-REPORT_FRESH_S = 1.0
-"""A worker's report older than this (four ticks) says nothing to the others: it is stuck or
-being restarted."""
 
 SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID")
 """Only the parent speaks to systemd (``NotifyAccess=main``)."""
@@ -156,8 +140,6 @@ class Worker:
         """The process whose token the parent sees now (``WORKER_ALIVE``)."""
         self.reported_at = 0.0
         """When its latest report came (monotonic)."""
-        self.admission: dict[str, Any] | None = None
-        """What its admission said in its latest report (``Admission.for_peers``)."""
 
     @property
     def serving(self) -> bool:
@@ -209,16 +191,6 @@ class Worker:
             proc.stdin.write(encode_sample(key, payload, arrived))
             proc.stdin.flush()
 
-    def tell(self, message: dict[str, Any]) -> None:
-        """A line for the worker itself (``peers``), dropped as a sample is if its pipe is full:
-        the next report brings the next one."""
-        proc = self.proc
-        if proc is None or proc.stdin is None:
-            return
-        with contextlib.suppress(OSError, ValueError):
-            proc.stdin.write(json.dumps(message).encode() + b"\n")
-            proc.stdin.flush()
-
     def stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             with contextlib.suppress(ProcessLookupError):
@@ -226,24 +198,6 @@ class Worker:
 
     def users(self) -> list[str]:
         return list(self.health.get("users", [])) if self.health else []
-
-
-def peer_view(workers: list[Worker], to: Worker, now: float) -> dict[str, float | None]:
-    """What worker ``to`` hears of the others' admission (their latest reports, at most
-    ``REPORT_FRESH_S`` old): the worst lag p95, the latest readmission and lag-driven shedding
-    of any of them, and the longest any has waited for its turn to readmit, in seconds before
-    ``now`` (None: none)."""
-    lags, ages = [0.0], {"readmitted_s_ago": [], "shed_s_ago": [], "waiting_s": []}
-    for w in workers:
-        said, late = w.admission, now - w.reported_at
-        if w is to or said is None or late > REPORT_FRESH_S:
-            continue
-        lags.append(float(said.get("lag_p95_ms") or 0.0))
-        for key, seen in ages.items():
-            if said.get(key) is not None:
-                seen.append(float(said[key]) + late)
-    out: dict[str, float | None] = {k: min(v, default=None) for k, v in ages.items()}
-    return out | {"lag_p95_ms": max(lags), "waiting_s": max(ages["waiting_s"], default=None)}
 
 
 def worker_config(config: DaemonConfig, endpoint: str) -> str:
