@@ -32,8 +32,23 @@ class Binner:
     def __call__(self, *args: Any) -> Binned:
         return self._fn(*args)
 
-    def merge(self, maps: tuple, params: list[float], *args: Any) -> tuple:
-        return self._fn.merge(maps, params, *args)  # type: ignore[attr-defined]
+    def merge(self, maps: tuple, params: list[float], *args: Any, sent: bool = False) -> tuple:
+        return self._fn.merge(maps, params, *args, sent=sent)  # type: ignore[attr-defined]
+
+    def send_depth(self, *args: Any) -> None:
+        self._fn.send_depth(*args)  # type: ignore[attr-defined]
+
+    def register(self, arrays: Any) -> bool:
+        """Page-lock a frame source's recycled buffers for the pass to read frames from
+        (``CudaBinner.register``); False where the pass reads frames where they lie."""
+        reg = getattr(self._fn, "register", None)
+        if reg is not None:
+            reg(arrays)
+        return reg is not None
+
+    def unregister(self) -> None:
+        if hasattr(self._fn, "unregister"):
+            self._fn.unregister()
 
     def depth_buffer(self, *args: Any) -> Any:
         """The array the pass uploads a frame's depth from (``CudaBinner.depth_buffer``), or

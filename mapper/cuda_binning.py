@@ -7,8 +7,8 @@ are 64-bit ``atomicMin``/``atomicMax`` of (squared range, pixel index) keys, and
 tiny kernel reads back the winning points.
 
 A frame's whole device work is one CUDA graph, captured once per image size, window and
-bin count (``CudaBinner``): the frame's parameters and depth go up in one copy from one
-page-locked host buffer, the outputs are reset, the two kernels run, and the window's counts
+bin count (``CudaBinner``): the frame's parameters and depth go up from one page-locked
+host buffer, the outputs are reset, the two kernels run, and the window's counts
 and the per-bin points (a few tens of kB, all the merge reads) come back into a page-locked
 buffer. The kernel also counts the pixels the frame check counts (``frame.count_valid``, a
 70 µs pass over the image on the H100's host) and works out the bearing bins' yaw and span
@@ -22,6 +22,14 @@ Everything that varies from frame to frame, the window's corner included, is in 
 uploaded parameters, so the captured graph stays valid. The mapper's passes also merge the
 frame into the map kept on the device (``cuda_merge``): their read-back is then only the
 changed cells and the proximity's figures, not the window's counts.
+
+The depth goes up in a copy of its own, ahead of the graph on the pass's stream (``send``),
+so the mapper can start it as soon as the frame's header is checked and the DMA runs while
+the host fits the floor and stages the parameters. It is read from page-locked memory where
+the frame lies in some: the buffer the mapper lends its producer (``depth_buffer``) or a
+source's own recycled buffers registered once with the driver (``register``:
+``cudaHostRegister``, as a camera SDK's frame pool would be); then no host copy is made at
+all. Any other array is first copied into the lent buffer, as before.
 """
 
 from __future__ import annotations
@@ -44,7 +52,7 @@ PARAMS = 27
 """The kernel's double parameters (``kernels/bin_pixels.cu``'s P); the merge's follow them
 (``kernels/merge_cells.cu``, ``cuda_merge.merge_params``)."""
 HEAD = 512
-"""Bytes the parameters take ahead of the depth in the one upload (keeps the depth aligned)."""
+"""Bytes the parameters take ahead of the depth in the upload buffer (keeps it aligned)."""
 _MODULES: dict[str, tuple] = {}
 
 
@@ -77,6 +85,8 @@ class FramePass:
         self.up = cupyx.empty_pinned(HEAD + depth_bytes, np.uint8)
         self.params = self.up[:HEAD].view(np.float64)
         self.depth = self.up[HEAD:].view(dtype).reshape(h, w)
+        self._lent = self.depth.ctypes.data
+        self._to = up.data.ptr + HEAD  # where the depth lands on the device
         # The merge's views of the read-back, made once, and the one Binned that holds them
         # (valid until this pass's next frame: the mapper merges it at once).
         hit = self.host[n + 2 : n + 2 + 6 * bins].view(np.float64).reshape(bins, 3)
@@ -99,8 +109,8 @@ class FramePass:
         # any host transfer while a stream captures (they cannot tell page-locked memory).
         s.begin_capture()
         try:
-            rt.memcpyAsync(up.data.ptr, self.up.ctypes.data, up.nbytes, rt.memcpyHostToDevice,
-                           s.ptr)  # fmt: skip
+            # The parameters only: the depth goes up ahead of the graph (``send``).
+            rt.memcpyAsync(up.data.ptr, self._lent - HEAD, HEAD, rt.memcpyHostToDevice, s.ptr)
             if dmap is None:
                 resets()
             bin_pixels(
@@ -125,21 +135,39 @@ class FramePass:
             self.graph = s.end_capture()
         self._device = (out, hit_key, far_key, up)  # alive as long as the graph
 
+    def send(self, depth: np.ndarray, pinned: dict[int, int]) -> None:
+        """The frame's depth on its way to the device, ahead of the graph on its stream (the
+        last frame's graph has finished with the buffers: its read-back was waited for).
+        Read where it lies when that is page-locked: this pass's own buffer (its producer
+        wrote it there, ``CudaBinner.depth_buffer``) or one of ``pinned`` (start address:
+        bytes, ``CudaBinner.register``) holding the whole image, C-ordered, in the pass's
+        type. Anything else is copied (float64 cast) into this pass's buffer first. The copy
+        reads the source until the frame's wait: the source must not change before then."""
+        src = self._lent
+        if depth is not self.depth:
+            at = depth.__array_interface__["data"][0]
+            if (pinned.get(at, 0) >= self.depth.nbytes and depth.dtype == self.depth.dtype
+                    and depth.shape == self.depth.shape and depth.flags.c_contiguous):  # fmt: skip
+                src = at
+            else:
+                np.copyto(self.depth, depth, casting="same_kind")
+        rt = cp.cuda.runtime
+        rt.memcpyAsync(self._to, src, self.depth.nbytes, rt.memcpyHostToDevice, self.stream.ptr)
+
     def stage(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
               floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
-              min_depth: float, merge: Sequence[float] = ()) -> None:  # fmt: skip
-        """The frame's parameters and depth into the page-locked upload buffer (the last
-        frame's graph has finished with it: its read-back was waited for). One numpy call
-        for the parameters (``merge``: the merge's, ``cuda_merge.merge_params``); the depth
-        is cast on the way in where it is float64, and not copied at all where it is this
-        buffer itself (``CudaBinner.depth_buffer``: its producer wrote it there)."""
+              min_depth: float, merge: Sequence[float] = (),
+              pinned: dict[int, int] | None = None) -> None:  # fmt: skip
+        """The frame's parameters into the page-locked upload buffer, one numpy call
+        (``merge``: the merge's, ``cuda_merge.merge_params``), and its depth sent (``send``)
+        unless ``pinned`` is None: the caller sent it already."""
         self.params[: PARAMS + len(merge)] = [
             intr.fx, intr.fy, intr.cx, intr.cy, *rot.ravel().tolist(), *t.ravel().tolist(),
             floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale,
             win.r0, win.c0, TAN_LIMIT, *merge,
         ]  # fmt: skip
-        if depth is not self.depth:
-            np.copyto(self.depth, depth, casting="same_kind")
+        if pinned is not None:
+            self.send(depth, pinned)
 
     def launch(self) -> None:
         self.graph.launch(self.stream)
@@ -162,15 +190,20 @@ class CudaBinner:
     def __init__(self) -> None:
         self._passes: dict[tuple, FramePass] = {}
         self._maps: dict[tuple[int, int], DeviceMap] = {}
+        self._pinned: dict[int, int] = {}
+        """Registered sources' buffers: start address -> bytes (``register``)."""
+        self._held: dict[int, np.ndarray] = {}
+        """The arrays themselves, kept alive while registered."""
 
     def prepare(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
                 floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
                 cols_per_bin: int, stride: int,
                 min_depth: float = MIN_DEPTH_M, dmap: DeviceMap | None = None,
-                merge: Sequence[float] = ()) -> FramePass:  # fmt: skip
+                merge: Sequence[float] = (), sent: bool = False) -> FramePass:  # fmt: skip
         """The frame's pass with the frame staged, ready to launch (apart from the call, so
         the bench can time the graph alone: ``scripts/mapper_bench.py --split``); with
-        ``dmap``, the pass that also merges into it (``merge``: its parameters)."""
+        ``dmap``, the pass that also merges into it (``merge``: its parameters); ``sent``:
+        the depth is on its way already (``send_depth``)."""
         if stride != 1:
             depth = depth[::stride, ::stride]
             intr = intr.scaled(1.0 / stride)
@@ -179,7 +212,7 @@ class CudaBinner:
         dtype = np.dtype(np.float32) if depth.dtype == np.float64 else depth.dtype
         fp = self._pass(win.side, bins, h, w, win.map_rows, dtype, dmap)
         fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth,
-                 merge)  # fmt: skip
+                 merge, None if sent else self._pinned)  # fmt: skip
         return fp
 
     def _pass(self, side: int, bins: int, h: int, w: int, map_rows: int, dtype: np.dtype,
@@ -205,7 +238,38 @@ class CudaBinner:
         return self._pass(side, bins, h, w, map_shape[0], np.dtype(dtype),
                           self._map(map_shape)).depth  # fmt: skip
 
-    def merge(self, maps: tuple, merge: list[float], *args) -> tuple:
+    def send_depth(self, map_shape: tuple[int, int], side: int, bins: int,
+                   depth: np.ndarray) -> None:  # fmt: skip
+        """The frame's depth on its way to the merging pass's device buffer now, before the
+        host's work on the frame (the floor, the window): the DMA overlaps it. Then call
+        ``merge`` with ``sent``. Unsubsampled uint16 or float32 depth only."""
+        h, w = depth.shape
+        fp = self._pass(side, bins, h, w, map_shape[0], depth.dtype, self._map(map_shape))
+        fp.send(depth, self._pinned)
+
+    def register(self, arrays: Sequence[np.ndarray]) -> None:
+        """Page-lock a frame source's own buffers once (``cudaHostRegister``), so frames
+        that lie in them go up with no host copy: for a source that recycles a few buffers
+        (a camera SDK's frame pool). Each must be C-ordered and stay allocated until
+        ``unregister``; this binner holds a reference meanwhile. Registering takes
+        milliseconds: once, at start-up, never per frame."""
+        for a in arrays:
+            if not a.flags.c_contiguous:
+                raise ValueError("a registered depth buffer must be C-ordered")
+            at = a.__array_interface__["data"][0]
+            if at not in self._pinned:
+                cp.cuda.runtime.hostRegister(at, a.nbytes, 0)  # cudaHostRegisterDefault
+                self._pinned[at], self._held[at] = a.nbytes, a
+
+    def unregister(self) -> None:
+        """Release every registered buffer (after the last frame that reads one)."""
+        for s in self._passes.values():
+            s.wait()  # no upload may still read one
+        for at in list(self._pinned):
+            cp.cuda.runtime.hostUnregister(at)
+            del self._pinned[at], self._held[at]
+
+    def merge(self, maps: tuple, merge: list[float], *args, sent: bool = False) -> tuple:
         """The frame binned and merged into the map kept on the device (``cuda_merge``):
         ``maps`` the mapper's host occupancy, log-odds, seen-at and fixed cells (uploaded
         when they are not the ones the device holds), ``merge`` the merge's parameters
@@ -218,7 +282,7 @@ class CudaBinner:
             # The device sees a subsampled or float32 copy: the check counts the original.
             merge = list(merge)
             merge[HOST_PRESENT] = float(count_valid(depth))
-        fp = self.prepare(*args, dmap=dmap, merge=merge)
+        fp = self.prepare(*args, dmap=dmap, merge=merge, sent=sent)
         fp.launch()
         fp.wait()
         return fp.merge.result()

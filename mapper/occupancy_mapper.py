@@ -138,21 +138,37 @@ class OccupancyMapper:
             self.binner.pull(self._logodds, self._seen_at)
             self._on_device = False
 
+    @property
+    def lends_depth(self) -> bool:
+        """``depth_buffer`` gives the pass's own upload buffer (cuda, unsubsampled), not a
+        plain array: worth writing frames into."""
+        return self.binner.merges and self.settings.stride == 1
+
     def depth_buffer(self, height: int, width: int, dtype: type = np.uint16) -> np.ndarray:
         """An array for a frame's producer to write the next depth into: on cuda the
         page-locked buffer the frame's graph uploads from, so a frame whose depth is this
         very array is not copied on its path (614 kB at 640 × 480, the largest piece of a
         paced frame's host work). A producer that makes the depth (a decoder, a renderer:
         ``sim.camera.RgbdCamera.render``'s ``out``) writes it here; frames in someone else's
-        memory (a camera SDK's) are copied once, here or by the pass. It holds one frame:
+        memory are copied once, here or by the pass, unless that memory is registered
+        (``register_depth_buffers``). It holds one frame:
         write it only between ``process`` calls. Elsewhere (cpu, strided, float64) a plain
         array."""
         s, dt = self.settings, np.dtype(dtype)
         lent = None
-        if self.binner.merges and s.stride == 1 and dt != np.float64:
+        if self.lends_depth and dt != np.float64:
             bins = (width + s.cols_per_bin - 1) // s.cols_per_bin
             lent = self.binner.depth_buffer(s.shape, self._side, bins, height, width, dt)
         return np.zeros((height, width), dt) if lent is None else lent
+
+    def register_depth_buffers(self, arrays: list[np.ndarray]) -> bool:
+        """Page-lock a frame source's own recycled depth buffers once (cuda:
+        ``cudaHostRegister``), for a source that hands frames in its own memory and reuses a
+        few buffers (a camera SDK's frame pool): a frame whose depth is one of them, whole,
+        goes up to the device straight from it, with no copy on the host. Each must stay
+        allocated, and a frame's buffer unchanged until its ``process`` returns, until
+        ``close``. False (nothing done) where the pass reads frames where they lie (cpu)."""
+        return self.binner.register(arrays)
 
     def window(self, x: float, y: float) -> Window:
         h = self.settings.shape[0]
@@ -182,11 +198,13 @@ class OccupancyMapper:
         else:
             intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
         depth = frame.depth
+        t1 = time.perf_counter()
+        sent = self._send(depth)  # the DMA runs while the host does the rest
+        t1s = time.perf_counter()
         scale = intr.depth_scale if depth.dtype == UINT16 else 1.0
         rot = pose.world_from_optical()
         cam = np.asarray(pose.position, np.float64)
         x, y = cam[:2].tolist()  # plain floats for the scalar work: numpy's scalars are slower
-        t1 = time.perf_counter()
         fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam,
                                                                   (x, y))  # fmt: skip
         t2 = time.perf_counter()
@@ -198,7 +216,7 @@ class OccupancyMapper:
             forget_before = frame.stamp - s.forget_s
         if self.binner.merges:  # the pass merges too, into the device's map, and checks late
             cells, values, valid, near = self._merge_on_device(frame, pose, args, forget_before,
-                                                               (x, y))  # fmt: skip
+                                                               (x, y), sent)  # fmt: skip
             t3 = t3b = time.perf_counter()
         else:
             binned = self.binner(*args)
@@ -230,13 +248,26 @@ class OccupancyMapper:
         self._floor_age += 1
         self.frames += 1
         ms = {
-            "check": (t1 - t0 + t3b - t3) * 1e3, "floor": (t2 - t1) * 1e3,
-            "bin": (t3 - t2) * 1e3, "merge": (t4 - t3b) * 1e3, "total": (t4 - t0) * 1e3,
+            "check": (t1 - t0 + t3b - t3) * 1e3, "floor": (t2 - t1s) * 1e3,
+            "bin": (t3 - t2 + t1s - t1) * 1e3, "merge": (t4 - t3b) * 1e3,
+            "total": (t4 - t0) * 1e3,
         }  # fmt: skip
         return FrameResult(cells, values, prox, fit, valid, ms)
 
+    def _send(self, depth: np.ndarray) -> bool:
+        """Where the pass merges on the device and reads the image whole, the frame's depth
+        sent to it now, right after the header check, so its DMA overlaps the floor and the
+        window (``CudaBinner.send_depth``). A frame refused later leaves only its depth in
+        the pass's device buffer, which nothing reads before the next frame's replaces it."""
+        s = self.settings
+        if not self.lends_depth or depth.dtype == np.float64:
+            return False
+        bins = (depth.shape[1] + s.cols_per_bin - 1) // s.cols_per_bin
+        self.binner.send_depth(s.shape, self._side, bins, depth)
+        return True
+
     def _merge_on_device(self, frame: DepthFrame, pose, args: tuple, forget_before: float,
-                         xy: tuple[float, float]) -> tuple:  # fmt: skip
+                         xy: tuple[float, float], sent: bool) -> tuple:  # fmt: skip
         """The frame binned and merged on the device (``cuda_merge``): its changed cells,
         values, valid pixels and (ahead, nearest, side, fwd). ``check_motion`` is worked out
         here before the launch, ``check_depth`` on the device from its own pixel count: the
@@ -257,7 +288,8 @@ class OccupancyMapper:
         params = merge_params(s, math.cos(heading), math.sin(heading), cam_row, cam_col,
                               frame.stamp, forget_before, need, jump is None)  # fmt: skip
         maps = (self.occupancy, self._logodds, self._seen_at, self._fixed)
-        cells, values, valid, present, written, near = self.binner.merge(maps, params, *args)
+        cells, values, valid, present, written, near = self.binner.merge(maps, params, *args,
+                                                                         sent=sent)  # fmt: skip
         self._on_device = True
         if not written:
             check_depth(present, frame.depth.size, s.limits)
@@ -339,7 +371,9 @@ class OccupancyMapper:
             self._floor_job.result(timeout=timeout_s)
 
     def close(self) -> None:
-        """Stop the floor fit's worker thread, if one was started."""
+        """Stop the floor fit's worker thread, if one was started; release the registered
+        depth buffers."""
         if self._fitter is not None:
             self._fitter.shutdown(wait=True, cancel_futures=True)
             self._fitter, self._floor_job = None, None
+        self.binner.unregister()

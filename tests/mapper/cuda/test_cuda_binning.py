@@ -14,7 +14,7 @@ import pytest
 
 from mapper.backends import cuda_usable, make_binner
 from mapper.binning import bin_frame_cpu
-from mapper.frame import count_valid
+from mapper.frame import FrameRejected, count_valid
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
 from sim.camera import RgbdCamera
 from sim.courtyard import make_courtyard
@@ -139,3 +139,39 @@ def test_a_frame_in_the_lent_buffer_maps_as_a_copied_one():
     assert np.array_equal(copied.logodds, lent.logodds)
     for m in (copied, lent):
         m.close()
+
+
+def test_a_frame_in_a_registered_buffer_maps_as_a_copied_one():
+    """Frames in a source's own recycled buffers, registered once with the device
+    (``register_depth_buffers``: a camera SDK's frame pool), go up straight from them, with
+    no host copy (the lent buffer, where a copy would land, keeps what was put there), and
+    give the same changes, proximity and map as the same frames copied by the pass; a pose
+    jump handed in one of them leaves the map as it was."""
+    copied = OccupancyMapper(MapperSettings(backend="cuda"))
+    pinned = OccupancyMapper(MapperSettings(backend="cuda"))
+    pool = [np.empty((480, 640), np.uint16) for _ in range(3)]
+    assert pinned.register_depth_buffers(pool)
+    lent = pinned.depth_buffer(480, 640)
+    lent[...] = 7
+    changed = 0
+    for i, f in enumerate(frames(6)):
+        buf = pool[i % len(pool)]
+        np.copyto(buf, f.depth)
+        ra, rb = copied.process(f), pinned.process(dataclasses.replace(f, depth=buf))
+        assert np.array_equal(ra.cells, rb.cells) and np.array_equal(ra.values, rb.values)
+        assert (ra.proximity, ra.valid) == (rb.proximity, rb.valid)
+        changed += ra.cells.size
+        if i == 2:
+            far = dataclasses.replace(f.pose, position=(f.pose.position[0] + 2.0,
+                                                        *f.pose.position[1:]))  # fmt: skip
+            before = pinned.logodds.copy()
+            jump = dataclasses.replace(f, depth=pool[0], pose=far, stamp=f.stamp + 0.05)
+            with pytest.raises(FrameRejected):
+                pinned.process(jump)
+            assert np.array_equal(pinned.logodds, before)
+    assert changed > 100 and (lent == 7).all()
+    assert np.array_equal(copied.occupancy, pinned.occupancy)
+    assert np.array_equal(copied.logodds, pinned.logodds)
+    for m in (copied, pinned):
+        m.close()
+    assert not pinned.binner._fn._pinned  # released by close
