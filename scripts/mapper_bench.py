@@ -90,12 +90,15 @@ def main() -> None:
     ap.add_argument(
         "--depth",
         nargs="+",
-        choices=("copied", "lent"),
+        choices=DEPTHS,
         default=["copied"],
         help="The frame's depth in its own array, copied into the pass's upload buffer on the "
-        "frame's path (copied: a camera SDK's frame), or written into the buffer the mapper "
-        "lends (OccupancyMapper.depth_buffer) by its producer before the wait for the frame, "
-        "off the timed path (lent: a renderer or decoder that writes there).",
+        "frame's path (copied: an image decoded into its own array); written into the buffer "
+        "the mapper lends (OccupancyMapper.depth_buffer) by its producer before the wait for "
+        "the frame, off the timed path (lent: a renderer or decoder that writes there); or in "
+        "one of a source's own 4 recycled buffers, registered once with the device "
+        "(OccupancyMapper.register_depth_buffers), written by the source before the wait "
+        "(registered: a camera SDK's frame pool).",
     )
     ap.add_argument("--split", type=Path, help="cuda: the pass's GPU vs host time, to this JSON.")
     ap.add_argument("--json", type=Path)
@@ -134,6 +137,34 @@ def main() -> None:
         session.close()
 
 
+DEPTHS = ("copied", "lent", "registered")
+POOL = 4
+"""Buffers a registered source recycles (a camera SDK keeps a few frames in flight)."""
+
+
+def producer(mapper: OccupancyMapper, depth: str, frame0):
+    """Where each frame's depth lies when it is handed over (``--depth``): a function that
+    puts frame *i*'s depth there, as its producer would before the mapper's wait for it, and
+    returns the frame to hand. The producer's own write (a renderer's, a camera SDK's into its
+    frame pool) is not the mapper's work and is not timed."""
+    if depth == "copied":
+        return lambda i, f: f
+    if depth == "lent":
+        lent = mapper.depth_buffer(*frame0.depth.shape, frame0.depth.dtype.type)
+        pool = [lent]
+    else:
+        pool = [np.empty_like(frame0.depth) for _ in range(POOL)]
+        if not mapper.register_depth_buffers(pool):
+            raise SystemExit(f"--depth registered needs the cuda backend, not {mapper.backend}")
+
+    def put(i: int, f):
+        buf = pool[i % len(pool)]
+        np.copyto(buf, f.depth)
+        return dataclasses.replace(f, depth=buf)
+
+    return put
+
+
 def bench(session, frames: list, backend: str, floor_every: int, floor_async: bool = True,
           fps: float = 0.0, sleep: str = "chunks", depth: str = "copied") -> dict:  # fmt: skip
     settings = MapperSettings(backend=backend, floor_every=floor_every, floor_async=floor_async)
@@ -167,15 +198,11 @@ def bench(session, frames: list, backend: str, floor_every: int, floor_async: bo
     due = time.perf_counter()
     late = []
     started_at = time.time()  # wall clock, to match samples taken beside (GPU clocks)
+    hand = producer(mapper, depth, frames[0])
     for i, f in enumerate(frames):
-        f = dataclasses.replace(f, stamp=2000.0 + 0.1 * i)
-        if depth == "lent":
-            # Its producer writes the frame where the pass uploads it from, before the wait
-            # for it (as a camera's thread would while this one sleeps): the write does not
-            # warm this core for the frame.
-            lent = mapper.depth_buffer(*f.depth.shape, f.depth.dtype.type)
-            np.copyto(lent, f.depth)
-            f = dataclasses.replace(f, depth=lent)
+        # Its producer puts the frame where it lies before the wait for it (as a camera's
+        # thread would while this one sleeps): the write does not warm this core for it.
+        f = hand(i, dataclasses.replace(f, stamp=2000.0 + 0.1 * i))
         if sleep in ("whole", "spin2"):
             time.sleep(max(0.0, due - (0.002 if sleep == "spin2" else 0.0) - time.perf_counter()))
         while (t := time.perf_counter()) < due:  # the camera's next frame is not here yet

@@ -4,8 +4,9 @@ Usage: PYTHONPATH=. python scripts/mapper_phases.py [--backend cuda] [--fps 0 30
        [--frames 300] [--depth copied lent] [--cache frames.pickle] [--json F]
 Each frame goes through ``MapperNode.feed`` as ``scripts/mapper_bench.py`` times it (one
 sleep to the next frame at ``--fps``; 0: back to back), with every phase of the frame's path
-timed on its own: the header check, the floor, the window, the pass's staging (parameters
-and the depth's copy into the page-locked buffer), its launch and its wait (cuda), the late
+timed on its own: the header check, the depth's send (its copy into the page-locked buffer
+where it lies elsewhere, and the upload's call), the floor, the window, the pass's staging
+(the parameters), its launch and its wait (cuda), the late
 checks, the merge, the delta's message and encoding, each put, the proximity's message, the
 floor fit's hand-off. Per phase: median and p99 of the wall time and of the thread's CPU
 time (``time.thread_time``), and per frame the context switches the thread made
@@ -34,6 +35,7 @@ from mapper import occupancy_mapper as om
 from mapper.node import MapperNode
 from mapper.occupancy_mapper import MapperSettings, OccupancyMapper
 from protocol import codec
+from scripts.mapper_bench import DEPTHS, producer
 
 PHASES: dict[str, list[tuple[float, float]]] = {}
 FRAME: dict[str, tuple[float, float]] = {}
@@ -77,6 +79,7 @@ def instrument() -> None:
     try:
         from mapper import cuda_binning as cb
 
+        cb.FramePass.send = timed("send", cb.FramePass.send)
         cb.FramePass.stage = timed("stage", cb.FramePass.stage)
         cb.FramePass.launch = timed("launch", cb.FramePass.launch)
         cb.FramePass.wait = timed("wait", cb.FramePass.wait)
@@ -101,12 +104,9 @@ def run(session, frames: list, backend: str, fps: float, depth: str = "copied") 
     due = time.perf_counter()
     rows: list[dict[str, tuple[float, float]]] = []
     switches = []
+    hand = producer(mapper, depth, frames[0])  # written before the wait, as the bench does
     for i, f in enumerate(frames):
-        f = dataclasses.replace(f, stamp=3000.0 + 0.1 * i)
-        if depth == "lent":  # written by its producer before the wait, as the bench does
-            lent = mapper.depth_buffer(*f.depth.shape, f.depth.dtype.type)
-            np.copyto(lent, f.depth)
-            f = dataclasses.replace(f, depth=lent)
+        f = hand(i, dataclasses.replace(f, stamp=3000.0 + 0.1 * i))
         time.sleep(max(0.0, due - time.perf_counter()))
         while time.perf_counter() < due:
             pass
@@ -142,7 +142,7 @@ def main() -> None:
     ap.add_argument(
         "--depth",
         nargs="+",
-        choices=("copied", "lent"),
+        choices=DEPTHS,
         default=["copied"],
         help="As scripts/mapper_bench.py's --depth.",
     )
