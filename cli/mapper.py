@@ -81,7 +81,11 @@ def mapper(
     try:
         node.start()
         mapped, last_own = 0, None
-        for item in read_frames(frames):
+        # Each frame is read into the buffer the mapper's pass uploads from (cuda): no copy
+        # on its path. The bird's-eye mapper reads the colour image: no buffer there.
+        m = node.mapper
+        into = m.depth_buffer if isinstance(m, OccupancyMapper) and m.lends_depth else None
+        for item in read_frames(frames, into):
             t0 = time.monotonic()
             if isinstance(item, Exception):
                 node.refuse(item)

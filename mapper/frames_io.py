@@ -18,7 +18,7 @@ JSON::
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +86,19 @@ def write_frame(folder: Path, name: str, frame: DepthFrame) -> None:
     (folder / f"{name}.json").write_text(doc.model_dump_json(indent=1) + "\n")
 
 
-def read_frame(json_path: Path) -> DepthFrame:
-    """One frame from its JSON and the PNG beside it; ``FrameRejected`` if unusable."""
+Buffer = Callable[[int, int], np.ndarray]
+"""Given a frame's height and width, the uint16 array its depth is to be read into."""
+
+
+def read_frame(json_path: Path, into: Buffer | None = None) -> DepthFrame:
+    """One frame from its JSON and the PNG beside it; ``FrameRejected`` if unusable.
+
+    ``into`` (``OccupancyMapper.depth_buffer``): a depth of the size its intrinsics give is
+    put there, so the frame reaches the device with no copy on its path: the reader's copy
+    rides with its decode, before the frame is handed over. OpenCV's ``imread`` can decode
+    into a given array, but then says nothing when the file is unreadable (the array is left
+    as it was: the last frame's depth), so the depth is decoded into its own array, checked,
+    then copied. A frame so read holds the buffer until the next is read into it."""
     import cv2
 
     try:
@@ -112,6 +123,10 @@ def read_frame(json_path: Path) -> DepthFrame:
             pose = CameraPose(doc.pose.position, doc.pose.orientation)
     except ValueError as exc:
         raise FrameRejected(Refusal.UNREADABLE, f"{json_path.name}: {exc}") from exc
+    if into is not None and intr is not None and depth.shape == (intr.height, intr.width):
+        buf = into(intr.height, intr.width)
+        np.copyto(buf, depth)
+        depth = buf
     return DepthFrame(depth, intr, pose, doc.stamp, color)
 
 
@@ -122,10 +137,11 @@ def frame_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.glob("*.json"))
 
 
-def read_frames(folder: Path) -> Iterator[DepthFrame | FrameRejected]:
-    """Every frame of ``folder``, or the refusal of one that cannot be read, in order."""
+def read_frames(folder: Path, into: Buffer | None = None) -> Iterator[DepthFrame | FrameRejected]:
+    """Every frame of ``folder``, or the refusal of one that cannot be read, in order
+    (``into``: as ``read_frame``'s; take each frame before the next is read)."""
     for path in frame_files(folder):
         try:
-            yield read_frame(path)
+            yield read_frame(path, into)
         except FrameRejected as exc:
             yield exc

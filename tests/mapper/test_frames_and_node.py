@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import threading
@@ -41,6 +42,31 @@ def test_unreadable_frames_are_refused_whole(tmp_path):
     assert not isinstance(got[0], FrameRejected)
     assert isinstance(got[1], FrameRejected) and got[1].refusal is Refusal.UNREADABLE
     assert isinstance(got[2], FrameRejected) and got[2].refusal is Refusal.UNREADABLE
+
+
+def test_frames_are_read_into_the_given_buffer_and_refused_ones_leave_it(tmp_path):
+    """``read_frames(into=)`` (the CLI passes the mapper's ``depth_buffer``): each readable
+    frame's depth is that buffer, holding the file's depth; an unreadable PNG or one of
+    another size than its intrinsics say leaves the buffer as the last frame left it."""
+    a, b = frame(box_scene(), 5.0, rng=1), frame(box_scene(), 6.0, rng=2)
+    write_frame(tmp_path, "000000", a)
+    write_frame(tmp_path, "000001", b)
+    write_frame(tmp_path, "000002", dataclasses.replace(b, depth=b.depth[::2, ::2].copy()))
+    write_frame(tmp_path, "000003", dataclasses.replace(b, stamp=7.0))
+    (tmp_path / "000003.png").write_bytes(b"not a png")
+    buf = np.full((480, 640), 7, np.uint16)
+    asked = []
+    frames = read_frames(tmp_path, lambda h, w: asked.append((h, w)) or buf)
+    for want in (a, b):
+        got = next(frames)
+        assert not isinstance(got, FrameRejected)
+        assert got.depth is buf and np.array_equal(buf, want.depth)
+    small = next(frames)
+    assert not isinstance(small, FrameRejected) and small.depth.shape == (240, 320)
+    assert not np.shares_memory(small.depth, buf)
+    bad = next(frames)
+    assert isinstance(bad, FrameRejected) and bad.refusal is Refusal.UNREADABLE
+    assert np.array_equal(buf, b.depth) and asked == [(480, 640)] * 2
 
 
 def _stop_scene():
