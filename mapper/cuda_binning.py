@@ -44,6 +44,7 @@ import numpy as np
 from .binning import MIN_DEPTH_M, PUSH_M, TAN_LIMIT, Binned, Window
 from .cuda_merge import DeviceMap, MergeTail
 from .frame import count_valid
+from .host_buffers import HostBuffers
 from .merge import HOST_PRESENT
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
@@ -135,19 +136,19 @@ class FramePass:
             self.graph = s.end_capture()
         self._device = (out, hit_key, far_key, up)  # alive as long as the graph
 
-    def send(self, depth: np.ndarray, pinned: dict[int, int]) -> None:
+    def send(self, depth: np.ndarray, pinned: HostBuffers) -> None:
         """The frame's depth on its way to the device, ahead of the graph on its stream (the
         last frame's graph has finished with the buffers: its read-back was waited for).
         Read where it lies when that is page-locked: this pass's own buffer (its producer
-        wrote it there, ``CudaBinner.depth_buffer``) or one of ``pinned`` (start address:
-        bytes, ``CudaBinner.register``) holding the whole image, C-ordered, in the pass's
-        type. Anything else is copied (float64 cast) into this pass's buffer first. The copy
-        reads the source until the frame's wait: the source must not change before then."""
+        wrote it there, ``CudaBinner.depth_buffer``) or registered memory (``pinned``)
+        holding the whole image, C-ordered, in the pass's type. Anything else is copied
+        (float64 cast) into this pass's buffer first. The copy reads the source until the
+        frame's wait: the source must not change before then."""
         src = self._lent
         if depth is not self.depth:
-            at = depth.__array_interface__["data"][0]
-            if (pinned.get(at, 0) >= self.depth.nbytes and depth.dtype == self.depth.dtype
-                    and depth.shape == self.depth.shape and depth.flags.c_contiguous):  # fmt: skip
+            at = pinned.address(depth, self.depth.nbytes)
+            if (at and depth.shape == self.depth.shape and depth.dtype == self.depth.dtype
+                    and depth.flags.c_contiguous):  # fmt: skip
                 src = at
             else:
                 np.copyto(self.depth, depth, casting="same_kind")
@@ -157,7 +158,7 @@ class FramePass:
     def stage(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
               floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
               min_depth: float, merge: Sequence[float] = (),
-              pinned: dict[int, int] | None = None) -> None:  # fmt: skip
+              pinned: HostBuffers | None = None) -> None:  # fmt: skip
         """The frame's parameters into the page-locked upload buffer, one numpy call
         (``merge``: the merge's, ``cuda_merge.merge_params``), and its depth sent (``send``)
         unless ``pinned`` is None: the caller sent it already."""
@@ -190,10 +191,8 @@ class CudaBinner:
     def __init__(self) -> None:
         self._passes: dict[tuple, FramePass] = {}
         self._maps: dict[tuple[int, int], DeviceMap] = {}
-        self._pinned: dict[int, int] = {}
-        """Registered sources' buffers: start address -> bytes (``register``)."""
-        self._held: dict[int, np.ndarray] = {}
-        """The arrays themselves, kept alive while registered."""
+        self._pinned = HostBuffers()
+        """A frame source's own buffers, registered (``register``)."""
 
     def prepare(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
                 floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
@@ -248,26 +247,17 @@ class CudaBinner:
         fp.send(depth, self._pinned)
 
     def register(self, arrays: Sequence[np.ndarray]) -> None:
-        """Page-lock a frame source's own buffers once (``cudaHostRegister``), so frames
-        that lie in them go up with no host copy: for a source that recycles a few buffers
-        (a camera SDK's frame pool). Each must be C-ordered and stay allocated until
-        ``unregister``; this binner holds a reference meanwhile. Registering takes
-        milliseconds: once, at start-up, never per frame."""
-        for a in arrays:
-            if not a.flags.c_contiguous:
-                raise ValueError("a registered depth buffer must be C-ordered")
-            at = a.__array_interface__["data"][0]
-            if at not in self._pinned:
-                cp.cuda.runtime.hostRegister(at, a.nbytes, 0)  # cudaHostRegisterDefault
-                self._pinned[at], self._held[at] = a.nbytes, a
+        """Page-lock a frame source's own buffers once (``host_buffers``), so frames that
+        lie in them go up with no host copy: for a source that recycles a few buffers (a
+        camera SDK's frame pool). Each must stay allocated until ``unregister``; this
+        binner holds a reference meanwhile."""
+        self._pinned.register(arrays)
 
     def unregister(self) -> None:
         """Release every registered buffer (after the last frame that reads one)."""
         for s in self._passes.values():
             s.wait()  # no upload may still read one
-        for at in list(self._pinned):
-            cp.cuda.runtime.hostUnregister(at)
-            del self._pinned[at], self._held[at]
+        self._pinned.clear()
 
     def merge(self, maps: tuple, merge: list[float], *args, sent: bool = False) -> tuple:
         """The frame binned and merged into the map kept on the device (``cuda_merge``):

@@ -6,9 +6,10 @@
 #      every 4th frame off the frame's path, taken by the next frame: FLOOR=next; "next path"
 #      adds the fit on the path), the frames back to back and at a camera's 30 fps, the loop
 #      sleeping as SLEEPS says (default whole: one sleep, as the CLI's --rate; also chunks,
-#      spin, spin2: see the bench), the depth copied on the frame's path and lent (DEPTH,
-#      default both: written by its producer into the pass's buffer); the first run also the pass's GPU vs host time (--split,
-#      unless SPLIT=0);
+#      spin, spin2: see the bench), the depth copied on the frame's path, lent (written by
+#      its producer into the pass's buffer) and registered (a source's recycled buffers,
+#      registered once with the device) (DEPTH, default all three); the first run also the
+#      pass's GPU vs host time (--split, unless SPLIT=0);
 #      the GPU's SM clock sampled every 100 ms meanwhile (clocks.csv), summed per row; a table
 #      of the rows with the parts' p99 and how late the loop woke (the CPU's figures are the
 #      dev VM's);
@@ -25,7 +26,7 @@ FRAMES=${FRAMES:-300}
 RUNS=${RUNS:-2}
 SLEEPS=${SLEEPS:-whole}
 FLOOR=${FLOOR:-next}
-DEPTH=${DEPTH:-copied lent}
+DEPTH=${DEPTH:-copied lent registered}
 SPLIT=${SPLIT:-1}
 WALKS_PARALLEL=${WALKS_PARALLEL:-10}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
