@@ -32,11 +32,8 @@ class Binner:
     def __call__(self, *args: Any) -> Binned:
         return self._fn(*args)
 
-    def merge(self, maps: tuple, params: list[float], *args: Any, sent: bool = False) -> tuple:
-        return self._fn.merge(maps, params, *args, sent=sent)  # type: ignore[attr-defined]
-
-    def send_depth(self, *args: Any) -> None:
-        self._fn.send_depth(*args)  # type: ignore[attr-defined]
+    def merge(self, maps: tuple, params: list[float], *args: Any) -> tuple:
+        return self._fn.merge(maps, params, *args)  # type: ignore[attr-defined]
 
     def register(self, arrays: Any) -> bool:
         """Page-lock a frame source's recycled buffers for the pass to read frames from

@@ -23,18 +23,16 @@ uploaded parameters, so the captured graph stays valid. The mapper's passes also
 frame into the map kept on the device (``cuda_merge``): their read-back is then only the
 changed cells and the proximity's figures, not the window's counts.
 
-The depth goes up in a copy of its own, ahead of the graph on the pass's stream (``send``),
-so the mapper can start it as soon as the frame's header is checked and the DMA runs while
-the host fits the floor and stages the parameters. It is read from page-locked memory where
-the frame lies in some: the buffer the mapper lends its producer (``depth_buffer``) or a
-source's own recycled buffers registered once with the driver (``register``:
-``cudaHostRegister``, as a camera SDK's frame pool would be); then no host copy is made at
-all. Any other array is first copied into the lent buffer, as before.
+A frame that lies in page-locked memory is not copied on the host: the buffer the mapper
+lends its producer (``depth_buffer``) is the graph's own upload buffer, and a source's own
+recycled buffers registered once with the driver (``register``: ``cudaHostRegister``, as a
+camera SDK's frame pool would be) each get a graph of their own whose upload reads the
+frame where it lies. Any other array is copied into the upload buffer first.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import cupy as cp
@@ -87,7 +85,6 @@ class FramePass:
         self.params = self.up[:HEAD].view(np.float64)
         self.depth = self.up[HEAD:].view(dtype).reshape(h, w)
         self._lent = self.depth.ctypes.data
-        self._to = up.data.ptr + HEAD  # where the depth lands on the device
         # The merge's views of the read-back, made once, and the one Binned that holds them
         # (valid until this pass's next frame: the mapper merges it at once).
         hit = self.host[n + 2 : n + 2 + 6 * bins].view(np.float64).reshape(bins, 3)
@@ -97,6 +94,8 @@ class FramePass:
         self.stream = cp.cuda.Stream(non_blocking=True)  # capture needs a stream of its own
         bin_pixels, read_bins = _functions(np.dtype(dtype))  # loaded before the capture
         s, rt = self.stream, cp.cuda.runtime
+        if dmap is not None:
+            self.merge = MergeTail(side, dmap)
 
         def resets() -> None:
             rt.memsetAsync(out.data.ptr, 0, 4 * (n + 2), s.ptr)
@@ -106,72 +105,96 @@ class FramePass:
         if dmap is not None:  # the merge resets them after each frame: once here, for the first
             resets()
             s.synchronize()
-        # The copies and resets through the runtime itself: CuPy's own copy methods refuse
-        # any host transfer while a stream captures (they cannot tell page-locked memory).
-        s.begin_capture()
-        try:
-            # The parameters only: the depth goes up ahead of the graph (``send``).
-            rt.memcpyAsync(up.data.ptr, self._lent - HEAD, HEAD, rt.memcpyHostToDevice, s.ptr)
-            if dmap is None:
-                resets()
-            bin_pixels(
-                ((h * w + THREADS - 1) // THREADS,), (THREADS,),
-                (depth, np.int32(h), np.int32(w), params, np.int32(side),
-                 np.int32(map_rows), np.int32(bins), out[:n], hit_key, far_key,
-                 out[n : n + 1], out[n + 1 : n + 2]), stream=s,
-            )  # fmt: skip
-            read_bins(
-                ((bins + 63) // 64,), (64,),
-                (depth, np.int32(w), params, np.int32(bins), hit_key, far_key,
-                 out[n + 2 : n + 2 + 6 * bins].view(cp.float64),
-                 out[n + 2 + 6 * bins :].view(cp.float64)), stream=s,
-            )  # fmt: skip
-            if dmap is None:
-                rt.memcpyAsync(self.host.ctypes.data, out.data.ptr, out.nbytes,
-                               rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
-            else:  # the merge runs here too: only its changed cells come back
-                self.merge = MergeTail(side, dmap)
-                self.merge.capture(s, out, params, bins, hit_key, far_key)
-        finally:
-            self.graph = s.end_capture()
-        self._device = (out, hit_key, far_key, up)  # alive as long as the graph
 
-    def send(self, depth: np.ndarray, pinned: HostBuffers) -> None:
-        """The frame's depth on its way to the device, ahead of the graph on its stream (the
-        last frame's graph has finished with the buffers: its read-back was waited for).
-        Read where it lies when that is page-locked: this pass's own buffer (its producer
-        wrote it there, ``CudaBinner.depth_buffer``) or registered memory (``pinned``)
-        holding the whole image, C-ordered, in the pass's type. Anything else is copied
-        (float64 cast) into this pass's buffer first. The copy reads the source until the
-        frame's wait: the source must not change before then."""
-        src = self._lent
-        if depth is not self.depth:
-            at = pinned.address(depth, self.depth.nbytes)
-            if (at and depth.shape == self.depth.shape and depth.dtype == self.depth.dtype
-                    and depth.flags.c_contiguous):  # fmt: skip
-                src = at
-            else:
-                np.copyto(self.depth, depth, casting="same_kind")
-        rt = cp.cuda.runtime
-        rt.memcpyAsync(self._to, src, self.depth.nbytes, rt.memcpyHostToDevice, self.stream.ptr)
+        def capture(src: int) -> cp.cuda.graph.Graph:
+            """The frame's work with its depth read from ``src`` on the host: this pass's
+            own buffer (one copy, the parameters and the depth together) or a registered
+            buffer (two: the parameters, then the depth from where it lies)."""
+            # The copies and resets through the runtime itself: CuPy's own copy methods
+            # refuse any host transfer while a stream captures (they cannot tell
+            # page-locked memory).
+            s.begin_capture()
+            try:
+                if src == self._lent:
+                    rt.memcpyAsync(up.data.ptr, src - HEAD, up.nbytes, rt.memcpyHostToDevice,
+                                   s.ptr)  # fmt: skip
+                else:
+                    rt.memcpyAsync(up.data.ptr, self._lent - HEAD, HEAD, rt.memcpyHostToDevice,
+                                   s.ptr)  # fmt: skip
+                    rt.memcpyAsync(up.data.ptr + HEAD, src, depth_bytes, rt.memcpyHostToDevice,
+                                   s.ptr)  # fmt: skip
+                if dmap is None:
+                    resets()
+                bin_pixels(
+                    ((h * w + THREADS - 1) // THREADS,), (THREADS,),
+                    (depth, np.int32(h), np.int32(w), params, np.int32(side),
+                     np.int32(map_rows), np.int32(bins), out[:n], hit_key, far_key,
+                     out[n : n + 1], out[n + 1 : n + 2]), stream=s,
+                )  # fmt: skip
+                read_bins(
+                    ((bins + 63) // 64,), (64,),
+                    (depth, np.int32(w), params, np.int32(bins), hit_key, far_key,
+                     out[n + 2 : n + 2 + 6 * bins].view(cp.float64),
+                     out[n + 2 + 6 * bins :].view(cp.float64)), stream=s,
+                )  # fmt: skip
+                if dmap is None:
+                    rt.memcpyAsync(self.host.ctypes.data, out.data.ptr, out.nbytes,
+                                   rt.memcpyDeviceToHost, s.ptr)  # fmt: skip
+                else:  # the merge runs here too: only its changed cells come back
+                    self.merge.capture(s, out, params, bins, hit_key, far_key)
+            finally:
+                graph = s.end_capture()
+            return graph
+
+        self._capture = capture
+        self.graph = capture(self._lent)
+        self._graphs: dict[int, cp.cuda.graph.Graph] = {}
+        """Registered buffers' graphs, by the buffer's address (``read_from``)."""
+        self._device = (out, hit_key, far_key, up)  # alive as long as the graphs
+
+    def read_from(self, addresses: Iterable[int]) -> None:
+        """Capture the frame's graph once for each registered buffer (``host_buffers``) as
+        large as this pass's depth: a frame in one of them is then read where it lies, by
+        its own graph, with no host copy. Milliseconds each: at registration or when the
+        pass is made, never on a frame's path."""
+        for at in addresses:
+            if at not in self._graphs:
+                self._graphs[at] = self._capture(at)
+
+    def forget(self, addresses: Iterable[int]) -> None:
+        """Drop the graphs that read unregistered buffers."""
+        for at in addresses:
+            self._graphs.pop(at, None)
 
     def stage(self, depth: np.ndarray, scale: float, intr, rot: np.ndarray, t: np.ndarray,
               floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
               min_depth: float, merge: Sequence[float] = (),
               pinned: HostBuffers | None = None) -> None:  # fmt: skip
-        """The frame's parameters into the page-locked upload buffer, one numpy call
-        (``merge``: the merge's, ``cuda_merge.merge_params``), and its depth sent (``send``)
-        unless ``pinned`` is None: the caller sent it already."""
+        """The frame's parameters and depth into the page-locked upload buffer (the last
+        frame's graph has finished with it: its read-back was waited for), and the graph to
+        launch. One numpy call for the parameters (``merge``: the merge's,
+        ``cuda_merge.merge_params``). The depth is not copied where it is this buffer itself
+        (``CudaBinner.depth_buffer``: its producer wrote it there) or lies whole in a
+        registered buffer (``pinned``: C-ordered, in the pass's type; that buffer's graph
+        reads it, and it must not change until the frame's wait); else it is copied (cast
+        where it is float64)."""
         self.params[: PARAMS + len(merge)] = [
             intr.fx, intr.fy, intr.cx, intr.cy, *rot.ravel().tolist(), *t.ravel().tolist(),
             floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale,
             win.r0, win.c0, TAN_LIMIT, *merge,
         ]  # fmt: skip
-        if pinned is not None:
-            self.send(depth, pinned)
+        self._next = self.graph
+        if depth is not self.depth:
+            at = pinned.address(depth, self.depth.nbytes) if pinned is not None else 0
+            graph = self._graphs.get(at) if at else None
+            if (graph is not None and depth.shape == self.depth.shape
+                    and depth.dtype == self.depth.dtype and depth.flags.c_contiguous):  # fmt: skip
+                self._next = graph
+            else:
+                np.copyto(self.depth, depth, casting="same_kind")
 
     def launch(self) -> None:
-        self.graph.launch(self.stream)
+        self._next.launch(self.stream)
 
     def wait(self) -> None:
         self.stream.synchronize()  # the frame's one wait on the device
@@ -198,11 +221,10 @@ class CudaBinner:
                 floor_z: float, win: Window, min_h: float, max_h: float, max_range: float,
                 cols_per_bin: int, stride: int,
                 min_depth: float = MIN_DEPTH_M, dmap: DeviceMap | None = None,
-                merge: Sequence[float] = (), sent: bool = False) -> FramePass:  # fmt: skip
+                merge: Sequence[float] = ()) -> FramePass:  # fmt: skip
         """The frame's pass with the frame staged, ready to launch (apart from the call, so
         the bench can time the graph alone: ``scripts/mapper_bench.py --split``); with
-        ``dmap``, the pass that also merges into it (``merge``: its parameters); ``sent``:
-        the depth is on its way already (``send_depth``)."""
+        ``dmap``, the pass that also merges into it (``merge``: its parameters)."""
         if stride != 1:
             depth = depth[::stride, ::stride]
             intr = intr.scaled(1.0 / stride)
@@ -211,7 +233,7 @@ class CudaBinner:
         dtype = np.dtype(np.float32) if depth.dtype == np.float64 else depth.dtype
         fp = self._pass(win.side, bins, h, w, win.map_rows, dtype, dmap)
         fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth,
-                 merge, None if sent else self._pinned)  # fmt: skip
+                 merge, self._pinned)  # fmt: skip
         return fp
 
     def _pass(self, side: int, bins: int, h: int, w: int, map_rows: int, dtype: np.dtype,
@@ -220,6 +242,7 @@ class CudaBinner:
         fp = self._passes.get(key)
         if fp is None:
             fp = self._passes[key] = FramePass(side, bins, h, w, map_rows, dtype, dmap)
+            fp.read_from(self._pinned.covering(fp.depth.nbytes))
         return fp
 
     def _map(self, shape: tuple[int, int]) -> DeviceMap:
@@ -237,29 +260,24 @@ class CudaBinner:
         return self._pass(side, bins, h, w, map_shape[0], np.dtype(dtype),
                           self._map(map_shape)).depth  # fmt: skip
 
-    def send_depth(self, map_shape: tuple[int, int], side: int, bins: int,
-                   depth: np.ndarray) -> None:  # fmt: skip
-        """The frame's depth on its way to the merging pass's device buffer now, before the
-        host's work on the frame (the floor, the window): the DMA overlaps it. Then call
-        ``merge`` with ``sent``. Unsubsampled uint16 or float32 depth only."""
-        h, w = depth.shape
-        fp = self._pass(side, bins, h, w, map_shape[0], depth.dtype, self._map(map_shape))
-        fp.send(depth, self._pinned)
-
     def register(self, arrays: Sequence[np.ndarray]) -> None:
         """Page-lock a frame source's own buffers once (``host_buffers``), so frames that
         lie in them go up with no host copy: for a source that recycles a few buffers (a
         camera SDK's frame pool). Each must stay allocated until ``unregister``; this
         binner holds a reference meanwhile."""
         self._pinned.register(arrays)
+        for fp in self._passes.values():
+            fp.read_from(self._pinned.covering(fp.depth.nbytes))
 
     def unregister(self) -> None:
         """Release every registered buffer (after the last frame that reads one)."""
-        for s in self._passes.values():
-            s.wait()  # no upload may still read one
+        gone = self._pinned.covering(0)
+        for fp in self._passes.values():
+            fp.wait()  # no upload may still read one
+            fp.forget(gone)
         self._pinned.clear()
 
-    def merge(self, maps: tuple, merge: list[float], *args, sent: bool = False) -> tuple:
+    def merge(self, maps: tuple, merge: list[float], *args) -> tuple:
         """The frame binned and merged into the map kept on the device (``cuda_merge``):
         ``maps`` the mapper's host occupancy, log-odds, seen-at and fixed cells (uploaded
         when they are not the ones the device holds), ``merge`` the merge's parameters
@@ -272,7 +290,7 @@ class CudaBinner:
             # The device sees a subsampled or float32 copy: the check counts the original.
             merge = list(merge)
             merge[HOST_PRESENT] = float(count_valid(depth))
-        fp = self.prepare(*args, dmap=dmap, merge=merge, sent=sent)
+        fp = self.prepare(*args, dmap=dmap, merge=merge)
         fp.launch()
         fp.wait()
         return fp.merge.result()

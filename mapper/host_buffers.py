@@ -3,7 +3,8 @@
 A camera SDK hands each frame in its own memory and recycles a few buffers (a frame pool).
 Copying each 640 × 480 frame into the mapper's page-locked upload buffer cost 134 µs of a
 paced frame's host time on the H100's host; registering the pool once with the driver
-(``cudaHostRegister``) lets the upload's DMA read the frame where it lies instead.
+(``cudaHostRegister``) lets the upload's DMA read the frame where it lies instead: each
+pass captures its frame's graph once per registered buffer (``FramePass.read_from``).
 
 Finding out whether a frame lies in registered memory must itself be cheap: a cold
 ``ndarray.__array_interface__`` or ``ndarray.ctypes.data`` (the array's address) took 82 and
@@ -50,6 +51,13 @@ class HostBuffers:
         else:
             return 0
         return at if self._bytes.get(at, 0) >= nbytes else 0
+
+    def covering(self, nbytes: int) -> list[int]:
+        """The registered addresses with at least ``nbytes`` there."""
+        return [at for at, size in self._bytes.items() if size >= nbytes]
+
+    def __len__(self) -> int:
+        return len(self._bytes)
 
     def clear(self) -> None:
         """Unregister everything (no upload may still be reading any of it)."""

@@ -1,18 +1,17 @@
 """Where a mapper frame's time goes, phase by phase: wall clock against the thread's CPU time.
 
 Usage: PYTHONPATH=. python scripts/mapper_phases.py [--backend cuda] [--fps 0 30]
-       [--frames 300] [--depth copied lent] [--cache frames.pickle] [--json F]
+       [--frames 300] [--depth copied lent registered] [--cache frames.pickle] [--json F]
 Each frame goes through ``MapperNode.feed`` as ``scripts/mapper_bench.py`` times it (one
 sleep to the next frame at ``--fps``; 0: back to back), with every phase of the frame's path
-timed on its own: the header check, the depth's send (its copy into the page-locked buffer
-where it lies elsewhere, and the upload's call), the floor, the window, the pass's staging
-(the parameters), its launch and its wait (cuda), the late
-checks, the merge, the delta's message and encoding, each put, the proximity's message, the
-floor fit's hand-off. Per phase: median and p99 of the wall time and of the thread's CPU
-time (``time.thread_time``), and per frame the context switches the thread made
-(``getrusage(RUSAGE_THREAD)``). A phase whose CPU time grows as much as its wall time ran
-slower (a cold core: caches, clocks); one whose wall time grows alone waited (a wake-up, the
-device, another thread).
+timed on its own: the header check, the floor, the window, the pass's staging (parameters
+and, where needed, the depth's copy into the page-locked buffer), its launch and its wait
+(cuda), the late checks, the merge, the delta's message and encoding, each put, the
+proximity's message, the floor fit's hand-off. Per phase: median and p99 of the wall time
+and of the thread's CPU time (``time.thread_time``), and per frame the context switches the
+thread made (``getrusage(RUSAGE_THREAD)``). A phase whose CPU time grows as much as its wall
+time ran slower (a cold core: caches, clocks); one whose wall time grows alone waited (a
+wake-up, the device, another thread).
 """
 
 from __future__ import annotations
@@ -79,7 +78,6 @@ def instrument() -> None:
     try:
         from mapper import cuda_binning as cb
 
-        cb.FramePass.send = timed("send", cb.FramePass.send)
         cb.FramePass.stage = timed("stage", cb.FramePass.stage)
         cb.FramePass.launch = timed("launch", cb.FramePass.launch)
         cb.FramePass.wait = timed("wait", cb.FramePass.wait)
