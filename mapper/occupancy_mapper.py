@@ -165,9 +165,11 @@ class OccupancyMapper:
         """Page-lock a frame source's own recycled depth buffers once (cuda:
         ``cudaHostRegister``), for a source that hands frames in its own memory and reuses a
         few buffers (a camera SDK's frame pool): a frame whose depth is one of them, whole,
-        goes up to the device straight from it, with no copy on the host. Each must stay
-        allocated, and a frame's buffer unchanged until its ``process`` returns, until
-        ``close``. False (nothing done) where the pass reads frames where they lie (cpu)."""
+        goes up to the device straight from it, with no copy on the host (the pass captures
+        its graph once per buffer, here: milliseconds, never on a frame's path). Each must
+        stay allocated until ``close``, registered with one mapper at a time, and a frame's
+        buffer unchanged until its ``process`` returns. False (nothing done) where the pass
+        reads frames where they lie (cpu)."""
         return self.binner.register(arrays)
 
     def window(self, x: float, y: float) -> Window:

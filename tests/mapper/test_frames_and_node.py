@@ -128,6 +128,8 @@ def test_a_frame_rendered_into_the_lent_buffer_maps_as_its_own_array():
     own, lent = mapper(), mapper()
     buf = lent.depth_buffer(480, 640)
     assert buf.shape == (480, 640) and buf.dtype == np.uint16
+    # On cpu the pass reads frames where they lie: nothing to lend or register.
+    assert not lent.lends_depth and not lent.register_depth_buffers([buf])
     for i, rng in enumerate((1, 2)):
         pose = cam.pose(*CAM_XY, NORTH + 0.05 * i)
         a = cam.render(scene, pose, 5.0 + i, np.random.default_rng(rng))
