@@ -232,3 +232,43 @@ def test_a_new_map_has_room_for_large_deltas_and_a_larger_one_grows_it(cuda, mon
     small.reshape(-1)[cells] = values
     _, path = p.update_and_path(cells, values, (7, 7))
     assert np.array_equal(path, reference_path(dijkstra_field(small, (0, 0)), small, (7, 7)))
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("dss", [False, True], ids=["eds", "dss"])
+def test_a_step_names_the_last_path_only_when_no_call_ran_since(cuda, dss):
+    """``PARAM_LAST_PATH`` (the user's bound, ``user_bound.cuh``): a focused step names the
+    seq of the call just before it when that call (a step or a ``path`` query) read its path
+    whole from the loop's buffer; 0 after any other call (``plan``, ``update``, a settle),
+    after a call with no path, and always for DSS, which is never focused."""
+    _, blocked, goal = world(5)
+    p, model = made(cuda, dss=dss)
+    p.plan(blocked, goal)
+    free = np.argwhere(~blocked)
+    user = tuple(int(v) for v in free[-1])
+    none = np.empty(0, np.int64), np.empty(0, bool)
+
+    def step(start=user) -> int:
+        p.update_and_path(*none, start)
+        return model.last_params[abi.PARAM_LAST_PATH]
+
+    expected = 0 if dss else p._seq + 1  # the seq the next step's call gets
+    assert step() == 0  # after plan
+    assert step() == expected
+    assert step() == (0 if dss else expected + 1)
+    p.update(*none)
+    assert step() == 0
+    p.path(user)
+    assert step() == (0 if dss else p._seq - 1)  # the query's seq: the step's is one more
+    p.costs()  # settles in a call of its own when the steps deferred anything
+    assert step() == 0
+    seq = p._seq
+    assert step() == (0 if dss else seq)
+    step((-1, -1))  # off the map: no path read
+    assert step() == 0
+    walled = blocked.copy()
+    walled[user[0] - 1 : user[0] + 2, user[1] - 1 : user[1] + 2] = True
+    walled[user] = False  # the user shut in: no path
+    ring = np.flatnonzero(walled.ravel() & ~blocked.ravel())
+    p.update_and_path(ring, np.ones(ring.size, bool), user)
+    assert step() == 0
