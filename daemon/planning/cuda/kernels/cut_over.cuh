@@ -28,8 +28,8 @@
 // that already held INF with a finite kept neighbour would be unreachable across an unchanged
 // edge from a cell below level, impossible by (1), or across a changed edge, whose ends both
 // lie next to a changed cell and so at or above level. The relaxation (fast.cu) then finds
-// the exact field from any flagged field of upper bounds, focused or not, and the deferrals
-// are all dropped (their pending values were at or above lb >= level: reset).
+// the exact field from any flagged field of upper bounds, focused or not; the deferred tiles
+// are flagged too, or put aside again by (4), never dropped ((5)).
 // (4) With the user's bound B (user_bound.cuh), a tile of (3) whose key level + h(focus, t)
 // exceeds B is deferred with lb = level instead of flagged: every value its cells can still
 // take is >= level (a reset cell v had g(v) >= level, so old g*(v) >= level by (1), and a new
@@ -39,6 +39,17 @@
 // shortest path from the focus has key <= g*(u) + h(u) <= g*(focus) <= B. (The focus's own
 // tile, h = 0, is put aside only when B < level: the focus kept its g, g*(focus) < level,
 // and its shortest paths run through kept cells, exact by (2).)
+// (5) A tile deferred before the cut-over stays pending: it is flagged, or put aside again by
+// (4) with lb = the new level, never dropped unvisited. Why: a visit's deferral has a witness,
+// the lowered cell w with g(w) = lb, which any later level <= lb resets, so w's tile is flagged
+// and its visit reaches the deferred tile again; a tile put aside by (4) has none (lb = level
+// is no cell's value; its reset cells sit next to kept cells below level). A later cut-over at
+// a level in (g(kept), lb] keeps those neighbours and resets nothing of the tile (its INF cells
+// are not reset), so without this rule the tile would be neither flagged nor put aside, its
+// deferral dropped, and its INF cells left next to finite ones for good (costs() wrong). Kept
+// pending, its values are still >= its lb >= the new level (the least lb enters the level), so
+// lb = level bounds them as (4) needs, and every deferral's lb stays a lower bound on its
+// tile's pending values until a visit takes the tile: (1)'s "some deferred tile" exists.
 //
 // On a walk the change lies ahead of the user, away from the goal, so the cells between the
 // goal and the change keep their g and the wave starts next to the change.
@@ -97,7 +108,8 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
         }
         int any = __syncthreads_or(reset);
         if (threadIdx.x == 0) {
-            const bool pending = any || __ldcg(seeds + t);
+            // (5): a deferred tile stays pending, flagged or put aside again.
+            const bool pending = any || __ldcg(seeds + t) || __ldcg(deferred + t);
             // (4): put aside from the start, no visit (level < INF: some cell was reset or
             // bounds the change; bound < INF: the sum below cannot pass INF against INF).
             const bool aside = pending && fy >= 0 && bound < INF && level < INF &&

@@ -43,8 +43,8 @@
 // a call with focus < 0 (settle: costs(), cost_at()) takes them all back. Cells of deferred
 // tiles hold upper bounds (costs of real paths) that can exceed a neighbour's g + c: the raise
 // counts such a neighbour as a support (raise_tile), so no cost is ever under its true value.
-// A plan from scratch (DSS) and the cut-over (cut_over.cuh) clear every deferral; DSS is never
-// focused.
+// A plan from scratch (DSS) clears every deferral; DSS is never focused. The cut-over
+// (cut_over.cuh) flags every deferred tile or puts it aside again, never drops it ((5)).
 //
 // The user's bound B (user_bound.cuh): a second value the deferrals may be decided against,
 // the cost of the last path's rest from the user, known without the wave reaching the user;
