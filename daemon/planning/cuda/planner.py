@@ -205,14 +205,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._params = cp.zeros(size, dtype=np.int32)
         self._delta = self._params[abi.PARAMS :]  # the paper's kernels take the delta alone
 
-    def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
-        """paper: the delta into the stage after the params words, encoded and checked here
-        (``encode_delta``), for ``_run_paper`` to copy up. Returns its length."""
-        h, w = self._shape
-        cells = np.asarray(cells)
-        self._grow_stage(abi.PARAMS + cells.size, cells.size)  # a word a cell at most
-        return device.encode_delta(cells, blocked, h * w, out=self._stage.array[abi.PARAMS :]).size
-
     def _grow_stage(self, words: int, n: int) -> None:
         """Room in the stage for ``words`` (the params and a delta) and on the device for a
         delta of ``n`` cells. A stage that moves stops the resident loop (it polls the stage);
