@@ -36,6 +36,7 @@ import numpy as np
 from .binning import MIN_DEPTH_M, PUSH_M, TAN_LIMIT, Binned, Window
 from .cuda_merge import DeviceMap, MergeTail
 from .frame import count_valid
+from .merge import HOST_PRESENT
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
@@ -216,7 +217,7 @@ class CudaBinner:
         if stride != 1 or depth.dtype == np.float64:
             # The device sees a subsampled or float32 copy: the check counts the original.
             merge = list(merge)
-            merge[8] = float(count_valid(depth))
+            merge[HOST_PRESENT] = float(count_valid(depth))
         fp = self.prepare(*args, dmap=dmap, merge=merge)
         fp.launch()
         fp.wait()

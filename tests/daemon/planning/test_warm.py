@@ -8,7 +8,7 @@ import pytest
 
 from daemon.navigation.warm import warm_up
 from daemon.planning.registry import PLANNERS
-from sim.harmonic_bench import numba_signatures
+from sim.numba_loads import numba_signatures
 from sim.scenarios import make_scenario
 from sim.walk import walk
 
