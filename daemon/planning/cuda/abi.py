@@ -31,14 +31,11 @@ BORDER = 4 * TILE - 4
 """Cells on a tile's perimeter: the path's exits kept per tile."""
 
 # params: [ndelta, mode, start, goal, seq, (the mailbox's MB_STOP, MB_POST, MB_COUNT), focus,
-# last path, unused x 2], then the delta (cell * 2 + blocked). focus: the cell an EDS repair
-# is focused on (the user's; -1: settle everything); last path: the seq of the call that
-# extracted the last path whole, when no call ran since (its cells are marked with it:
-# SLOT_MARKS; the user's bound, kernels/user_bound.cuh), else 0.
+# unused x 3], then the delta (cell * 2 + blocked). focus: the cell an EDS repair is focused on
+# (the user's; -1: settle everything).
 PARAM_NDELTA, PARAM_MODE, PARAM_START, PARAM_GOAL, PARAM_SEQ = range(5)
 PARAM_FOCUS = 8
-PARAM_LAST_PATH = 9
-PARAM_USED = 10
+PARAM_USED = 9
 PARAMS = 12
 """Words before the delta (a whole number of 16-byte chunks: the loop reads the mailbox so)."""
 MODE_DSS, MODE_EDS = 0, 1
@@ -70,8 +67,6 @@ every batch starts 16-byte aligned (its first four words are one read)."""
 # A slot of the shared loop's table (uint64 words in device memory): one planner's buffers.
 SLOT_G, SLOT_BLOCKED, SLOT_RAISED, SLOT_PARAMS, SLOT_FLAGS, SLOT_CTRL = range(6)
 SLOT_EXITS, SLOT_SEGS, SLOT_IO, SLOT_MAIL, SLOT_H, SLOT_W, SLOT_CAP, SLOT_LIMIT = range(6, 14)
-SLOT_MARKS = 14
-"""int32 a cell: the seq of the last call whose path went through it (0: none yet)."""
 SLOT_WORDS = 16
 
 # ctrl words.
@@ -109,13 +104,6 @@ C_RAISE_RING = 25
 """EDS: three rotating sums of the cells raised in a round (beside ``C_CNT``'s, zeroed with
 them): every block adds them up after each barrier to decide the cut-over, so no visit waits
 for an atomic's return to compare the running total with the limit."""
-C_USER = 28
-"""EDS with a last path: ``INF`` minus the user's g as the call found it, written in round 0
-when the user stands on that path (0: no bound; ``fast.cu``'s header). Zeroed by the call's
-last block."""
-C_USER_CUT = 29
-"""EDS with a last path: non-zero when the call's delta blocks one of its cells (no bound).
-Zeroed by the call's last block."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 P_SEG = 40
@@ -161,18 +149,18 @@ is not a consistent field."""
 _WORDS = (
     "TILE", "THREADS", "BORDER",
     "PARAM_NDELTA", "PARAM_MODE", "PARAM_START", "PARAM_GOAL", "PARAM_SEQ", "PARAM_FOCUS",
-    "PARAM_LAST_PATH", "PARAM_USED", "PARAMS",
+    "PARAM_USED", "PARAMS",
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_USER", "C_USER_CUT",
-    "C_RELEASE", "P_SEG", "P_NSEGS", "C_GO", "C_CMD", "C_SLOT", "C_SERVED",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_RELEASE", "P_SEG", "P_NSEGS",
+    "C_GO", "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",
     "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",
     "BATCH_WORDS",
     "SLOT_G", "SLOT_BLOCKED", "SLOT_RAISED", "SLOT_PARAMS", "SLOT_FLAGS", "SLOT_CTRL",
     "SLOT_EXITS", "SLOT_SEGS", "SLOT_IO", "SLOT_MAIL", "SLOT_H", "SLOT_W", "SLOT_CAP",
-    "SLOT_LIMIT", "SLOT_MARKS", "SLOT_WORDS",
+    "SLOT_LIMIT", "SLOT_WORDS",
     "CTRL_READ", "PATH_CTRL",
     "IO_REJECT", "REJECT_RANGE", "REJECT_ORDER", "IO_DONE", "IO_PATH",
     "PATH_DONE", "PATH_MORE", "PATH_NONE", "PATH_BROKEN",

@@ -22,9 +22,8 @@ from . import abi, device, resident
 PARAMS_WORDS = struct.Struct("5i")
 _ORDER = (abi.PARAM_NDELTA, abi.PARAM_MODE, abi.PARAM_START, abi.PARAM_GOAL, abi.PARAM_SEQ)
 assert tuple(range(5)) == _ORDER, "the order _stage_fast packs the words in"
-FOCUS_WORDS = struct.Struct("2i")
-"""PARAM_FOCUS and PARAM_LAST_PATH, after the mailbox's words (which the post writes, last)."""
-assert abi.PARAM_LAST_PATH == abi.PARAM_FOCUS + 1, "the order _stage_fast packs the words in"
+FOCUS_WORD = struct.Struct("i")
+"""PARAM_FOCUS, after the mailbox's words (which the post writes, last)."""
 RESULT_WORDS = struct.Struct(
     f"<{abi.CTRL_READ}I{4 * (abi.IO_REJECT - abi.CTRL_READ)}x"
     f"I{4 * (abi.IO_PATH - abi.IO_REJECT - 1)}x2i"
@@ -53,8 +52,6 @@ class FastCall:
     _ctrl: cp.ndarray
     _exits: cp.ndarray
     _segs: cp.ndarray
-    _marks: cp.ndarray
-    _last_path: int
     _path_cap: int
     _result: tuple[int, ...]
     _loop: resident.Slot | None
@@ -83,7 +80,6 @@ class FastCall:
         right after the walk's other work). The loop checks the delta: a cell outside the map is an
         IndexError (nothing applied); cells out of order (a cell twice, say) are sorted here,
         each keeping its last value, and posted ``again``."""
-        self._last_path = 0  # this call's path (if any) marks cells with another seq
         seq, n = self._stage_fast(eds, cells, blocked, start, focus)
         loop = self._loop
         assert loop is not None
@@ -98,12 +94,10 @@ class FastCall:
         blocked: np.ndarray | None,
         start: int = -1,
         focus: int = -1,
-        last: int = 0,
     ) -> tuple[int, int]:
         """A fast call's params and delta into this planner's mailbox, the slot made if it has
         none; the call's seq and delta length, for a post (``_call_fast``, or a batch's:
-        ``batch.py``). ``last``: the seq of the call that read the last path whole, if no
-        call ran since (the user's bound, ``kernels/user_bound.cuh``), else 0."""
+        ``batch.py``)."""
         n = 0
         if cells is not None:
             # Cells as int64, then a byte per cell (resident.cuh, take_delta): two numpy
@@ -133,7 +127,7 @@ class FastCall:
         goal = self._goal[0] * self._shape[1] + self._goal[1]
         view = self._stage.view
         PARAMS_WORDS.pack_into(view, 0, n, abi.MODE_EDS if eds else abi.MODE_DSS, start, goal, seq)
-        FOCUS_WORDS.pack_into(view, 4 * abi.PARAM_FOCUS, focus, last)
+        FOCUS_WORD.pack_into(view, 4 * abi.PARAM_FOCUS, focus)
         return seq, n
 
     def _finish_fast(
@@ -175,7 +169,6 @@ class FastCall:
             (abi.SLOT_RAISED, self._raised), (abi.SLOT_PARAMS, self._params),
             (abi.SLOT_FLAGS, self._flags), (abi.SLOT_CTRL, self._ctrl),
             (abi.SLOT_EXITS, self._exits), (abi.SLOT_SEGS, self._segs),
-            (abi.SLOT_MARKS, self._marks),
         ):  # fmt: skip
             words[at] = array.data.ptr
         words[abi.SLOT_IO], words[abi.SLOT_MAIL] = self._io_host.device_ptr, self._stage.device_ptr
@@ -184,8 +177,7 @@ class FastCall:
         # The slot keeps every buffer its words point to (a Pinned that grows lets go of its own
         # memory), so none is freed or reused while the loop may still read it.
         keep = (self._g, self._blocked_d, self._raised, self._params, self._flags, self._ctrl,
-                self._exits, self._segs, self._marks, self._io_host.memory,
-                self._stage.memory)  # fmt: skip
+                self._exits, self._segs, self._io_host.memory, self._stage.memory)  # fmt: skip
         slot = resident.shared().attach(tuple(words), keep)
         weakref.finalize(self, slot.stop)
         return slot

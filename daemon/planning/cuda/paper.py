@@ -15,8 +15,6 @@ shared parts (the map, g, the delta upload, the path). Terms are the paper's: ``
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import cupy as cp
 import numpy as np
 
@@ -38,7 +36,6 @@ class PaperForm:
     _params: cp.ndarray
     _stage: device.Pinned
     _slot: int
-    _grow_stage: Callable[[int, int], None]  # room in the stage and on the device (CudaPlanner)
 
     def _allocate_paper(self, n: int) -> None:
         self._g_w = cp.full(n, INF, dtype=np.int32)
@@ -52,14 +49,6 @@ class PaperForm:
         self._flag = cp.zeros(4, dtype=np.int32)
         self._flag_host = device.Pinned(4, np.int32)
         self._flag_host.array[:] = 0
-
-    def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
-        """The delta into the stage after the params words, encoded and checked here
-        (``encode_delta``), for ``_run_paper`` to copy up. Returns its length."""
-        h, w = self._shape
-        cells = np.asarray(cells)
-        self._grow_stage(abi.PARAMS + cells.size, cells.size)  # a word a cell at most
-        return device.encode_delta(cells, blocked, h * w, out=self._stage.array[abi.PARAMS :]).size
 
     def _launch_paper(self, name: str, args: tuple, n: int) -> None:
         k = device.kernel("paper", name)

@@ -144,7 +144,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         # settle.
         self._focus = -1
         self._unsettled = False
-        self._last_path = 0  # the seq of a call that read its path whole, if none ran since
 
     # -- test hook ----------------------------------------------------------------------------
 
@@ -195,7 +194,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._flags = cp.zeros(7 * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
             self._flags[6 * tiles :] = INF
-            self._marks = cp.zeros(n, dtype=np.int32)  # the seq of each cell's last path
         else:
             self._allocate_paper(n)
 
@@ -204,6 +202,14 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._drop_loop()
         self._params = cp.zeros(size, dtype=np.int32)
         self._delta = self._params[abi.PARAMS :]  # the paper's kernels take the delta alone
+
+    def _stage_delta(self, cells: np.ndarray, blocked: np.ndarray) -> int:
+        """paper: the delta into the stage after the params words, encoded and checked here
+        (``encode_delta``), for ``_run_paper`` to copy up. Returns its length."""
+        h, w = self._shape
+        cells = np.asarray(cells)
+        self._grow_stage(abi.PARAMS + cells.size, cells.size)  # a word a cell at most
+        return device.encode_delta(cells, blocked, h * w, out=self._stage.array[abi.PARAMS :]).size
 
     def _grow_stage(self, words: int, n: int) -> None:
         """Room in the stage for ``words`` (the params and a delta) and on the device for a
@@ -305,8 +311,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         cell = y * w + x if 0 <= y < h and 0 <= x < w else -1
         if cell >= 0 and self.focused:
             self._focus = cell
-        last, self._last_path = self._last_path, 0  # the user's bound (user_bound.cuh)
-        seq, n = self._stage_fast(not self.dss, cells, blocked, cell, self._focus, last)
+        seq, n = self._stage_fast(not self.dss, cells, blocked, cell, self._focus)
         return (y, x), seq, n, cells, blocked, cell
 
     def _finish_step(self, step: tuple, t0: float) -> tuple[UpdateStats, np.ndarray]:
@@ -323,8 +328,6 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             path = self._pairs[1][: st[R_COUNT]].copy()  # as _path_locked reads it
         else:
             path = self._path_locked(start, fused=True)
-        if cell >= 0 and st[R_STATUS] == abi.PATH_DONE and self.focused:
-            self._last_path = self._seq  # the call marked the whole path (user_bound.cuh)
         raised = st[abi.C_RAISED]
         self.sweeps, self.raised_cells, self.tiles = st[abi.C_SWEEPS], raised, st[abi.C_TILES]
         self.exit_tiles, self.cut_cells = st[abi.C_EXITS], st[abi.C_CUT]
@@ -388,10 +391,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
                 # A call with no change: the loop extracts the path, no launch.
                 cell = start[0] * self._shape[1] + start[1]
                 self._call_fast(True, None, None, cell, focus=cell if self.focused else -1)
-                path = self._path_locked(start, fused=True)
-                if self.focused and self._result[R_STATUS] == abi.PATH_DONE:
-                    self._last_path = self._seq  # as a step's (user_bound.cuh)
-                return path
+                return self._path_locked(start, fused=True)
             return self._path_locked(start)
 
     def device_bytes(self) -> int:

@@ -14,8 +14,7 @@
 #define PARAM_GOAL 3
 #define PARAM_SEQ 4
 #define PARAM_FOCUS 8
-#define PARAM_LAST_PATH 9
-#define PARAM_USED 10
+#define PARAM_USED 9
 #define PARAMS 12
 #define MODE_DSS 0
 #define MODE_EDS 1
@@ -37,8 +36,6 @@
 #define C_BASE 14
 #define C_STAMP 16
 #define C_RAISE_RING 25
-#define C_USER 28
-#define C_USER_CUT 29
 #define C_RELEASE 32
 #define P_SEG 40
 #define P_NSEGS 42
@@ -71,7 +68,6 @@
 #define SLOT_W 11
 #define SLOT_CAP 12
 #define SLOT_LIMIT 13
-#define SLOT_MARKS 14
 #define SLOT_WORDS 16
 #define CTRL_READ 13
 #define PATH_CTRL 64

@@ -14,9 +14,8 @@
 // (1) The old field: g is an upper bound everywhere, and a cell v with g(v) > g*(v) has
 // g*(v) >= lb of some deferred tile (walk v's true shortest path towards the goal to the last
 // cell u whose g is too high: u is inconsistent with the next cell w, exact, so w was lowered
-// after u's tile last read it, which deferred that tile with lb <= g(w) <= g*(v), or an
-// earlier cut-over reset u and deferred its tile by (4) with lb <= g*(u) <= g*(v); a tile
-// that was flagged instead would have been visited). So every g below level is the old g*, and
+// after u's tile last read it, which deferred that tile with lb <= g(w) <= g*(v); a tile that
+// was flagged instead would have been visited). So every g below level is the old g*, and
 // every old g* >= level where g >= level.
 // (2) Blocking: a cell v with old g*(v) < level has a shortest old path whose cells all have
 // g* <= g*(v) < level <= g*(x) for every newly blocked x, so it avoids them: it still exists.
@@ -28,28 +27,8 @@
 // that already held INF with a finite kept neighbour would be unreachable across an unchanged
 // edge from a cell below level, impossible by (1), or across a changed edge, whose ends both
 // lie next to a changed cell and so at or above level. The relaxation (fast.cu) then finds
-// the exact field from any flagged field of upper bounds, focused or not; the deferred tiles
-// are flagged too, or put aside again by (4), never dropped ((5)).
-// (4) With the user's bound B (user_bound.cuh), a tile of (3) whose key level + h(focus, t)
-// exceeds B is deferred with lb = level instead of flagged: every value its cells can still
-// take is >= level (a reset cell v had g(v) >= level, so old g*(v) >= level by (1), and a new
-// path from v either avoids the change, an old path, or leaves a freed cell, >= level by (2);
-// a changed cell likewise), so lb = level bounds them as a visit's emin does, and fast.cu's
-// argument holds with "lb <= g*(u)" in place of "lb <= g(w)": a tile holding a cell u of a
-// shortest path from the focus has key <= g*(u) + h(u) <= g*(focus) <= B. (The focus's own
-// tile, h = 0, is put aside only when B < level: the focus kept its g, g*(focus) < level,
-// and its shortest paths run through kept cells, exact by (2).)
-// (5) A tile deferred before the cut-over stays pending: it is flagged, or put aside again by
-// (4) with lb = the new level, never dropped unvisited. Why: a visit's deferral has a witness,
-// the lowered cell w with g(w) = lb, which any later level <= lb resets, so w's tile is flagged
-// and its visit reaches the deferred tile again; a tile put aside by (4) has none (lb = level
-// is no cell's value; its reset cells sit next to kept cells below level). A later cut-over at
-// a level in (g(kept), lb] keeps those neighbours and resets nothing of the tile (its INF cells
-// are not reset), so without this rule the tile would be neither flagged nor put aside, its
-// deferral dropped, and its INF cells left next to finite ones for good (costs() wrong). Kept
-// pending, its values are still >= its lb >= the new level (the least lb enters the level), so
-// lb = level bounds them as (4) needs, and every deferral's lb stays a lower bound on its
-// tile's pending values until a visit takes the tile: (1)'s "some deferred tile" exists.
+// the exact field from any flagged field of upper bounds, focused or not, and the deferrals
+// are all dropped (their pending values were at or above lb >= level: reset).
 //
 // On a walk the change lies ahead of the user, away from the goal, so the cells between the
 // goal and the change keep their g and the wave starts next to the change.
@@ -59,13 +38,12 @@
 // Every block of the call's group, after the raise round that passed the limit. delta/ndelta:
 // the call's delta (cell * 2 + blocked). left: the flags the last raise round left; dirty, cnt:
 // the flags the relaxation takes and their count (zero); seeds: the tiles of the changed
-// cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words; (fy,
-// fx), bound: the focus and the user's bound (fy < 0 or bound INF: every tile of (3) is
-// flagged). Two group barriers: the level, then the reset.
+// cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words. Two
+// group barriers: the level, then the reset.
 __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, const int* delta,
                                   int ndelta, unsigned* left, unsigned* dirty, unsigned* cnt,
                                   unsigned* seeds, unsigned* stale, unsigned* deferred, int* lb,
-                                  unsigned* ctrl, unsigned* bar, int fy, int fx, int bound) {
+                                  unsigned* ctrl, unsigned* bar) {
     const int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     int low = INF;
     for (int i = tid; i < ndelta; i += stride) {
@@ -108,18 +86,12 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
         }
         int any = __syncthreads_or(reset);
         if (threadIdx.x == 0) {
-            // (5): a deferred tile stays pending, flagged or put aside again.
-            const bool pending = any || __ldcg(seeds + t) || __ldcg(deferred + t);
-            // (4): put aside from the start, no visit (level < INF: some cell was reset or
-            // bounds the change; bound < INF: the sum below cannot pass INF against INF).
-            const bool aside = pending && fy >= 0 && bound < INF && level < INF &&
-                               level + tile_h(G, t, fy, fx) > bound;
-            if (pending && !aside) flag_tile(dirty, cnt, t);
+            if (any || __ldcg(seeds + t)) flag_tile(dirty, cnt, t);
             left[t] = 0u;
             seeds[t] = 0u;
             stale[t] = 1u;  // the path's exits: every tile again, as after a plan from scratch
-            deferred[t] = aside ? 1u : 0u;
-            lb[t] = aside ? level : INF;
+            deferred[t] = 0u;
+            lb[t] = INF;
         }
     }
     if (tid == 0) {

@@ -38,17 +38,12 @@
 // whichever visit last lowered w flagged or deferred u's tile with a bound <= g(w), so its key
 // is <= g(w) + h(u) <= g*(focus) <= g(focus): it was visited. The next call's reset round
 // takes the deferred tiles back into the relaxation whose key lb + h(new focus) is no more
-// than g(focus) after the raise, or than the user's bound B (if the focus was raised, B
-// alone: INF takes them all), and keeps the others deferred;
+// than g(focus) after the raise (INF if raised: all of them), and keeps the others deferred;
 // a call with focus < 0 (settle: costs(), cost_at()) takes them all back. Cells of deferred
 // tiles hold upper bounds (costs of real paths) that can exceed a neighbour's g + c: the raise
 // counts such a neighbour as a support (raise_tile), so no cost is ever under its true value.
-// A plan from scratch (DSS) clears every deferral; DSS is never focused. The cut-over
-// (cut_over.cuh) flags every deferred tile or puts it aside again, never drops it ((5)).
-//
-// The user's bound B (user_bound.cuh): a second value the deferrals may be decided against,
-// the cost of the last path's rest from the user, known without the wave reaching the user;
-// every threshold above is then min(g(focus), B).
+// A plan from scratch (DSS) and the cut-over (cut_over.cuh) clear every deferral; DSS is never
+// focused.
 //
 // With start >= 0 the call then extracts the path from `start` (path_exits.cuh), reusing
 // the exits of every tile whose g and halo did not change since the last extraction.
@@ -71,7 +66,6 @@
 #include "path_exits.cuh"
 #include "rounds.cuh"  // the EDS step's grid-wide rounds
 #include "cut_over.cuh"
-#include "user_bound.cuh"
 
 // ctrl and io words: abi.cuh (generated from cuda/abi.py).
 
@@ -81,14 +75,13 @@
 // by a visit under way (a block uncounts what it took after its visits have flagged their
 // neighbours); the phase ends when it reaches 0, which is final, since only a visit sets a flag.
 // depth[t]: the longest chain of visits that flagged t (a statistic: the rounds it replaces).
-// focus >= 0 (fy, fx): a neighbour whose key exceeds min(g(focus), bound) is deferred, not
-// flagged (see the header); the focus's g is read at each visit's start: a value read early is
-// higher than the final one, so a deferral against it holds against the final one too, and
-// bound (the user's bound B, INF if none) is >= the final one (user_bound.cuh).
+// focus >= 0 (fy, fx): a neighbour whose key exceeds g(focus) is deferred, not flagged (see
+// the header); the focus's g is read at each visit's start: a value read early is higher than
+// the final one, so a deferral against it holds against the final one too.
 __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsigned* depth,
                             unsigned* stale, unsigned* ctrl, int* g, const unsigned char* blocked,
                             int (*gs)[HT], unsigned char (*bs)[TILE + 1], int* s_list, int* s_n,
-                            int focus, int fy, int fx, unsigned* deferred, int* lb, int bound) {
+                            int focus, int fy, int fx, unsigned* deferred, int* lb) {
     // The block's statistics are summed here and added to ctrl once, at the end: atomics per
     // visit would share a cache line with the work count that every block polls.
     __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
@@ -109,7 +102,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 // The depth statistic is loaded by the threads that use it, and used only after
                 // the relaxation: a load that a barrier waits for would delay every visit.
                 unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
-                int g_focus = k < 8 && focus >= 0 ? min(__ldcg(g + focus), bound) : INF;
+                int g_focus = k < 8 && focus >= 0 ? __ldcg(g + focus) : INF;
                 unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats, s_emin);
                 if (k < 8 && (bits & (1u << k))) {
                     int n = tile_across(G, tile, k);
@@ -171,7 +164,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 // and the relaxation ran 20 % slower.
 __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned char* raised,
                           const int* params, const int* delta, unsigned* flags, unsigned* ctrl,
-                          int h, int w, int2* exits, int4* segs, int* marks, int* io, int cap,
+                          int h, int w, int2* exits, int4* segs, int* io, int cap,
                           unsigned limit, unsigned* bar_ptr) {
     __shared__ __align__(16) int gs[HT][HT];  // aligned: walk_segments stores int2 pairs in it
     __shared__ unsigned char bs[TILE][TILE + 1];
@@ -202,8 +195,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     // DSS is never focused: its field is exact after every call.
     const int focus = mode == MODE_DSS ? -1 : s_params[PARAM_FOCUS];
     const int fy = focus >= 0 ? focus / w : -1, fx = focus >= 0 ? focus % w : 0;
-    // The seq whose marks are the last path (the user's bound, user_bound.cuh); 0: none.
-    const int last = focus >= 0 ? s_params[PARAM_LAST_PATH] : 0;
     int* out = io + IO_PATH;
     G.goal = goal;
     unsigned bar = *bar_ptr;
@@ -231,14 +222,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         // one tile.
         unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
         const int lane = threadIdx.x & 31;
-        // The user's bound: the focus's mark and g, loaded now and stored after the delta
-        // (nothing in round 0 writes g); a newly blocked cell of the last path cancels it.
-        int focus_mark = 0, focus_g = INF;
-        if (last && tid == 0) {
-            focus_mark = __ldcg(marks + focus);
-            focus_g = __ldcg(g + focus);
-        }
-        bool path_cut = false;
         for (int base = tid - lane; base < ndelta; base += stride) {
             int i = base + lane;
             int near[4] = {-1, -1, -1, -1};  // the tiles of a newly blocked cell's 3 x 3
@@ -247,13 +230,11 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
                 int code = __ldcv(delta + i);
                 int cell = code >> 1;
                 unsigned char now = code & 1;
-                const int mark = last ? __ldcg(marks + cell) : 0;  // with blocked: one trip
                 if (__ldcg(blocked + cell) != now) {
                     blocked[cell] = now;
                     int cy = cell / w, cx = cell % w;
                     seed = (cy / TILE) * G.tiles_x + cx / TILE;
                     if (now) {
-                        if (last && mark == last) path_cut = true;
                         // Its children may lie in the tiles around: each of those looks at it.
                         raised[cell] = 1;
                         ++mine;
@@ -283,11 +264,9 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         flagged = __reduce_add_sync(FULL, flagged);
         if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
         if (lane == 0 && mine) count_raised(ctrl, mine, 0);
-        publish_user(ctrl, last, path_cut, tid == 0, focus_mark, focus_g);
     }
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 1);
-    const int bound = user_bound(ctrl, last);  // with round_pending's words: one trip
     unsigned pending = round_pending(ctrl, 0, limit, &s_raised);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
@@ -302,17 +281,16 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         if (pending & CUT_PENDING) {
             keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
                               (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
-                              deferred, lb, ctrl, &bar, fy, fx, bound);
+                              deferred, lb, ctrl, &bar);
         } else {
             // The focus's g after the reset: the raise is over (its last barrier) and the
             // reset round lowers nothing. Both words at once (one round trip, not two); g is
-            // read even where the focus was raised, and then not used. Either way no more
-            // than the user's bound B, which is >= g*(focus) too (user_bound.cuh).
-            int g_focus = bound;
+            // read even where the focus was raised, and then not used.
+            int g_focus = INF;
             if (focus >= 0) {
                 const unsigned char focus_raised = __ldcg(raised + focus);
                 const int g_old = __ldcg(g + focus);
-                if (!focus_raised) g_focus = min(g_old, bound);
+                if (!focus_raised) g_focus = g_old;
             }
             pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
                                 g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
@@ -326,7 +304,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     (void)pending;
     stamp(ctrl, 3);
     relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
-                bs, s_list, &s_n, focus, fy, fx, deferred, lb, bound);
+                bs, s_list, &s_n, focus, fy, fx, deferred, lb);
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 4);
     if (start >= 0) {
@@ -352,7 +330,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         if (tid == 0) hop_segments(g, w, start, exits, segs, out, cap, ctrl);
         grid_barrier(ctrl, &bar);
         stamp(ctrl, 6);
-        walk_segments(g, h, w, segs, out, ctrl, gs, code, marks, s_params[PARAM_SEQ]);
+        walk_segments(g, h, w, segs, out, ctrl, gs, code);
     } else {
         stamp(ctrl, 5);
         stamp(ctrl, 6);
@@ -376,7 +354,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             ctrl[C_EXITS] = 0;
             ctrl[C_CUT] = 0;
             ctrl[C_KEEP] = 0;
-            ctrl[C_USER] = ctrl[C_USER_CUT] = 0;
             for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
             ctrl[C_BASE] = bar;
         }

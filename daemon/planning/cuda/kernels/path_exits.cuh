@@ -135,12 +135,10 @@ __device__ void hop_segments(const int* g, int w, int start, const int2* exits, 
 // walks into shared memory (gs: g is not needed once the codes are worked out) and the block
 // writes the cells out together, 8 bytes a thread: `out` may be mapped host memory, where one
 // thread's stores, two per cell, would each be a PCIe write of their own. gs must be 8-byte
-// aligned (its declarations say __align__(16)). With `marks`, each cell written out is also
-// marked with `tag` (marks[cell] = tag: the fast call's seq, fast.cu's user's bound).
+// aligned (its declarations say __align__(16)).
 #define WALK_CHUNK 512  // cells per write-out (HT * HT ints hold 578 (row, column) pairs)
 __device__ void walk_segments(const int* g, int h, int w, const int4* segs, int* out,
-                              unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE],
-                              int* marks = nullptr, int tag = 0) {
+                              unsigned* ctrl, int (*gs)[HT], unsigned char (*code)[TILE]) {
     static_assert(2 * WALK_CHUNK <= HT * HT, "a chunk fits in gs");
     __shared__ int s_nsegs, s_count;
     if (threadIdx.x == 0) s_nsegs = (int)__ldcg(ctrl + P_NSEGS);
@@ -166,11 +164,7 @@ __device__ void walk_segments(const int* g, int h, int w, const int4* segs, int*
                 s_count = n;
             }
             __syncthreads();
-            for (int i = threadIdx.x; i < s_count; i += blockDim.x) {
-                const int2 c = cells[i];
-                path[s.z + done + i] = c;
-                if (marks) marks[c.x * w + c.y] = tag;
-            }
+            for (int i = threadIdx.x; i < s_count; i += blockDim.x) path[s.z + done + i] = cells[i];
             __syncthreads();  // written out before the next chunk, or the next segment's load
         }
     }

@@ -235,8 +235,7 @@ __device__ bool serve_batch(const unsigned long long* slots, unsigned* ctrl, con
                   (unsigned char*)s_d[SLOT_RAISED], (const int*)s_d[SLOT_PARAMS],
                   (const int*)s_d[SLOT_PARAMS] + PARAMS, (unsigned*)s_d[SLOT_FLAGS], pctrl,
                   (int)s_d[SLOT_H], (int)s_d[SLOT_W], (int2*)s_d[SLOT_EXITS],
-                  (int4*)s_d[SLOT_SEGS], (int*)s_d[SLOT_MARKS], (int*)s_d[SLOT_IO],
-                  (int)s_d[SLOT_CAP],
+                  (int4*)s_d[SLOT_SEGS], (int*)s_d[SLOT_IO], (int)s_d[SLOT_CAP],
                   (unsigned)s_d[SLOT_LIMIT], &s_call_bar);
         __syncthreads();  // s_d is rewritten for the next call
     }

@@ -83,8 +83,7 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 // raise, with CUT_PENDING once more than `limit` cells were raised in all (*so_far: the
 // cells raised before this round, round_pending).
 // The reset round also takes back the deferred tiles whose key lb + h(focus) is no more than
-// `g_focus`, no less than the focus's final g (its g after the reset, or the user's bound:
-// user_bound.cuh; INF: every one; fy < 0: no focus).
+// `g_focus`, the focus's g after the reset (INF: every one; fy < 0: no focus).
 __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* next, unsigned* seeds,
                               unsigned* stale, unsigned* ctrl, int r, int* g,
                               const unsigned char* blocked, unsigned char* raised, int (*gs)[HT],
