@@ -15,25 +15,6 @@
 // relaxes each as soon as it is flagged, so the wave moves at the pace of one tile instead of
 // a grid-wide round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
-// Chained visits: a visit that lowered tiles across its edges goes straight on into one of them
-// (pick_next: away from where the wave came in) instead of flagging it, up to CHAIN_MAX
-// visits, and flags the others as before: a link of the wave's longest chain then costs a
-// halo load and a settle, without the flag's fence, the owner's poll and its take (~1 µs of
-// the ~3.6-4 µs a link, profile_cuda_phases.py). Why the invariants hold:
-// - g only goes down: the tile it goes into may be visited by its owner at the same time (a
-//   third tile flagged it), each block from its own load, so settle_tile writes with atomicMin;
-//   every value written is still the cost of a real path, and the lower one stays.
-// - Every lowered tile is visited before the call ends: the tile gone into is visited by this
-//   block, which holds its taken flags' count in *work until its chain has flagged every
-//   other tile it lowered, so the count cannot reach 0 while the chain runs. A tile settled by
-//   two blocks at once ends consistent: each cell's final g came from a block whose settled
-//   values bound its neighbours' (g[v] <= its g_b[v] <= g_b[u] + c = g[u] + c), and the block
-//   that wrote a border cell's final g flagged (or went into) the tile across.
-// - The focused repair: a deferred tile is never gone into (only flagged tiles are), and each
-//   block's deferral bound comes from its own settled values, so the block whose value stays
-//   gave the bound <= that value the header's argument needs. So the path read is still the
-//   reference path, and the field equals Dijkstra after settle().
-//
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
 // whole shadow behind it) gives up the repair at the end of that round: raising and
 // re-lowering that many cells costs more than a plan from the goal (the CPU's rule,
@@ -90,25 +71,6 @@
 
 #define IDLE_LIMIT (1u << 22)  // polls without work (~µs each): seconds, far beyond any plan
 
-// A chain of visits one block makes without the work queue (relax_async) is cut after this
-// many: the block's own flagged tiles wait while it goes on into others'.
-#define CHAIN_MAX 8
-
-// Which edge/corner the visit goes straight on across, among `want` (the bits of the tiles it
-// flagged, the deferred ones left out), or -1: an edge (N S W E) before a corner (a corner
-// passes one cell), and of the edges the one whose least new g is highest: the wave's front
-// lies away from where it came in, and the edge it came in across holds the lowest values
-// (its tile across was settled before; a visit there mostly changes nothing). The same in
-// every lane of warp 0: it reads only the ballot and shared memory.
-__device__ __forceinline__ int pick_next(unsigned want, const int* emin) {
-    int pick = -1;
-    for (unsigned e = want & 15u; e; e &= e - 1) {
-        const int k = __ffs(e) - 1;
-        if (pick < 0 || emin[k] > emin[pick]) pick = k;
-    }
-    return pick >= 0 || !want ? pick : __ffs(want) - 1;
-}
-
 // The relaxation without rounds. *work is the sum of the flags' counts, set or taken
 // by a visit under way (a block uncounts what it took after its visits have flagged their
 // neighbours); the phase ends when it reaches 0, which is final, since only a visit sets a flag.
@@ -124,7 +86,6 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
     // visit would share a cache line with the work count that every block polls.
     __shared__ unsigned s_work, s_taken, s_stats[3];  // s_stats: C_SWEEPS .. C_CHANGED
     __shared__ int s_emin[8];
-    __shared__ int s_next;  // the tile the visit goes on into, -1: none
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (GBLOCK >= G.ntiles) return;
     if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
@@ -136,43 +97,29 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
             int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
                                      base == (int)GBLOCK ? work : nullptr, &s_work, &s_taken);
             for (int i = 0; i < count; ++i) {
-                // A visit may go straight on into one tile it lowered (pick_next): a chain of
-                // such visits is one block's, with no flag, poll or take between its links.
-                for (int tile = s_list[i], hop = 1; tile >= 0; ++hop) {
-                    const int k = threadIdx.x;
-                    // The depth statistic is loaded by the threads that use it, and used only
-                    // after the relaxation: a load that a barrier waits for would delay every
-                    // visit.
-                    unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
-                    int g_focus = k < 8 && focus >= 0 ? __ldcg(g + focus) : INF;
-                    unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats, s_emin);
-                    if (k < 32) {  // warp 0: threads k < 8 hold edge/corner k
-                        int n = -1;
-                        if (k < 8 && (bits & (1u << k))) {
-                            n = tile_across(G, tile, k);
-                            if (n >= 0 && focus >= 0 &&
-                                s_emin[k] + tile_h(G, n, fy, fx) > g_focus) {
-                                atomicMin(lb + n, s_emin[k]);  // read by the next call
-                                deferred[n] = 1u;
-                                n = -1;
-                            }
-                        }
-                        const unsigned want = __ballot_sync(FULL, n >= 0);
-                        const int pick = hop < CHAIN_MAX ? pick_next(want, s_emin) : -1;
-                        if (n >= 0) {
-                            atomicMax(depth + n, d);
-                            if (k != pick) flag_tile(dirty, work, n, true);  // after its g
-                        }
-                        if (k == (pick >= 0 ? pick : 0)) s_next = pick >= 0 ? n : -1;
+                int tile = s_list[i];
+                int k = threadIdx.x;
+                // The depth statistic is loaded by the threads that use it, and used only after
+                // the relaxation: a load that a barrier waits for would delay every visit.
+                unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
+                int g_focus = k < 8 && focus >= 0 ? __ldcg(g + focus) : INF;
+                unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats, s_emin);
+                if (k < 8 && (bits & (1u << k))) {
+                    int n = tile_across(G, tile, k);
+                    if (n >= 0 && focus >= 0 && s_emin[k] + tile_h(G, n, fy, fx) > g_focus) {
+                        atomicMin(lb + n, s_emin[k]);  // read by the next call, after barriers
+                        deferred[n] = 1u;
+                    } else if (n >= 0) {
+                        atomicMax(depth + n, d);
+                        flag_tile(dirty, work, n, true);  // after the tile's g and the depth
                     }
-                    mark_exits_stale(G, tile, bits, k - 32, stale);
-                    if (threadIdx.x == 0) {
-                        ++visits;
-                        longest = max(longest, d);
-                    }
-                    __syncthreads();  // shared tile buffers are reused; s_next is written
-                    tile = s_next;    // written again only after relax_tile's barriers
                 }
+                mark_exits_stale(G, tile, bits, k - 32, stale);
+                if (threadIdx.x == 0) {
+                    ++visits;
+                    longest = max(longest, d);
+                }
+                __syncthreads();  // shared tile buffers are reused by the next tile
             }
             // The flags this block set are counted before the ones it took are uncounted.
             if (count && threadIdx.x == 0) atomicSub(work, s_taken);

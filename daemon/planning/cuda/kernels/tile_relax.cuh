@@ -154,11 +154,8 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
     bool changed = c.inside && after != before;
     if (changed) {
         // Made visible to other blocks by the fence of whichever thread flags a neighbour
-        // after the barrier below (fences are cumulative over the block's barrier). A min, not
-        // a store: a block that went on into a tile of another's (fast.cu, relax_async) may
-        // settle it while its owner does, each from its own load; the lower value stays, so
-        // g never rises, and either writer flags what its value lowered.
-        atomicMin(g + c.idx, after);
+        // after the barrier below (fences are cumulative over the block's barrier).
+        __stcg(g + c.idx, after);
         unsigned e = edge_bits(y, x);
         atomicOr(&s_bits, e | CHANGED_ANY);
         for (; e; e &= e - 1) atomicMin(emin + __ffs(e) - 1, after);
