@@ -97,3 +97,34 @@ def test_a_cut_over_keeps_the_field_between_the_goal_and_the_change():
     assert full.cells_touched >= n * n - wall.size  # from scratch: every free cell
     assert stats.cells_touched < n * n // 2  # kept: the rows between goal and wall
     np.testing.assert_array_equal(eds.costs(), g)
+
+
+@pytest.mark.timeout(60)
+def test_two_cut_overs_beside_the_path_at_one_level_stay_exact():
+    """Two boxes beside the walker's path, each a cut-over (a 32-cell tile grid of 4 x 6, the
+    goal at the top's middle, the user in the bottom-left corner). The first's level is 1348;
+    the second box lies at g >= 1468, yet its level is 1348 again, the least bound of what the
+    first call deferred (in a Python model of the kernels' rules, not read off the device). A
+    cut-over that ends a deferral without a visit to its tile leaves cells at INF beside finite
+    ones for good (tail15's user's bound did: ~1200 cells in that model). Every path read is
+    the reference path, and ``costs()`` is exact."""
+    from daemon.planning.cuda.planner import CudaPlanner
+
+    h, w, goal = 128, 192, (0, 96)
+    boxes = (((112, 118), (20, 40)), ((118, 124), (14, 34)))
+    p = CudaPlanner("fast", cut_over=0.0)
+    truth = np.zeros((h, w), bool)
+    user = (127, 0)
+    p.plan(truth, goal)
+    _, path = p.update_and_path(np.empty(0, np.int64), np.empty(0, bool), user)
+    for (y0, y1), (x0, x1) in boxes:
+        rr, cc = np.mgrid[y0:y1, x0:x1]
+        cells = (rr * w + cc).ravel()
+        assert not np.isin(cells, path[:, 0] * w + path[:, 1]).any(), "beside the path"
+        truth.reshape(-1)[cells] = True
+        g = dijkstra_field(truth, goal)
+        _, path = p.update_and_path(cells, np.ones(cells.size, bool), user)
+        assert p.cut_cells > p.cut_over, "each box cuts over"
+        assert np.array_equal(path, reference_path(g, truth, user))
+        user = tuple(int(v) for v in path[3])
+    np.testing.assert_array_equal(p.costs(), dijkstra_field(truth, goal))
