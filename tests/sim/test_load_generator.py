@@ -78,8 +78,9 @@ def test_every_user_sends_poses_and_deltas_at_their_rates_and_each_delta_decodes
     for user in gen.names:
         poses = [codec.decode(Pose, raw) for _, raw in heard[(pose_leaf, user)]]
         deltas = [codec.decode(MapDelta, raw) for _, raw in heard[(delta_leaf, user)]]
-        # ~2.1 s of sends (the ramp, then 2 s) at 20 and 10 Hz, on a shared machine.
-        assert 36 <= len(poses) <= 44 and 18 <= len(deltas) <= 23, (len(poses), len(deltas))
+        # ~2.1 s of sends (the ramp, then 2 s) at 20 and 10 Hz: 40-43 poses, 21-23 deltas with
+        # the first; poses may be dropped (latest wins) on a loaded machine, deltas may not.
+        assert 30 <= len(poses) <= 44 and 20 <= len(deltas) <= 23, (len(poses), len(deltas))
         assert all(b.stamp > a.stamp for a, b in itertools.pairwise(poses))
         assert [d.seq for d in deltas] == list(range(len(deltas)))
         # Delta 0 walls the map in; then each one drops a 3 × 3 obstacle or lifts it again.
