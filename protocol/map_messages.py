@@ -32,6 +32,7 @@ MAX_DELTA_CELLS = 65536
 
 OCCUPANCY_VALUES = (0, 1, 2)
 """FREE, OCCUPIED, UNKNOWN — as in ``daemon.planning.grid``."""
+_OCCUPANCY_BYTES = bytes(OCCUPANCY_VALUES)
 
 
 class MapDelta(Message):
@@ -56,9 +57,12 @@ class MapDelta(Message):
             raise ValueError(f"delta of {n} cells exceeds the limit of {MAX_DELTA_CELLS}")
         if len(self.cells) != 4 * n:
             raise ValueError("cells must hold one uint32 per value")
-        if n and int(self.cell_array().max()) >= self.height * self.width:
+        # The largest index read as stored (no int64 copy) and the values by deleting every
+        # allowed byte: a daemon worker checks 250 deltas a second, most of 9 cells, where
+        # the copies and the second reduction were a third of a delta's decode.
+        if n and int(np.frombuffer(self.cells, "<u4").max()) >= self.height * self.width:
             raise ValueError("cell index outside the map")
-        if n and int(self.value_array().max()) > max(OCCUPANCY_VALUES):
+        if self.values.translate(None, _OCCUPANCY_BYTES):
             raise ValueError("occupancy value not in {0, 1, 2}")
         return self
 

@@ -1,8 +1,8 @@
 """Many users at once against a real daemon: the delta→belt latency each user feels, and
 whether overload is reported as overload.
 
-The load generator (this module, one process, one zenoh session) plays ``users`` wearers
-against ``guidebelt run`` (another process): each has its own map (walls around a
+The load generator (``sim.load_generator``, one process, one zenoh session) plays ``users``
+wearers against ``guidebelt run`` (another process): each has its own map (walls around a
 ``grid``² courtyard), a goal at the top and stands at the bottom, sends a fresh pose at
 ``pose_hz`` and a map delta at ``delta_hz`` that drops or lifts a small obstacle on the way
 (so every delta changes the path). It records when each delta was sent and when the belt
@@ -17,193 +17,19 @@ from __future__ import annotations
 
 import json
 import os
-import re
-import threading
 import time
 from collections import Counter
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import zenoh
-from zenoh.handlers import Callback
 
-from protocol import codec
 from protocol import session as wire
 from protocol import topics as T
-from protocol.messages import (
-    Goal,
-    GoalCell,
-    MapDelta,
-    MapSnapshot,
-    NavStatus,
-    Pose,
-    StatusCode,
-)
+from protocol.messages import StatusCode
 
-_MAP_SEQ = re.compile(rb'"map_seq":\s*(-?\d+)')
+from .load_generator import LoadGenerator, LoadSpec, UserTrace
 
-
-@dataclass
-class LoadSpec:
-    users: int = 50
-    grid: int = 200
-    pose_hz: float = 20.0
-    delta_hz: float = 10.0
-    seconds: float = 30.0
-    warmup_s: float = 5.0
-    """Deltas sent before this are not measured: the daemon is still starting sessions."""
-    blob: int = 3
-    seed: int = 0
-    join_hz: float = 20.0
-    """Users who start walking per second: a venue's wearers do not all arrive at once."""
-
-
-@dataclass
-class UserTrace:
-    sends: dict[int, int] = field(default_factory=dict)
-    """delta seq → send time (perf_counter_ns)."""
-    belts: list[int] = field(default_factory=list)
-    paths: list[tuple[int, int]] = field(default_factory=list)
-    """(arrival ns, map_seq) of each path."""
-    codes: Counter = field(default_factory=Counter)
-    """Status codes heard after the warm-up."""
-    first_measured: int = 1 << 62
-
-
-def _blob(rng: np.random.Generator, n: int, size: int) -> np.ndarray:
-    """Flat cells of a size × size obstacle somewhere on the straight way up the middle."""
-    r = int(rng.integers(n // 5, 4 * n // 5))
-    c = int(rng.integers(n // 2 - n // 10, n // 2 + n // 10))
-    rr, cc = np.mgrid[r : r + size, c : c + size]
-    return (rr * n + cc).ravel()
-
-
-class LoadGenerator:
-    """Publishes the users' poses and deltas on ``session`` and records what comes back."""
-
-    def __init__(self, session: zenoh.Session, spec: LoadSpec) -> None:
-        self.session, self.spec = session, spec
-        self.names = [f"load{i:03d}" for i in range(spec.users)]
-        self.traces = {u: UserTrace() for u in self.names}
-        self._lock = threading.Lock()
-        self._measuring_from = 1 << 62
-        self._measuring_until = 1 << 62
-        self._subs = [
-            wire.declare_subscriber(session, T.BELT, self._sink(self._on_belt)),
-            wire.declare_subscriber(session, T.PATH, self._sink(self._on_path)),
-            wire.declare_subscriber(session, T.STATUS, self._sink(self._on_status)),
-        ]
-        self._maps: dict[str, tuple[int, np.ndarray]] = {}
-        """Each user's map as published (last seq, occupancy): the snapshot a daemon that
-        skipped deltas (a user it shed) asks for when it guides the user again."""
-        self._lock_maps = threading.Lock()
-        self._subs.append(
-            wire.declare_queryable(session, T.MAP_SOURCE, Callback(self._on_source, indirect=False))
-        )
-        self._pose_pubs = {u: wire.declare_publisher(session, T.POSE, u) for u in self.names}
-        self._delta_pubs = {u: wire.declare_publisher(session, T.MAP_DELTA, u) for u in self.names}
-
-    def _sink(self, handle: Callable[[str, int, bytes], None]) -> Callback:
-        def on_sample(sample: zenoh.Sample) -> None:
-            t = time.perf_counter_ns()
-            key = str(sample.key_expr)
-            user = key.split("/")[1]
-            if user in self.traces:
-                handle(user, t, sample.payload.to_bytes())
-
-        return Callback(on_sample, indirect=False)
-
-    def _on_belt(self, user: str, t: int, payload: bytes) -> None:
-        self.traces[user].belts.append(t)
-
-    def _on_path(self, user: str, t: int, payload: bytes) -> None:
-        m = _MAP_SEQ.search(payload)  # a full decode per path would load this process
-        if m is not None:
-            self.traces[user].paths.append((t, int(m.group(1))))
-
-    def _on_status(self, user: str, t: int, payload: bytes) -> None:
-        # Until shortly after the last pose: then poses stop and stale_pose is the truth.
-        if self._measuring_from <= t <= self._measuring_until:
-            status = codec.decode(NavStatus, payload)
-            with self._lock:
-                self.traces[user].codes[str(status.code) or status.state] += 1
-
-    def _on_source(self, query: zenoh.Query) -> None:
-        user = str(query.key_expr).split("/")[1]
-        with self._lock_maps:
-            seq, occ = self._maps.get(user, (-1, None))
-            occ = None if occ is None else occ.copy()
-        if occ is not None:
-            snap = MapSnapshot.from_array(seq, occ, time.time())
-            wire.reply(query, T.MAP_SOURCE, user, codec.encode(snap))
-        query.drop()
-
-    def _published(self, user: str, seq: int, cells: np.ndarray, values: np.ndarray) -> None:
-        with self._lock_maps:
-            occ = self._maps[user][1]
-            occ.reshape(-1)[cells] = values
-            self._maps[user] = (seq, occ)
-
-    def run(self) -> None:
-        spec, n = self.spec, self.spec.grid
-        cell_m = 10.0 / n
-        walls = np.flatnonzero(np.pad(np.zeros((n - 2, n - 2), bool), 1, constant_values=True))
-        x, y = (n // 2 + 0.5) * cell_m, (n // 10 + 0.5) * cell_m
-        goal = codec.encode(Goal(target=GoalCell(row=n // 10, col=n // 2), stamp=time.time()))
-        for u in self.names:
-            first = MapDelta.from_arrays(0, (n, n), walls, np.ones(walls.size), time.time())
-            self._maps[u] = (0, np.zeros((n, n), np.uint8))
-            self._published(u, 0, walls, np.ones(walls.size, np.uint8))
-            self._delta_pubs[u].put(codec.encode(first))
-            wire.put(self.session, T.GOAL, u, goal)
-        rngs = {u: np.random.default_rng([spec.seed, i]) for i, u in enumerate(self.names)}
-        placed: dict[str, np.ndarray | None] = dict.fromkeys(self.names)
-        seq = dict.fromkeys(self.names, 0)
-        # Users join one after another; each one's sends are offset within the period.
-        start = time.perf_counter()
-        joins = {u: start + i / spec.join_hz for i, u in enumerate(self.names)}
-        offsets = {u: i / spec.users for i, u in enumerate(self.names)}
-        next_pose = {u: joins[u] + offsets[u] / spec.pose_hz for u in self.names}
-        next_delta = {u: joins[u] + offsets[u] / spec.delta_hz for u in self.names}
-        ramp_s = spec.users / spec.join_hz
-        self._measuring_from = time.perf_counter_ns() + int((ramp_s + spec.warmup_s) * 1e9)
-        end = start + ramp_s + spec.warmup_s + spec.seconds
-        while (now := time.perf_counter()) < end:
-            for u in self.names:
-                if now >= next_pose[u]:
-                    next_pose[u] += 1.0 / spec.pose_hz
-                    pose = Pose(x=x, y=y, heading=1.57, stamp=time.time())
-                    self._pose_pubs[u].put(codec.encode(pose))
-                if now >= next_delta[u]:
-                    next_delta[u] += 1.0 / spec.delta_hz
-                    seq[u] += 1
-                    blob = placed[u]
-                    if blob is None:
-                        blob = placed[u] = _blob(rngs[u], n, spec.blob)
-                        values = np.ones(blob.size, np.uint8)
-                    else:
-                        values, placed[u] = np.zeros(blob.size, np.uint8), None
-                    data = codec.encode(
-                        MapDelta.from_arrays(seq[u], (n, n), blob, values, time.time())
-                    )
-                    self._published(u, seq[u], blob, values)
-                    sent = time.perf_counter_ns()
-                    self._delta_pubs[u].put(data)
-                    trace = self.traces[u]
-                    trace.sends[seq[u]] = sent
-                    if sent >= self._measuring_from:
-                        trace.first_measured = min(trace.first_measured, seq[u])
-            time.sleep(0.001)
-        self._measuring_until = time.perf_counter_ns() + int(0.5e9)
-        time.sleep(1.0)  # the last answers
-
-    def close(self) -> None:
-        for sub in self._subs:
-            sub.undeclare()
-        for pub in (*self._pose_pubs.values(), *self._delta_pubs.values()):
-            pub.undeclare()
+__all__ = ["LoadGenerator", "LoadSpec", "run_against_daemon", "summarise", "user_latencies"]
 
 
 def user_latencies(trace: UserTrace) -> tuple[list[float], int]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,9 +49,12 @@ class MapUpdate:
 
 
 class MapKeeper:
-    def __init__(self, radius_cells: int) -> None:
+    def __init__(self, radius_cells: int, on_cells: Callable[[int], None] | None = None) -> None:
+        """``on_cells(cells)``: told the new map's cell count whenever a map replaces the last
+        (the daemon's memory budget keeps every user's count so, not by a pass over them)."""
         self.radius_cells = radius_cells
         self.map: InflatedMap | None = None
+        self._on_cells = on_cells
         self.seq = -1
         self.resyncing = False
         """A snapshot has been asked for and the deltas that come meanwhile are buffered."""
@@ -74,7 +78,7 @@ class MapKeeper:
         daemon was down), so it stays stale (the user waits) until the source's snapshot
         arrives; after ``attempts`` snapshots that did not come the stored map is taken as it
         is, and the next delta out of sequence asks again, as for any gap."""
-        self.map = InflatedMap(occupancy, self.radius_cells)
+        self._new_map(occupancy)
         self.seq, self.epoch = seq, epoch
         self.stale = self.restored = True
         self.resyncing = False
@@ -96,7 +100,7 @@ class MapKeeper:
         if not self._same_epoch(snap.epoch, "snapshot", update):
             self.snapshot_failed()  # the next delta asks again
             return update
-        self.map = InflatedMap(snap.array(), self.radius_cells)
+        self._new_map(snap.array())
         self.seq = snap.seq
         self.resyncing = self.stale = self.restored = False
         buffered = sorted(
@@ -117,6 +121,11 @@ class MapKeeper:
         update.new_map = True
         return update
 
+    def _new_map(self, occupancy: np.ndarray) -> None:
+        self.map = InflatedMap(occupancy, self.radius_cells)
+        if self._on_cells is not None:
+            self._on_cells(occupancy.size)
+
     def take_deltas(self, deltas: list[MapDelta]) -> MapUpdate:
         update = MapUpdate()
         cells: list[np.ndarray] = []
@@ -126,7 +135,7 @@ class MapKeeper:
                 continue
             shape = (d.height, d.width)
             if self.map is None and d.seq == 0 and not self.resyncing:
-                self.map = InflatedMap(np.full(shape, UNKNOWN, np.uint8), self.radius_cells)
+                self._new_map(np.full(shape, UNKNOWN, np.uint8))
                 update.new_map = True
             elif self.map is None:
                 self._gap(f"first delta seen is {d.seq}, not 0", d, update)

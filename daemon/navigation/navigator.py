@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -57,12 +58,14 @@ class Navigator:
         *,
         guidance: Guidance | None = None,
         planner_factory: PlannerFactory | None = None,
+        map_cells: Callable[[int], None] | None = None,
     ) -> None:
-        """``planner_factory(backend)`` overrides the registry (tests inject failing planners)."""
+        """``planner_factory(backend)`` overrides the registry (tests inject failing planners);
+        ``map_cells(cells)`` is told each new map's size (``MapKeeper``'s ``on_cells``)."""
         self.user = user
         self.settings = settings
         self.radius_cells = radius_in_cells(settings.user_radius_m, settings.cell_m)
-        self.maps = MapKeeper(self.radius_cells)
+        self.maps = MapKeeper(self.radius_cells, map_cells)
         self.margin = PoseMargin(settings.cell_m, self.radius_cells)
         self.route = Route(
             planner_factory

@@ -35,6 +35,7 @@ from protocol.topics import Topic
 from .admission import Admission, AdmissionSettings, map_too_big
 from .bridge import Bridge
 from .config import DaemonConfig
+from .map_cells import MapCells
 from .persistence import Persistence
 from .queries import QueryAnswers, daemon_health, say_who_may_connect
 from .runner import Pacing, UserRunner
@@ -70,6 +71,8 @@ class Daemon:
         self._observing: list[Any] = []
         self.notifier = notifier if notifier is not None else Notifier()
         self.runners: dict[str, UserRunner] = {}
+        self.map_cells = MapCells()
+        """Every session's map size, for the memory budget (``_map_too_big``)."""
         self.settings = SettingsStore(config.intensity)
         self.state: Persistence | None = None  # the state store, opened by ``run``
         self.rejected_unrouted = 0  # refused before reaching a user (bad key, too many users)
@@ -241,6 +244,7 @@ class Daemon:
     def _forget(self, user: str) -> None:
         """A user silent for ``user_idle_s`` and not being guided: free the session."""
         runner = self.runners.pop(user)
+        cleared = self.map_cells.close(user)
         self.admission.leave(user)
         log.info("idle user forgotten", extra={"fields": {"user": user}})
         if self.state is not None:
@@ -249,6 +253,7 @@ class Daemon:
         task = asyncio.get_running_loop().create_task(
             runner.close(StatusCode.IDLE, f"nothing heard for {self.config.user_idle_s:g} s")
         )
+        task.add_done_callback(lambda _t: cleared())  # its last step may have taken a map
         if bridge is not None:
             task.add_done_callback(lambda _t: bridge.forget_user(user))
 
@@ -271,7 +276,7 @@ class Daemon:
             wording=stored.wording or nav_settings.wording,
             units=stored.units or nav_settings.units,
         )
-        navigator = Navigator(user, nav_settings)
+        navigator = Navigator(user, nav_settings, map_cells=self.map_cells.open(user))
         runner = UserRunner(
             navigator,
             bridge.publish,
@@ -365,9 +370,8 @@ class Daemon:
 
     def _map_too_big(self, user: str, cells: int | None) -> str | None:
         """Why a map of ``cells`` cells may not be ``user``'s (None: it may)."""
-        others = (r.navigator.maps.map for u, r in self.runners.items() if u != user)
-        sizes = [m.shape[0] * m.shape[1] for m in others if m is not None]
-        return map_too_big(cells, sizes, self.config.max_map_cells, self.config.memory_budget_mb)
+        others = [self.map_cells.others(user)]
+        return map_too_big(cells, others, self.config.max_map_cells, self.config.memory_budget_mb)
 
     def _refuse_user(self, user: str) -> None:
         self.rejected_unrouted += 1

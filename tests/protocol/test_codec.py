@@ -120,6 +120,27 @@ def test_bad_deltas_are_refused_with_a_code(data, code):
     assert err.value.code == code
 
 
+@pytest.mark.parametrize(
+    ("cells", "values", "ok"),
+    [
+        ((99, 0, 42), b"\x00\x01\x02", True),  # the last cell of a 10 x 10 map, every value
+        ((0xFFFFFFFF,), b"\x01", False),  # the largest uint32, read unsigned
+        ((1, 100, 2), b"\x01\x01\x01", False),  # one cell past the end among good ones
+        ((1, 2, 3), b"\x01\x03\x00", False),  # 3: just past UNKNOWN
+        ((1, 2), b"\x02\xff", False),
+    ],
+)
+def test_a_deltas_cells_and_values_are_checked_at_their_bounds(cells, values, ok):
+    data = header(n=len(values)) + struct.pack(f"<{len(cells)}I", *cells) + values
+    if ok:
+        delta = codec.decode(MapDelta, data)
+        assert delta.cell_array().tolist() == list(cells) and delta.values == values
+        return
+    with pytest.raises(codec.DecodeError) as err:
+        codec.decode(MapDelta, data)
+    assert err.value.code == "invalid"
+
+
 def test_snapshot_refuses_wrong_sizes_and_zip_bombs():
     def snap(body: bytes, h=10, w=10) -> bytes:
         return struct.pack("<4sHHIIIdI", b"GBMS", 1, 0, 0, h, w, NOW, len(body)) + body
