@@ -57,6 +57,7 @@ _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 cut off, newly reachable without a value yet, the goal's fixed zero."""
 _H2D = cp.cuda.runtime.memcpyHostToDevice
 _D2H = cp.cuda.runtime.memcpyDeviceToHost
+_D2D = cp.cuda.runtime.memcpyDeviceToDevice
 # Plain (not cooperative) launches for the fill's gather and scatter: every function of the
 # cooperative module launches cooperatively, and cupy trims such a grid to the resident blocks.
 _GATHER = cp.ElementwiseKernel("raw T w, int32 c", "T v", "v = w[c]", "harmonic_gather")
@@ -228,6 +229,29 @@ class CudaField:
 
     def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
         """As ``CpuField.relax``: sweeps, residual, and whether the field ends without a pit."""
+        return self.relax_start(sweeps, tol, budget)()
+
+    def keep_for_undo(self) -> None:
+        """Room on the device for ``relax_start``'s copy of the field (after ``load``)."""
+        self.w_kept, self.fixed_kept = cp.empty_like(self.w), cp.empty_like(self.fixed)
+
+    def undo(self) -> None:
+        """``w`` and the fixedness as the last ``relax_start(keep=True)``'s launch found them:
+        copied back in the stream, after that launch. The launch's other outputs (Idx, the
+        result words, the pit list) every launch writes afresh, and it clears its flags. The
+        changes ``set`` before that launch are undone with it: a caller sets them again."""
+        _copy(self.w.data.ptr, self.w_kept.data.ptr, self.w.nbytes, _D2D)
+        _copy(self.fixed.data.ptr, self.fixed_kept.data.ptr, self.fixed.nbytes, _D2D)
+
+    def relax_start(self, sweeps: int, tol: float, budget: int | None = None,
+                    keep: bool = False) -> Callable[[], tuple[int, float, bool]]:  # fmt: skip
+        """``relax`` launched: the function returned waits for it and gives its result. The
+        host may meanwhile do anything but ``set`` (the queue's pinned buffer is the launch's
+        until then). ``keep``: ``w`` and the fixedness copied first on the device (in the
+        stream, before the launch), for ``undo``."""
+        if keep:
+            _copy(self.w_kept.data.ptr, self.w.data.ptr, self.w.nbytes, _D2D)
+            _copy(self.fixed_kept.data.ptr, self.fixed.data.ptr, self.fixed.nbytes, _D2D)
         n = self.n_queued
         _copy(self.changes.data.ptr, self.queued.ctypes.data, 4 * n, _H2D)
         self.kernel(
@@ -240,6 +264,9 @@ class CudaField:
         )  # fmt: skip
         self.n_queued, self.late = 0, False
         self.launches += 1
+        return self._relaxed
+
+    def _relaxed(self) -> tuple[int, float, bool]:
         self._fetch()
         done, bits, settled, self.pit_count = (int(v) for v in self.result_host)
         return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
