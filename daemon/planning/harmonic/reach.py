@@ -242,10 +242,21 @@ class Reach:
         return cut_off(self.blocked, self.reach, self._failed[:seeds], self.width, self.goal,
                        self._group, self._queue, self._out, limit)  # fmt: skip
 
-    def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def apply(
+        self,
+        cells: np.ndarray,
+        values: np.ndarray,
+        early: Callable[[np.ndarray], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
         reachability changed (newly blocked cells count as lost; newly freed ones that the goal
-        reaches as gained)."""
+        reaches as gained). ``early``: called with the newly blocked cells the goal reached
+        before the host's whole-map search starts (the cut-off try gave up), when the change
+        frees none and leaves the goal free: then ``lost`` is those cells and the cells cut
+        off, ``gained`` empty (the planner starts the relaxation on them meanwhile). Not before
+        the try: on the 400² bench walk's recorded deltas the three tries that end (42, 53,
+        54) each find cells cut off (12, 201, 4), where a relaxation started early is undone,
+        and the three whole-map searches (26, 34, 40) none."""
         flips = self._flips
         nb, nf = _flips(self.blocked, self.reach, cells, values, self._label, flips,
                         self._was)  # fmt: skip
@@ -277,6 +288,8 @@ class Reach:
                 else:
                     cut = self._cut_off(seeds, limit)
             if self.blocked[self.goal] or cut < 0:
+                if early is not None and nf == 0 and self.search is None and wait is None:
+                    early(now_blocked[was])
                 return self._afresh(now_blocked, was, wait)
             self.cut_searches += 1
         lost = now_blocked[was]
