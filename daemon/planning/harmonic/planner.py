@@ -122,7 +122,7 @@ class HarmonicPlanner(GlobalPlanner):
         self._retried = -1
         self._band: tuple[np.ndarray, np.ndarray] | None = None
         self.overlap = engine.backend == "cuda"
-        """Start a step's relaxation while the host searches for cells cut off (``_early``);
+        """Start a step's relaxation while the host searches for cells cut off (``_start_early``);
         read at ``plan``."""
         self.overlaps = 0
         """Steps whose relaxation ran beside the host's search and stood."""
