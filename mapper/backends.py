@@ -35,6 +35,12 @@ class Binner:
     def merge(self, maps: tuple, params: list[float], *args: Any) -> tuple:
         return self._fn.merge(maps, params, *args)  # type: ignore[attr-defined]
 
+    def depth_buffer(self, *args: Any) -> Any:
+        """The array the pass uploads a frame's depth from (``CudaBinner.depth_buffer``), or
+        None where the pass reads the frame where it lies."""
+        lend = getattr(self._fn, "depth_buffer", None)
+        return None if lend is None else lend(*args)
+
     def pull(self, logodds: Any, seen_at: Any) -> None:
         self._fn.pull(logodds, seen_at)  # type: ignore[attr-defined]
 

@@ -36,6 +36,7 @@ import numpy as np
 from .binning import MIN_DEPTH_M, PUSH_M, TAN_LIMIT, Binned, Window
 from .cuda_merge import DeviceMap, MergeTail
 from .frame import count_valid
+from .merge import HOST_PRESENT
 
 KERNEL = Path(__file__).with_name("kernels") / "bin_pixels.cu"
 THREADS = 256
@@ -130,13 +131,15 @@ class FramePass:
         """The frame's parameters and depth into the page-locked upload buffer (the last
         frame's graph has finished with it: its read-back was waited for). One numpy call
         for the parameters (``merge``: the merge's, ``cuda_merge.merge_params``); the depth
-        is cast on the way in where it is float64."""
+        is cast on the way in where it is float64, and not copied at all where it is this
+        buffer itself (``CudaBinner.depth_buffer``: its producer wrote it there)."""
         self.params[: PARAMS + len(merge)] = [
-            intr.fx, intr.fy, intr.cx, intr.cy, *np.ravel(rot).tolist(), *np.ravel(t).tolist(),
+            intr.fx, intr.fy, intr.cx, intr.cy, *rot.ravel().tolist(), *t.ravel().tolist(),
             floor_z, min_h, max_h, max_range, min_depth, win.cell_m, PUSH_M, scale,
             win.r0, win.c0, TAN_LIMIT, *merge,
         ]  # fmt: skip
-        np.copyto(self.depth, depth, casting="same_kind")
+        if depth is not self.depth:
+            np.copyto(self.depth, depth, casting="same_kind")
 
     def launch(self) -> None:
         self.graph.launch(self.stream)
@@ -174,13 +177,33 @@ class CudaBinner:
         h, w = depth.shape
         bins = (w + cols_per_bin - 1) // cols_per_bin
         dtype = np.dtype(np.float32) if depth.dtype == np.float64 else depth.dtype
-        key = (win.side, bins, h, w, win.map_rows, dtype, dmap and dmap.shape)
-        fp = self._passes.get(key)
-        if fp is None:
-            fp = self._passes[key] = FramePass(win.side, bins, h, w, win.map_rows, dtype, dmap)
+        fp = self._pass(win.side, bins, h, w, win.map_rows, dtype, dmap)
         fp.stage(depth, scale, intr, rot, t, floor_z, win, min_h, max_h, max_range, min_depth,
                  merge)  # fmt: skip
         return fp
+
+    def _pass(self, side: int, bins: int, h: int, w: int, map_rows: int, dtype: np.dtype,
+              dmap: DeviceMap | None) -> FramePass:  # fmt: skip
+        key = (side, bins, h, w, map_rows, dtype, dmap and dmap.shape)
+        fp = self._passes.get(key)
+        if fp is None:
+            fp = self._passes[key] = FramePass(side, bins, h, w, map_rows, dtype, dmap)
+        return fp
+
+    def _map(self, shape: tuple[int, int]) -> DeviceMap:
+        dmap = self._maps.get(shape)
+        if dmap is None:
+            dmap = self._maps[shape] = DeviceMap(shape)
+        return dmap
+
+    def depth_buffer(self, map_shape: tuple[int, int], side: int, bins: int, h: int, w: int,
+                     dtype: np.dtype) -> np.ndarray:  # fmt: skip
+        """The page-locked array the merging pass for this map, window and image uploads
+        its depth from. A frame whose depth is this very array is not copied on its path:
+        its producer wrote it there. It may be written only between frames (``merge``
+        returns once the upload is done) and holds one frame at a time."""
+        return self._pass(side, bins, h, w, map_shape[0], np.dtype(dtype),
+                          self._map(map_shape)).depth  # fmt: skip
 
     def merge(self, maps: tuple, merge: list[float], *args) -> tuple:
         """The frame binned and merged into the map kept on the device (``cuda_merge``):
@@ -188,16 +211,13 @@ class CudaBinner:
         when they are not the ones the device holds), ``merge`` the merge's parameters
         (``merge.merge_params``), ``args`` the pass's. One launch and one wait; returns
         ``MergeTail.result``."""
-        occupancy = maps[0]
-        dmap = self._maps.get(occupancy.shape)
-        if dmap is None:
-            dmap = self._maps[occupancy.shape] = DeviceMap(occupancy.shape)
+        dmap = self._map(maps[0].shape)
         dmap.attach(*maps)
         depth, stride = args[0], args[11]
         if stride != 1 or depth.dtype == np.float64:
             # The device sees a subsampled or float32 copy: the check counts the original.
             merge = list(merge)
-            merge[8] = float(count_valid(depth))
+            merge[HOST_PRESENT] = float(count_valid(depth))
         fp = self.prepare(*args, dmap=dmap, merge=merge)
         fp.launch()
         fp.wait()

@@ -60,15 +60,16 @@ class DeviceMap:
 
     def attach(self, occupancy: np.ndarray, logodds: np.ndarray, seen_at: np.ndarray,
                fixed: np.ndarray) -> None:  # fmt: skip
-        given = (occupancy, logodds, seen_at, fixed)
-        if len(self._host) == 4 and all(a is b for a, b in zip(self._host, given, strict=True)):
-            return
+        held = self._host
+        if (held and held[0] is occupancy and held[1] is logodds and held[2] is seen_at
+                and held[3] is fixed):  # fmt: skip
+            return  # every frame of the same mapper: no generator on the frame's path
         self.occ.set(np.ascontiguousarray(occupancy, np.uint8))
         self.lo.set(np.ascontiguousarray(logodds, np.float32))
         self.seen.set(np.ascontiguousarray(seen_at, np.float64))
         self.fixed.set(np.ascontiguousarray(fixed, np.uint8))
         cp.cuda.Device().synchronize()  # the passes' streams read these next
-        self._host = given
+        self._host = (occupancy, logodds, seen_at, fixed)
 
     def pull(self, logodds: np.ndarray, seen_at: np.ndarray) -> None:
         """The device's log-odds and seen-at into the host's arrays, in place."""

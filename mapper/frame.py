@@ -10,6 +10,10 @@ import numpy as np
 
 from .camera_model import CameraPose, Intrinsics
 
+DEPTH_DTYPES = frozenset(np.dtype(t) for t in (np.uint16, np.float32, np.float64))
+"""A depth's types (native byte order), as dtypes: a set's lookup, no type converted per frame."""
+UINT16 = np.dtype(np.uint16)
+
 
 @dataclass(frozen=True)
 class DepthFrame:
@@ -77,7 +81,7 @@ def check_header(frame: DepthFrame,
     depth = frame.depth
     if not isinstance(depth, np.ndarray) or depth.ndim != 2:
         raise FrameRejected(Refusal.BAD_DEPTH, "depth must be a 2-D array")
-    if depth.dtype not in (np.uint16, np.float32, np.float64):
+    if depth.dtype not in DEPTH_DTYPES:
         raise FrameRejected(Refusal.BAD_DEPTH, f"depth of dtype {depth.dtype} (uint16 or float)")
     if depth.shape != (intr.height, intr.width):
         why = f"depth {depth.shape[1]}x{depth.shape[0]}, intrinsics {intr.width}x{intr.height}"

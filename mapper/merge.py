@@ -127,12 +127,18 @@ def merge_frame(obst, floor, hit, far, cam_x, cam_y, cos_h, sin_h, r0, c0, map_r
     return cells, values, near[0], near[1], near[2], near[3]
 
 
+HOST_PRESENT = 8
+"""Where ``merge_params`` holds the host's count of the frame's valid pixels
+(``merge_cells.cu``'s HOST_PRESENT, P[27 + 8]): -1, the device counts them, unless the binner
+counts the original of a depth the device sees subsampled or cast."""
+
+
 def merge_params(settings, cos_h: float, sin_h: float, cam_row: float, cam_col: float,
                  stamp: float, forget_before: float, need: float,
                  motion_ok: bool) -> list[float]:  # fmt: skip
     """What ``merge_frame`` takes beyond the pass's output, for the device's merge
-    (``kernels/merge_cells.cu``'s P[27..46]): the frame's, then the mapper's settings. P[35],
-    the host's pixel count, is -1 (the device's own) unless the binner sets it."""
+    (``kernels/merge_cells.cu``'s P[27..46]): the frame's, then the mapper's settings;
+    ``HOST_PRESENT`` is -1."""
     s = settings
     return [
         cos_h, sin_h, cam_row, cam_col, stamp, forget_before, need, float(motion_ok), -1.0,

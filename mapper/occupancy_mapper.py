@@ -25,7 +25,7 @@ import math
 import time
 from collections import Counter
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,8 +34,8 @@ from .binning import Window
 from .camera_model import Intrinsics
 from .floor import NOMINAL, FloorFit, fit_floor, points_of
 from .frame import (
+    UINT16,
     DepthFrame,
-    FrameLimits,
     FrameRejected,
     Refusal,
     check_depth,
@@ -45,82 +45,13 @@ from .frame import (
 )
 from .merge import merge_frame, merge_params
 from .proximity import Proximity, proximity_of
+from .settings import MapperSettings
 
 FREE, OCCUPIED, UNKNOWN = 0, 1, 2
 """As ``protocol.messages.OCCUPANCY_VALUES`` and ``daemon.planning.grid``."""
 
 JUMPS_TO_RELOCALISE = 5
 """Consecutive pose jumps after which the new place is believed (the localiser re-fixed)."""
-
-
-@dataclass(frozen=True)
-class MapperSettings:
-    shape: tuple[int, int] = (100, 100)
-    cell_m: float = 0.10
-    min_height_m: float = 0.10
-    """Below this above the floor a point is floor (seed 000's height threshold)."""
-    max_height_m: float = 2.0
-    """Above this a point is overhead: nothing a walker runs into."""
-    max_range_m: float = 3.0
-    """Seed 000's sensing range (3.0 m)."""
-    min_points: int = 3
-    """Obstacle points a cell needs in one frame to be OCCUPIED (single noisy points are not)."""
-    min_share: float = 0.25
-    """Share of a cell's points (obstacle and floor) that must be obstacle points."""
-    cols_per_bin: int = 4
-    """Image columns per clearing ray: the frame's bearings are cut into width / this bins
-    (``binning.bearing_bins``), one ray each."""
-    stride: int = 1
-    """Pixel step of the per-pixel pass (1 = every pixel)."""
-    floor_ransac: bool = True
-    floor_sample_step: int = 12
-    floor_every: int = 4
-    """Refit the floor every this many frames (1: every frame; 4 keeps a 640 × 480 frame on
-    an H100 under 1 ms p99, where every frame's fit put it at 0.98–1.06 ms). Between fits the
-    last fit is kept as a tilt of the camera (a chest camera's slip moves with the camera, not
-    the world), so turning does not spoil it; a step of more than ``floor_refit_m`` since the
-    last fit leaves a fit due at once (taken by the next frame, ``floor_async``), and a
-    relocalisation fits on its first frame's path. On the frame's path the fit was 0.23–0.50 ms
-    of a frame's p99 on the H100's host (numba), the largest single part beside the GPU pass."""
-    floor_refit_m: float = 0.5
-    floor_async: bool = True
-    """Fit a due floor off the frame's path: the frame that leaves a fit due keeps the last
-    fit, the fit of its sample runs on a worker thread once its delta is out
-    (``fit_pending_floor``, which the node calls after publishing), and the NEXT frame takes
-    it, waiting for it if it is not done (made there on the path if nobody started it). Which
-    frame uses which fit is then fixed by the frames alone, not by the thread's timing: the
-    map is the same on every run and on every backend. At a camera's 30 fps the fit (~1 ms
-    on the dev VM) is done long before the next frame comes; back to back the next frame
-    waits about what a fit on the path costs. Only the first fit, and the one after a
-    relocalisation, are made on the frame's path of the frame that needs them."""
-    max_tilt_deg: float = 25.0
-    backend: str = "auto"
-    limits: FrameLimits = field(default_factory=FrameLimits)
-    forget_s: float = 10.0
-    """An obstacle the mapper saw but has not seen again for this long, out of view, goes back
-    to UNKNOWN (0: never). A person who walked off while nobody looked is not a wall for
-    good; a box still there is seen again on the way. Obstacles of the start map stay."""
-    tail_share: float = 0.25
-    """A cell with fewer obstacle points than this share of the cell beyond it along the
-    ray holds that face's range-noise tail (``evidence.range_tail``), not an obstacle."""
-    l_hit: float = 0.85
-    """Log-odds a hit adds (p = 0.70)."""
-    l_pass: float = -0.4
-    """Log-odds a ray passing through adds (p = 0.40)."""
-    l_occupied: float = 0.7
-    """At or above: published OCCUPIED. One hit on a cell never seen is enough (an
-    obstacle that appears is mapped at once); a cell seen free needs hits to outweigh
-    its passes."""
-    l_free: float = -0.35
-    """At or below: published FREE. One pass frees a cell never seen, as before."""
-    l_min: float = -2.0
-    """Clamp below: a cell seen free many times needs 4 hits in a row to be an obstacle."""
-    l_max: float = 3.5
-    """Clamp above: an obstacle seen many times is freed after 10 passes (a person who
-    walked away leaves no ghost for more than 10 frames)."""
-    corridor_m: float = 0.2
-    """Half-width of the walking corridor in which an obstacle counts as ahead: half a
-    walker's shoulders (the planner's 0.3 m inflation keeps obstacles just outside it)."""
 
 
 @dataclass(frozen=True)
@@ -173,7 +104,7 @@ class OccupancyMapper:
         self.last_stamp: float | None = None
         self.last_xy: tuple[float, float] | None = None
         self._jumps = 0
-        self._floor: tuple[FloorFit, np.ndarray, np.ndarray] | None = None
+        self._floor: tuple[FloorFit, np.ndarray, tuple] | None = None
         """The last fit, its correction in the camera's frame, and where the camera was."""
         self._floor_age = 0
         self._floor_due: tuple | None = None
@@ -207,6 +138,22 @@ class OccupancyMapper:
             self.binner.pull(self._logodds, self._seen_at)
             self._on_device = False
 
+    def depth_buffer(self, height: int, width: int, dtype: type = np.uint16) -> np.ndarray:
+        """An array for a frame's producer to write the next depth into: on cuda the
+        page-locked buffer the frame's graph uploads from, so a frame whose depth is this
+        very array is not copied on its path (614 kB at 640 × 480, the largest piece of a
+        paced frame's host work). A producer that makes the depth (a decoder, a renderer:
+        ``sim.camera.RgbdCamera.render``'s ``out``) writes it here; frames in someone else's
+        memory (a camera SDK's) are copied once, here or by the pass. It holds one frame:
+        write it only between ``process`` calls. Elsewhere (cpu, strided, float64) a plain
+        array."""
+        s, dt = self.settings, np.dtype(dtype)
+        lent = None
+        if self.binner.merges and s.stride == 1 and dt != np.float64:
+            bins = (width + s.cols_per_bin - 1) // s.cols_per_bin
+            lent = self.binner.depth_buffer(s.shape, self._side, bins, height, width, dt)
+        return np.zeros((height, width), dt) if lent is None else lent
+
     def window(self, x: float, y: float) -> Window:
         h = self.settings.shape[0]
         row = h - 1 - math.floor(y / self.settings.cell_m)
@@ -235,20 +182,23 @@ class OccupancyMapper:
         else:
             intr, pose = check_frame(frame, s.limits, self.last_stamp, self.last_xy)
         depth = frame.depth
-        scale = intr.depth_scale if depth.dtype == np.uint16 else 1.0
+        scale = intr.depth_scale if depth.dtype == UINT16 else 1.0
         rot = pose.world_from_optical()
         cam = np.asarray(pose.position, np.float64)
+        x, y = cam[:2].tolist()  # plain floats for the scalar work: numpy's scalars are slower
         t1 = time.perf_counter()
-        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam)
+        fit, floor_rot, floor_z, refit, arrived = self._floor_for(depth, scale, intr, rot, cam,
+                                                                  (x, y))  # fmt: skip
         t2 = time.perf_counter()
-        win = self.window(cam[0], cam[1])
+        win = self.window(x, y)
         args = (depth, scale, intr, floor_rot, cam, floor_z, win, s.min_height_m,
                 s.max_height_m, s.max_range_m, s.cols_per_bin, s.stride)  # fmt: skip
         forget_before = -math.inf
         if s.forget_s > 0 and frame.stamp - self._forgot_at >= 1.0:  # the whole map, once a second
             forget_before = frame.stamp - s.forget_s
         if self.binner.merges:  # the pass merges too, into the device's map, and checks late
-            cells, values, valid, near = self._merge_on_device(frame, pose, args, forget_before)
+            cells, values, valid, near = self._merge_on_device(frame, pose, args, forget_before,
+                                                               (x, y))  # fmt: skip
             t3 = t3b = time.perf_counter()
         else:
             binned = self.binner(*args)
@@ -259,7 +209,7 @@ class OccupancyMapper:
                 check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
             t3b = time.perf_counter()
             cells, values, *near = merge_frame(
-                binned.counts[0], binned.counts[1], binned.hit, binned.far, cam[0], cam[1],
+                binned.counts[0], binned.counts[1], binned.hit, binned.far, x, y,
                 math.cos(pose.heading), math.sin(pose.heading), win.r0, win.c0, win.map_rows,
                 win.cell_m, self.occupancy, self._logodds, self._seen_at, self._fixed,
                 frame.stamp, forget_before, s.min_points, s.min_share, s.tail_share, s.l_hit,
@@ -270,7 +220,7 @@ class OccupancyMapper:
             self._forgot_at = frame.stamp
         prox = proximity_of(*near, frame.stamp)
         t4 = time.perf_counter()
-        self.last_stamp, self.last_xy, self._jumps = frame.stamp, (cam[0], cam[1]), 0
+        self.last_stamp, self.last_xy, self._jumps = frame.stamp, (x, y), 0
         if arrived is not None:  # the fit the last frame left due, taken by this frame
             self._floor, self._floor_job, self._floor_due = arrived, None, None
         if isinstance(refit, Sample):
@@ -285,8 +235,8 @@ class OccupancyMapper:
         }  # fmt: skip
         return FrameResult(cells, values, prox, fit, valid, ms)
 
-    def _merge_on_device(self, frame: DepthFrame, pose, args: tuple,
-                         forget_before: float) -> tuple:  # fmt: skip
+    def _merge_on_device(self, frame: DepthFrame, pose, args: tuple, forget_before: float,
+                         xy: tuple[float, float]) -> tuple:  # fmt: skip
         """The frame binned and merged on the device (``cuda_merge``): its changed cells,
         values, valid pixels and (ahead, nearest, side, fwd). ``check_motion`` is worked out
         here before the launch, ``check_depth`` on the device from its own pixel count: the
@@ -298,13 +248,14 @@ class OccupancyMapper:
             check_motion(pose, frame.stamp, s.limits, self.last_stamp, self.last_xy)
         except FrameRejected as exc:
             jump = exc
-        win, cam = args[6], args[4]
+        win, (x, y) = args[6], xy
         inv = 1.0 / win.cell_m  # merge_frame's camera cell, in its operations' order
-        cam_row = win.map_rows - 1 - float(cam[1]) * inv + 0.5 - win.r0
-        cam_col = float(cam[0]) * inv - 0.5 - win.c0
+        cam_row = win.map_rows - 1 - y * inv + 0.5 - win.r0
+        cam_col = x * inv - 0.5 - win.c0
         need = s.limits.min_valid_share * frame.depth.size
-        params = merge_params(s, math.cos(pose.heading), math.sin(pose.heading), cam_row,
-                              cam_col, frame.stamp, forget_before, need, jump is None)  # fmt: skip
+        heading = pose.heading
+        params = merge_params(s, math.cos(heading), math.sin(heading), cam_row, cam_col,
+                              frame.stamp, forget_before, need, jump is None)  # fmt: skip
         maps = (self.occupancy, self._logodds, self._seen_at, self._fixed)
         cells, values, valid, present, written, near = self.binner.merge(maps, params, *args)
         self._on_device = True
@@ -316,7 +267,13 @@ class OccupancyMapper:
         return cells, values, valid, near
 
     def _floor_for(
-        self, depth: np.ndarray, scale: float, intr: Intrinsics, rot: np.ndarray, cam: np.ndarray
+        self,
+        depth: np.ndarray,
+        scale: float,
+        intr: Intrinsics,
+        rot: np.ndarray,
+        cam: np.ndarray,
+        xy: tuple[float, float],
     ) -> tuple[FloorFit, np.ndarray, float, tuple | Sample | None, tuple | None]:
         """The floor-corrected camera rotation and floor height for this frame: a new fit
         when one is due (``floor_every``, a step, a relocalisation), else the last one carried
@@ -330,7 +287,7 @@ class OccupancyMapper:
         arrived = self._pending_fit()
         last = arrived or self._floor
         due = (last is None or self._floor_age >= s.floor_every
-               or math.dist(cam[:2], last[2][:2]) > s.floor_refit_m)  # fmt: skip
+               or math.dist(xy, last[2]) > s.floor_refit_m)  # fmt: skip
         sample = Sample(depth[:: s.floor_sample_step, :: s.floor_sample_step].copy(),
                         scale, intr, rot, cam.copy()) if due else None  # fmt: skip
         if sample is not None and (last is None or not s.floor_async):
@@ -341,17 +298,18 @@ class OccupancyMapper:
         fit, in_cam, _ = last
         return fit, rot @ in_cam, fit.floor_z, sample, arrived
 
-    def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, np.ndarray]:
+    def _fit(self, sample: Sample) -> tuple[FloorFit, np.ndarray, tuple]:
         """The fit of one frame's sample, to keep: the fit, the camera's own tilt and where
-        the camera stood. World = fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that
-        last factor is the camera's own tilt, valid whichever way the camera turns next."""
+        the camera stood (x, y as plain floats, for each frame's distance check). World =
+        fit.rotation @ rot = rot @ (rot^T fit.rotation rot): that last factor is the camera's
+        own tilt, valid whichever way the camera turns next."""
         s, rot = self.settings, sample.rot
         pts = points_of(sample.sub, s.floor_sample_step, sample.scale, sample.intr, rot,
                         sample.cam)  # fmt: skip
         fit = fit_floor(pts, sample.cam, max_tilt_deg=s.max_tilt_deg)
-        return fit, rot.T @ fit.rotation @ rot, sample.cam
+        return fit, rot.T @ fit.rotation @ rot, tuple(sample.cam[:2].tolist())
 
-    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, np.ndarray] | None:
+    def _pending_fit(self) -> tuple[FloorFit, np.ndarray, tuple] | None:
         """The fit the last merged frame left due (``floor_async``), for this frame: waited
         for if the worker has not finished it, made here if nobody started it (a caller that
         never calls ``fit_pending_floor``), so the frame that takes it never depends on the

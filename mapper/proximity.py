@@ -29,8 +29,9 @@ def proximity_of(ahead: float, nearest: float, side: float, fwd: float,
                  stamp: float) -> Proximity:  # fmt: skip
     """The message from ``nearest_cells``' figures (NaN: none), on either backend: the
     bearing's atan2 is taken here, on the host, so the device's merge gives the same bits."""
-    bearing = math.nan if math.isnan(nearest) else math.atan2(side, fwd)
-    return Proximity(*(None if math.isnan(v) else v for v in (ahead, nearest, bearing)), stamp)
+    b = math.nan if math.isnan(nearest) else math.atan2(side, fwd)
+    a, n = ahead, nearest  # only NaN is unequal to itself: no call per figure
+    return Proximity(None if a != a else a, None if n != n else n, None if b != b else b, stamp)
 
 
 @njit(cache=True, nogil=True)

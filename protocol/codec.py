@@ -20,11 +20,13 @@ which kind of bad input it was (a ``StatusCode``: ``malformed``, ``unknown_field
 from __future__ import annotations
 
 import struct
-from typing import TypeVar
+from typing import Any, TypeVar
 
+import numpy as np
+import pydantic_core
 from pydantic import ValidationError
 
-from .messages import MAX_DELTA_CELLS, MapDelta, MapSnapshot, Message, StatusCode
+from .messages import MAX_DELTA_CELLS, MapDelta, MapSnapshot, Message, NavPath, StatusCode
 
 M = TypeVar("M", bound=Message)
 
@@ -221,3 +223,36 @@ def _decode_snapshot(data: bytes) -> MapSnapshot:
     except ValueError as exc:
         raise DecodeError(StatusCode.INVALID, str(exc)) from None
     return snap
+
+
+_PATH_FIELDS = tuple(NavPath.model_fields)[1:]
+"""The path message's fields after ``cells``, in the model's (and so the JSON's) order."""
+_PATH_FLOATS = frozenset(k for k in _PATH_FIELDS if NavPath.model_fields[k].annotation is float)
+
+
+class PathBytes:
+    """``encode(NavPath(cells=..., **meta))`` for one user's paths, step after step.
+
+    Between two map deltas most steps read the same path again (the user's cell and the map
+    unchanged): the cells' JSON, most of the message, is kept while the cells are equal, and
+    the rest (cost, stamps) is written by pydantic's own serialiser, float fields as floats.
+    A value of another type than the field's (a numpy integer) takes the model's way."""
+
+    def __init__(self) -> None:
+        self._cells: np.ndarray | None = None
+        self._json = b""
+
+    def __call__(self, cells: np.ndarray, meta: dict[str, Any]) -> bytes:
+        rest: dict[str, Any] = {}
+        for name in _PATH_FIELDS:
+            value = meta.get(name, NavPath.model_fields[name].default)
+            if name in _PATH_FLOATS and type(value) in (float, int):
+                value = float(value)
+            elif type(value) is not int:
+                built = NavPath.model_construct(cells=[tuple(rc) for rc in cells.tolist()], **meta)
+                return encode(built)
+            rest[name] = value
+        if self._cells is None or not np.array_equal(self._cells, cells):
+            self._cells = np.array(cells, copy=True)
+            self._json = pydantic_core.to_json(cells.tolist())
+        return b"".join((b'{"cells":', self._json, b",", pydantic_core.to_json(rest)[1:]))

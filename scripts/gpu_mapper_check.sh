@@ -6,7 +6,8 @@
 #      every 4th frame off the frame's path, taken by the next frame: FLOOR=next; "next path"
 #      adds the fit on the path), the frames back to back and at a camera's 30 fps, the loop
 #      sleeping as SLEEPS says (default whole: one sleep, as the CLI's --rate; also chunks,
-#      spin, spin2: see the bench); the first run also the pass's GPU vs host time (--split,
+#      spin, spin2: see the bench), the depth copied on the frame's path and lent (DEPTH,
+#      default both: written by its producer into the pass's buffer); the first run also the pass's GPU vs host time (--split,
 #      unless SPLIT=0);
 #      the GPU's SM clock sampled every 100 ms meanwhile (clocks.csv), summed per row; a table
 #      of the rows with the parts' p99 and how late the loop woke (the CPU's figures are the
@@ -24,6 +25,7 @@ FRAMES=${FRAMES:-300}
 RUNS=${RUNS:-2}
 SLEEPS=${SLEEPS:-whole}
 FLOOR=${FLOOR:-next}
+DEPTH=${DEPTH:-copied lent}
 SPLIT=${SPLIT:-1}
 WALKS_PARALLEL=${WALKS_PARALLEL:-10}
 has() { [[ " $PARTS " == *" $1 "* ]]; }
@@ -44,9 +46,9 @@ if has bench; then
     for i in $(seq 1 "$RUNS"); do
         split=()
         [ "$i" -eq 1 ] && [ "$SPLIT" = 1 ] && split=(--split "$OUT_DIR/split.json")
-        # shellcheck disable=SC2086  # SLEEPS and FLOOR are word lists
+        # shellcheck disable=SC2086  # SLEEPS, FLOOR and DEPTH are word lists
         timeout 240 python3 scripts/mapper_bench.py --backend cuda --floor-every 4 --fps 0 30 \
-            --floor $FLOOR --sleep $SLEEPS "${split[@]}" --frames "$FRAMES" \
+            --floor $FLOOR --sleep $SLEEPS --depth $DEPTH "${split[@]}" --frames "$FRAMES" \
             --cache /tmp/mapper_frames.pickle --json "$OUT_DIR/bench$i.json" >/dev/null
     done
     kill "$clocks" 2>/dev/null
@@ -61,15 +63,15 @@ for line in open(sys.argv[1]):
                        int(sm)))
     except ValueError:
         continue
-print("| run | floor | fps | sleep | median ms | p99 ms | max ms | p99 check / floor / bin / merge "
+print("| run | floor | depth | fps | sleep | median ms | p99 ms | max ms | p99 check / floor / bin / merge "
       "| woke late p99 ms | SM MHz min / median |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
 for i, name in enumerate(sys.argv[2:], 1):
     for r in json.load(open(name)):
         p, late = r["parts_p99_ms"], r.get("wake_late_ms") or {}
         sm = sorted(c for t, c in clocks if r["started_at"] <= t <= r["ended_at"])
         mhz = f"{sm[0]} / {sm[len(sm) // 2]}" if sm else "-"
-        print(f"| {i} | {'next' if r['floor_async'] else 'path'} | {r['fps']:g} | {r['sleep']} | "
+        print(f"| {i} | {'next' if r['floor_async'] else 'path'} | {r.get('depth', 'copied')} | {r['fps']:g} | {r['sleep']} | "
               f"{r['median_ms']} | {r['p99_ms']} | {r['max_ms']} | {p['check']} / {p['floor']} / "
               f"{p['bin']} / {p['merge']} | {late.get('p99', '-')} | {mhz} |")
 PY

@@ -1,7 +1,7 @@
 """Where a mapper frame's time goes, phase by phase: wall clock against the thread's CPU time.
 
 Usage: PYTHONPATH=. python scripts/mapper_phases.py [--backend cuda] [--fps 0 30]
-       [--frames 300] [--cache frames.pickle] [--json F]
+       [--frames 300] [--depth copied lent] [--cache frames.pickle] [--json F]
 Each frame goes through ``MapperNode.feed`` as ``scripts/mapper_bench.py`` times it (one
 sleep to the next frame at ``--fps``; 0: back to back), with every phase of the frame's path
 timed on its own: the header check, the floor, the window, the pass's staging (parameters
@@ -85,7 +85,7 @@ def instrument() -> None:
         pass
 
 
-def run(session, frames: list, backend: str, fps: float) -> dict:
+def run(session, frames: list, backend: str, fps: float, depth: str = "copied") -> dict:
     settings = MapperSettings(backend=backend, floor_every=4)
     mapper = OccupancyMapper(settings)
     node = MapperNode(session, "phases", mapper)
@@ -103,6 +103,10 @@ def run(session, frames: list, backend: str, fps: float) -> dict:
     switches = []
     for i, f in enumerate(frames):
         f = dataclasses.replace(f, stamp=3000.0 + 0.1 * i)
+        if depth == "lent":  # written by its producer before the wait, as the bench does
+            lent = mapper.depth_buffer(*f.depth.shape, f.depth.dtype.type)
+            np.copyto(lent, f.depth)
+            f = dataclasses.replace(f, depth=lent)
         time.sleep(max(0.0, due - time.perf_counter()))
         while time.perf_counter() < due:
             pass
@@ -116,7 +120,7 @@ def run(session, frames: list, backend: str, fps: float) -> dict:
         rows.append(dict(FRAME))
         due = w0 + period
     node.close()
-    out: dict = {"backend": mapper.backend, "fps": fps, "frames": len(rows)}
+    out: dict = {"backend": mapper.backend, "fps": fps, "depth": depth, "frames": len(rows)}
     for name in rows[0]:
         wall = np.array([r.get(name, (0.0, 0.0))[0] for r in rows]) * 1e3
         cpu = np.array([r.get(name, (0.0, 0.0))[1] for r in rows]) * 1e3
@@ -135,6 +139,13 @@ def main() -> None:
     ap.add_argument("--backend", default="cuda")
     ap.add_argument("--fps", type=float, nargs="+", default=[0.0, 30.0])
     ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument(
+        "--depth",
+        nargs="+",
+        choices=("copied", "lent"),
+        default=["copied"],
+        help="As scripts/mapper_bench.py's --depth.",
+    )
     ap.add_argument("--cache", type=Path)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
@@ -148,10 +159,11 @@ def main() -> None:
 
     session = open_session(ZenohSettings(connect=[], multicast_scouting=False))
     instrument()
-    rows = [run(session, frames, args.backend, fps) for fps in args.fps]
+    rows = [run(session, frames, args.backend, fps, d) for d in args.depth for fps in args.fps]
     session.close()
     for r in rows:
-        print(f"fps {r['fps']:g} ({r['backend']}): phase wall median / p99 | cpu median / p99 ms;"
+        print(f"fps {r['fps']:g} ({r['backend']}, depth {r['depth']}): phase wall median / p99"
+              " | cpu median / p99 ms;"
               f" switches per frame {r['switches_per_frame']}")  # fmt: skip
         for k, v in r.items():
             if isinstance(v, dict) and "wall_ms" in v:

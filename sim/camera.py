@@ -164,9 +164,12 @@ class RgbdCamera:
 
     def render(self, scene: Scene3D, pose: CameraPose, stamp: float,
                rng: np.random.Generator | None = None, *,
-               reported_pose: CameraPose | None = None) -> DepthFrame:  # fmt: skip
+               reported_pose: CameraPose | None = None,
+               out: np.ndarray | None = None) -> DepthFrame:  # fmt: skip
         """The frame seen from ``pose``; it reports ``reported_pose`` (default: the true
-        one), e.g. the mounting's nominal pitch while the camera is really tilted."""
+        one), e.g. the mounting's nominal pitch while the camera is really tilted. ``out``:
+        the uint16 array to write the depth into (``OccupancyMapper.depth_buffer``), in
+        place of one of its own; the depth's cast writes it there, no copy."""
         k = self.intrinsics
         depth, color = _render(
             pose.world_from_optical(), np.asarray(pose.position, np.float64), k.fx, k.fy, k.cx,
@@ -178,6 +181,11 @@ class RgbdCamera:
             hit = depth > 0  # no noise makes a depth where the ray met nothing
             depth = np.where(hit, depth + rng.standard_normal(depth.shape, np.float32) * sd, 0)
             depth[rng.random(depth.shape, np.float32) < self.missing] = 0.0
-        mm = np.clip(np.round(depth / k.depth_scale), 0, 65535).astype(np.uint16)
+        mm = np.clip(np.round(depth / k.depth_scale), 0, 65535)
+        if out is None:
+            mm = mm.astype(np.uint16)
+        else:  # the same cast, into the buffer
+            np.copyto(out, mm, casting="unsafe")
+            mm = out
         mm[depth <= 0] = 0
         return DepthFrame(mm, k, reported_pose or pose, stamp, color)

@@ -59,6 +59,7 @@ class CameraSimNode(SimNode):
         self.map_node: MapperNode | None = None
         self.frame_ms: list[float] = []
         self._last_frame = 0.0
+        self._depth: np.ndarray | None = None
         self._frame_seq = -1
         """The mapper's last delta once the latest frame was mapped."""
         self.bumps: list[dict] = []
@@ -95,7 +96,10 @@ class CameraSimNode(SimNode):
         stamp = max(time.time(), self._last_frame + 1e-3)  # strictly after the last frame
         self._last_frame = stamp
         pose = self.camera.pose(w.x, w.y, w.heading)
-        frame = self.camera.render(self.movers.scene, pose, stamp, self.rng)
+        k = self.camera.intrinsics
+        if self._depth is None:  # rendered straight into what the mapper's pass uploads
+            self._depth = self.mapper.depth_buffer(k.height, k.width)
+        frame = self.camera.render(self.movers.scene, pose, stamp, self.rng, out=self._depth)
         t0 = time.perf_counter()
         self.map_node.feed(frame)
         self.frame_ms.append((time.perf_counter() - t0) * 1e3)

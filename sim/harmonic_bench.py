@@ -22,17 +22,16 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import sys
 import time
 from collections.abc import Callable
 
 import numpy as np
-from numba.core.registry import CPUDispatcher
 
 from daemon.planning import make_planner
 from daemon.planning.harmonic import relax as rx
 
 from .courtyard import dilate
+from .numba_loads import numba_signatures
 from .scenarios import make_scenario
 from .walk import paper_settings, walk
 
@@ -160,19 +159,6 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                           in zip(r.changed, r.iterations, r.step_ms, strict=True)],
             })  # fmt: skip
     return rows
-
-
-def numba_signatures() -> dict[str, int]:
-    """The signatures each numba function of the product (``daemon.*``) holds so far: a call
-    that compiles one, or loads it from numba's cache, adds one."""
-    out = {}
-    for name, module in list(sys.modules.items()):
-        if not name.startswith("daemon.") or module is None:
-            continue
-        for attr, value in vars(module).items():
-            if isinstance(value, CPUDispatcher):
-                out[f"{name}.{attr}"] = len(value.signatures)
-    return out
 
 
 def _watch_reads(route, note: Callable[[int, list[str], float], None]) -> None:

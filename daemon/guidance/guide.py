@@ -21,19 +21,20 @@ import numpy as np
 
 from protocol.messages import BeltPattern, PatternKind, Pose, VoiceCue
 
+from .clearance import forward_clearance_m
 from .cues import SAFETY_KINDS, CueLimiter, CueMaker, Units, Wording, clock_hour
 from .hold import HoldPolicy
-from .patterns import PULSE_NEAR_M, DirectionHysteresis, PatternMaker
+from .patterns import DirectionHysteresis, PatternMaker
 from .route_watch import RouteWatch
 from .smoothing import planner_band, rubber_band
 from .sole_voice import SoleVoice, SoleVoiceSettings, sole_limiter
 from .turning_points import (
+    KeptPoints,
     bearing,
     is_core,
     relative_angle,
     segment_clear,
     segment_free,
-    turning_points,
     xy_to_continuous,
 )
 
@@ -106,6 +107,7 @@ class Guidance:
         self._announced: tuple[np.ndarray, int] | None = None
         self._announced_at = -math.inf
         self._countdown: set[float] = set()
+        self._kept_points = KeptPoints()
 
     def _set_voice(self, voice: str, limiter: CueLimiter | None = None) -> None:
         if voice not in ("companion", "sole"):
@@ -174,9 +176,12 @@ class Guidance:
         now: float,
         blocked: np.ndarray | None = None,
         occupancy: np.ndarray | None = None,
+        map_version: int | None = None,
     ) -> GuidanceOutput:
         """Guide along ``path`` ((k, 2) cells from the user's cell to the goal). ``occupancy``
-        (the known map, not inflated) lets a sole voice stop the user before contact."""
+        (the known map, not inflated) lets a sole voice stop the user before contact.
+        ``map_version``: moved on whenever ``blocked`` changes in place (``InflatedMap.version``);
+        given, the turning points of an unchanged path ahead on an unchanged map are reused."""
         path = np.asarray(path)
         if path.ndim != 2 or len(path) == 0:
             return self.event(PatternKind.NO_PATH, now)
@@ -185,7 +190,7 @@ class Guidance:
         if float(np.hypot(*(goal - user))) * self.cell_m <= self.arrive_m:
             return self.event(PatternKind.ARRIVED, now)
 
-        pts = self._points(path, blocked)
+        pts = self._points(path, blocked, map_version)
         target = self._target(pts, user, blocked)
         rel = relative_angle(bearing(shape, user, target), pose.heading)
         change = self.route_watch.check(path, self.cell_m)
@@ -251,7 +256,9 @@ class Guidance:
             self._countdown.update(due)
         return cue
 
-    def _points(self, path: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
+    def _points(
+        self, path: np.ndarray, blocked: np.ndarray | None, version: int | None = None
+    ) -> np.ndarray:
         # Only the next leg or two matter to the user (the target and its distance): a leg is
         # at most max_leg long, so the path beyond a few legs' worth of cells is not looked at.
         path = path[: int(2.5 * self.max_leg_cells) + 2]
@@ -259,7 +266,7 @@ class Guidance:
             own = planner_band(self.planner()) if self.planner is not None else None
             smoothed = own(path, blocked) if own else rubber_band(path, blocked, cell_m=self.cell_m)
             return turning_points_from_polyline(smoothed, blocked, self.max_leg_cells)
-        return turning_points(path, blocked, max_leg_cells=self.max_leg_cells)
+        return self._kept_points(path, blocked, self.max_leg_cells, version)
 
     def _target(self, pts: np.ndarray, user: np.ndarray, blocked: np.ndarray | None) -> np.ndarray:
         """The next turning point: skip those already reached, or visible past the next one.
@@ -358,40 +365,3 @@ def turning_points_from_polyline(
     (compiled: a band of one point per cell took ~1 ms a guidance call in Python)."""
     poly = np.ascontiguousarray(poly, dtype=np.float64)
     return _shortcuts(poly, np.ascontiguousarray(blocked, dtype=np.bool_), float(max_leg_cells))
-
-
-def forward_clearance_m(
-    blocked: np.ndarray | None, user: np.ndarray, heading: float, cell_m: float
-) -> float | None:
-    """Distance to the nearest blocked cell within ±60° of the heading (None if none near)."""
-    if blocked is None:
-        return None
-    reach = math.ceil(PULSE_NEAR_M / cell_m) + 1
-    d = _clearance_cells(blocked, float(user[0]), float(user[1]), heading, reach)
-    return None if d < 0 else d * cell_m
-
-
-@numba.njit(cache=True, nogil=True)
-def _clearance_cells(
-    blocked: np.ndarray, ur: float, uc: float, heading: float, reach: int
-) -> float:
-    """Distance (cells) to the near edge of the nearest blocked cell ahead (±60°) or touching
-    the user; −1 when there is none within ``reach``."""
-    h, w = blocked.shape
-    r0, c0 = int(ur), int(uc)
-    cos_limit = math.cos(math.radians(60.0))
-    hx, hy = math.cos(heading), math.sin(heading)
-    best = 1e30
-    for r in range(max(0, r0 - reach), min(h, r0 + reach + 1)):
-        for c in range(max(0, c0 - reach), min(w, c0 + reach + 1)):
-            if not blocked[r, c]:
-                continue
-            dy = -((r + 0.5) - ur)
-            dx = (c + 0.5) - uc
-            dist = math.hypot(dx, dy)
-            ahead = dist < 1.0 or (dx * hx + dy * hy) >= cos_limit * dist
-            if ahead and dist < best:
-                best = dist
-    if best >= 1e30:
-        return -1.0
-    return max(0.0, best - 0.5)

@@ -40,9 +40,13 @@ class RouteWatchSettings:
 
 def _sampled(path: np.ndarray, cell_m: float) -> np.ndarray:
     step = max(1, math.ceil(SAMPLE_M / cell_m))
-    pts = path[::step].astype(np.float64)
-    if len(path) and (len(path) - 1) % step:
-        pts = np.vstack([pts, path[-1:].astype(np.float64)])
+    head = path[::step]
+    if not (len(path) and (len(path) - 1) % step):
+        return head.astype(np.float64)
+    # The route's end as well, written in place (``vstack`` cost more than the sampling).
+    pts = np.empty((len(head) + 1, 2), np.float64)
+    pts[:-1] = head
+    pts[-1] = path[-1]
     return pts
 
 
@@ -69,14 +73,21 @@ class RouteWatch:
         """A new goal, or after an event: nothing to compare with."""
         self._last: np.ndarray | None = None
         self._off = False
+        self._checked: tuple[np.ndarray, float, np.ndarray] | None = None
+        """The path ``check`` sampled this step, for ``keep`` of the same path after it."""
 
     def keep(self, path: np.ndarray, cell_m: float) -> None:
         """``path`` is the route the user was guided on this step (not one seen while the user
         was told to wait: the route they follow is still the last one)."""
-        self._last = _sampled(path, cell_m)
+        checked, self._checked = self._checked, None
+        if checked is not None and checked[0] is path and checked[1] == cell_m:
+            self._last = checked[2]
+        else:
+            self._last = _sampled(path, cell_m)
 
     def check(self, path: np.ndarray, cell_m: float) -> Change | None:
         """Compare ``path`` ((k, 2) cells from the user's cell) with the last route kept."""
+        self._checked = None
         last = self._last
         if last is None or len(last) == 0 or len(path) == 0:
             return None
@@ -89,7 +100,10 @@ class RouteWatch:
         if away > self.s.off_route_m:
             self._off = True
             return "off_route"
-        ahead = _sampled(path, cell_m)[: max(1, math.ceil(self.s.ahead_m / SAMPLE_M)) + 1]
+        sampled = _sampled(path, cell_m)
+        # Kept for ``keep`` in the same step only: a path array may be refilled in place later.
+        self._checked = (path, cell_m, sampled)
+        ahead = sampled[: max(1, math.ceil(self.s.ahead_m / SAMPLE_M)) + 1]
         if float(_nearest_m(ahead, last, cell_m).max()) > self.s.material_m:
             return "new_route"
         return None

@@ -206,6 +206,41 @@ def turning_points(
     return np.array(out, dtype=np.float64)
 
 
+class KeptPoints:
+    """``turning_points`` of the last call, given again for the same path and map.
+
+    The points are a function of the path and ``blocked`` alone. Between two map deltas most
+    steps are a pose's, on the same path and map, so they are the last step's points. The map
+    is known the same by its array (held here, so its identity cannot pass to a new map's)
+    and its ``version`` (moved on by every change in place: ``InflatedMap.version``).
+    """
+
+    def __init__(self) -> None:
+        self._last: tuple[np.ndarray, int, float, np.ndarray, np.ndarray] | None = None
+
+    def __call__(
+        self, path: np.ndarray, blocked: np.ndarray | None, max_leg_cells: float,
+        version: int | None,
+    ) -> np.ndarray:  # fmt: skip
+        """``turning_points(path, blocked, max_leg_cells=max_leg_cells)``; None for
+        ``version`` (or no ``blocked``): worked out afresh, nothing kept."""
+        if blocked is None or version is None:
+            return turning_points(path, blocked, max_leg_cells=max_leg_cells)
+        last = self._last
+        if (
+            last is not None
+            and last[0] is blocked
+            and last[1] == version
+            and last[2] == max_leg_cells
+            and np.array_equal(last[3], path)
+        ):
+            return last[4]
+        pts = turning_points(path, blocked, max_leg_cells=max_leg_cells)
+        pts.setflags(write=False)  # shared with the next steps: nobody may change it
+        self._last = (blocked, version, max_leg_cells, np.array(path, copy=True), pts)
+        return pts
+
+
 def bearing(shape: tuple[int, int], src: np.ndarray, dst: np.ndarray) -> float:
     """World heading (rad, 0 = east, CCW) from ``src`` to ``dst`` (continuous cell units).
 

@@ -309,9 +309,8 @@ class Navigator:
             return
         self._distance_m = cost / 10 * self.settings.cell_m
         t0 = time.perf_counter()
-        g = self.guidance.guide(
-            path, self.pose, grid.shape, now, blocked=grid.blocked, occupancy=grid.occupancy
-        )
+        g = self.guidance.guide(path, self.pose, grid.shape, now, blocked=grid.blocked,
+                                occupancy=grid.occupancy, map_version=grid.version)  # fmt: skip
         self.last.guide_ms = (time.perf_counter() - t0) * 1e3
         # From where the user really stands, not the cell's centre: never past a known corner.
         safe = keep_clear(g.pattern, self.pose, g.target, grid.occupancy, self.settings.cell_m)

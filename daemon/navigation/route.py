@@ -84,6 +84,9 @@ class Route:
         self._pending: tuple[np.ndarray, np.ndarray] | None = None
         self.fallback_reason: str | None = None
         self.report = PlanReport()
+        self._kept: tuple[GlobalPlanner, Cell, Cell, np.ndarray, int] | None = None
+        """(planner, cell, goal, path, cost) of the last plain path read: a field planner whose
+        field nothing changed since reads the same path from the same cell again."""
 
     @property
     def name(self) -> str:
@@ -93,6 +96,7 @@ class Route:
         """A new map or goal: the next path plans from scratch (which includes any change)."""
         self._planned = False
         self._pending = None
+        self._kept = None
 
     def forget_dead_ends(self) -> None:
         """A new goal: a pocket is a dead end only on the way to the goal it was met for."""
@@ -103,6 +107,7 @@ class Route:
 
     def change(self, flipped: np.ndarray, blocked_now: np.ndarray) -> None:
         """Cells whose blocked state flipped; given to the planner with the next path read."""
+        self._kept = None
         if not self._planned:
             return  # the next plan reads the whole map
         if self.dead is not None:  # a dead end stays blocked whatever the map says of it
@@ -114,6 +119,7 @@ class Route:
     def settle(self) -> None:
         """Give the planner the step's changes when the step reads no path."""
         if self._pending is not None:
+            self._kept = None
             self._guarded(lambda p: self._record(p.update(*self._take())), retry=False)
 
     def path_from(
@@ -167,6 +173,21 @@ class Route:
         # step), is built only for the steps that read more than the user's cell: a plan,
         # leaving a pocket, an escape. The planner holds the dead ends already; a plain step
         # needs only the cell.
+        kept, self._kept = self._kept, None
+        if (
+            kept is not None
+            and kept[0] is planner
+            and kept[1] == cell
+            and kept[2] == goal
+            and self._planned
+            and self._pending is None
+            and self._leaving is None
+        ):
+            # Nothing reached the planner since (every change, plan, escape or pocket clears
+            # it): its path from the same cell is the one read last step.
+            self._kept = kept
+            self.report.max_open = getattr(planner, "max_open", None)
+            return kept[3], kept[4]
         dead = self.dead
         if dead is not None and (not self._planned or self._leaving is not None or dead[cell]):
             blocked, dead = blocked | dead, None
@@ -180,6 +201,7 @@ class Route:
                 self._record(planner.update(*self._take()))
             whole = blocked if dead is None else blocked | dead
             return self._escape(planner, whole, occupancy, cell, goal)
+        searched = None
         if self._pending is None:
             path = planner.path(cell)
             # A planner that searches at every path read (A*) says what that search cost.
@@ -198,7 +220,10 @@ class Route:
             return self._escape(planner, whole, occupancy, cell, goal)
         # The path's own cost is g at the user's cell (the path descends g by each step's cost
         # to the goal's 0); summed on the host, it costs no device round trip.
-        return path, path_cost(path)
+        cost = path_cost(path)
+        if searched is None and self._leaving is None and (dead is None or not dead[cell]):
+            self._kept = (planner, cell, goal, path, cost)  # a search per read is not kept
+        return path, cost
 
     def _escape(
         self,

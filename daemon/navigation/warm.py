@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from daemon.guidance.guide import forward_clearance_m
+from daemon.guidance.clearance import forward_clearance_m
 from daemon.guidance.hold import _direction
 from daemon.guidance.route_watch import _nearest_m
 from daemon.guidance.turning_points import segment_clear, segment_free, turning_points

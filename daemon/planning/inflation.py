@@ -126,6 +126,9 @@ class InflatedMap:
         self.blocked = self.cover > 0
         self._seen = np.zeros(self.shape[0] * self.shape[1], dtype=np.int32)
         self._epoch = 0
+        self.version = 0
+        """Moved on by every change to ``blocked`` in place (``apply``, ``reinflate``): what is
+        worked out from ``blocked`` alone may be kept while it and the array stay the same."""
 
     def reinflate(self, radius_cells: int) -> tuple[np.ndarray, np.ndarray]:
         """Inflate by another radius, in place (planners hold ``blocked`` itself).
@@ -139,6 +142,7 @@ class InflatedMap:
         self._dr, self._dc = new._dr, new._dc
         self.cover[...] = new.cover
         self.blocked[...] = new.blocked
+        self.version += 1
         return flipped, flat[flipped].copy()
 
     def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -179,4 +183,6 @@ class InflatedMap:
             self.shape[1], stamp_cells, signs, self._dr, self._dc, touched,
         )  # fmt: skip
         flipped = np.sort(touched[:nf])
+        if nf:
+            self.version += 1
         return flipped, self.blocked.reshape(-1)[flipped].copy()

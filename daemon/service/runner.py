@@ -93,6 +93,7 @@ class UserRunner:
         self._pose_read_at = 0.0
         """When the latest pose the loop read (taken or refused) had reached the daemon."""
         self._belt = BeltRefresh()
+        self._path_bytes = codec.PathBytes()
         self._idle = False
         """The worker waits for any input at all (no step period running, inbox empty): a
         pose taken on zenoh's thread must wake it (under ``_lock``)."""
@@ -317,7 +318,7 @@ class UserRunner:
         for cue in out.voice:
             self._publish(T.VOICE.key(user), codec.encode(cue))
         if out.path_cells is not None and paired:
-            self._publish(key, codec.encode(out.path()))
+            self._publish(key, self._path_bytes(out.path_cells, out.path_meta))
         for status in out.statuses:
             self.last_status = codec.encode(status)
             self._publish(T.STATUS.key(user), self.last_status)

@@ -13,9 +13,10 @@ import pytest
 
 from mapper.frame import FrameRejected, Refusal
 from mapper.frames_io import read_frame, read_frames, write_frame
+from mapper.occupancy_mapper import OCCUPIED
 from sim.scene3d import BOX, empty_scene
 
-from .scenes import box_scene, frame
+from .scenes import CAM_XY, NORTH, box_scene, camera, frame, mapper
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -91,3 +92,24 @@ def test_mapper_command_feeds_the_daemon_and_the_belt_stops(daemon, peer, tmp_pa
         assert (occ[46:48, 29:33] == 0).all()  # cleared along the rays in front of it
     finally:
         sub.undeclare()
+
+
+def test_a_frame_rendered_into_the_lent_buffer_maps_as_its_own_array():
+    """A producer that writes its depth where the mapper lends (``depth_buffer``; on cpu a
+    plain array) gives the same frame, bit for bit, and the same map: the renderer's cast
+    writes the buffer in place, and the buffer is reused frame after frame."""
+    scene, cam = box_scene(), camera()
+    own, lent = mapper(), mapper()
+    buf = lent.depth_buffer(480, 640)
+    assert buf.shape == (480, 640) and buf.dtype == np.uint16
+    for i, rng in enumerate((1, 2)):
+        pose = cam.pose(*CAM_XY, NORTH + 0.05 * i)
+        a = cam.render(scene, pose, 5.0 + i, np.random.default_rng(rng))
+        b = cam.render(scene, pose, 5.0 + i, np.random.default_rng(rng), out=buf)
+        assert b.depth is buf and np.array_equal(a.depth, b.depth)
+        ra, rb = own.process(a), lent.process(b)
+        assert np.array_equal(ra.cells, rb.cells) and np.array_equal(ra.values, rb.values)
+        assert ra.proximity == rb.proximity
+    assert np.array_equal(own.occupancy, lent.occupancy) and (own.occupancy == OCCUPIED).any()
+    own.close()
+    lent.close()

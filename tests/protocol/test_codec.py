@@ -42,8 +42,9 @@ EXAMPLES = [
     VoiceCue(text="Turn right, 3 metres", kind="direction", stamp=NOW),
     NavStatus(state=NavState.NO_PATH, reason="walled in", code="no_path", stamp=NOW, rejected=2),
     Health(daemon_id="d", uptime_s=3.0, users=["a"], backend="cpu", rejected=0, stamp=NOW),
-    NavPath(cells=[(5, 5), (4, 5)], cost=10, cell_m=0.1, height=9, width=9, pose_stamp=NOW,
-            stamp=NOW),
+    NavPath(
+        cells=[(5, 5), (4, 5)], cost=10, cell_m=0.1, height=9, width=9, pose_stamp=NOW, stamp=NOW
+    ),
     MapDelta.from_arrays(9, (200, 300), np.array([0, 59_999]), np.array([1, 2]), NOW),
     MapSnapshot.from_array(4, np.eye(30, dtype=np.uint8), NOW),
 ]
@@ -137,17 +138,63 @@ def test_snapshot_refuses_wrong_sizes_and_zip_bombs():
         (Pose, b'{"x": 1,', "malformed"),
         (Pose, b"[1, 2]", "wrong_type"),
         (Pose, json.dumps({"x": "1m", "y": 0, "heading": 0, "stamp": 1}).encode(), "wrong_type"),
-        (Pose, json.dumps({"x": 1, "y": 0, "heading": 0, "stamp": 1, "z": 0}).encode(),
-         "unknown_field"),
+        (
+            Pose,
+            json.dumps({"x": 1, "y": 0, "heading": 0, "stamp": 1, "z": 0}).encode(),
+            "unknown_field",
+        ),
         (Pose, json.dumps({"x": 1, "y": 0, "heading": 0}).encode(), "invalid"),
         (Pose, json.dumps({"x": 1, "y": 0, "heading": 0, "stamp": -5}).encode(), "invalid"),
-        (Goal, json.dumps({"target": {"kind": "gps", "lat": 1}, "stamp": 1}).encode(),
-         "wrong_type"),
-        (Goal, json.dumps({"target": {"kind": "cell", "row": 1, "col": 1, "x": 1},
-                           "stamp": 1}).encode(), "unknown_field"),
+        (
+            Goal,
+            json.dumps({"target": {"kind": "gps", "lat": 1}, "stamp": 1}).encode(),
+            "wrong_type",
+        ),
+        (
+            Goal,
+            json.dumps(
+                {"target": {"kind": "cell", "row": 1, "col": 1, "x": 1}, "stamp": 1}
+            ).encode(),
+            "unknown_field",
+        ),
     ],
 )
 def test_bad_json_is_refused_with_a_code(kind, payload, code):
     with pytest.raises(codec.DecodeError) as err:
         codec.decode(kind, payload)
     assert err.value.code == code
+
+
+def _path_model_bytes(cells: np.ndarray, meta: dict) -> bytes:
+    """The path message as the daemon built it before ``PathBytes`` (``StepOutput.path``)."""
+    return codec.encode(NavPath.model_construct(cells=[tuple(rc) for rc in cells.tolist()], **meta))
+
+
+def test_path_bytes_are_the_path_messages_step_after_step():
+    """``PathBytes`` keeps the cells' JSON while the cells are equal: every message equals the
+    model's own bytes, whatever changed from the last one (stamps only, cells, types)."""
+    straight = np.array([(r, 100) for r in range(179, 19, -1)], np.int32)
+    bent = np.array([(179, c) for c in range(100, 90, -1)] + [(r, 90) for r in range(178, 20, -1)])
+    meta = dict(cost=1600, cell_m=0.05, height=200, width=200, pose_stamp=1764230000.123456,
+                stamp=1764230000.2345678, map_seq=17)  # fmt: skip
+    steps = [
+        (straight, meta),
+        (straight, {**meta, "pose_stamp": 1764230000.173456, "stamp": 1764230000.28}),
+        (straight.copy(), {**meta, "stamp": 1764230000.33, "map_seq": 18}),
+        (bent, {**meta, "cost": 1700, "stamp": 1e10}),
+        (bent[1:], {**meta, "cost": 1690, "cell_m": 1}),  # an int for a float field
+        (straight[:1], {k: v for k, v in meta.items() if k != "map_seq"}),  # the default
+        (straight[:0], {**meta, "cost": 0, "pose_stamp": 1e-7}),
+        (bent, {**meta, "cost": np.int64(1700)}),  # a numpy integer: the model's way
+    ]
+    encoder = codec.PathBytes()
+    for cells, m in steps:
+        got = encoder(cells, m)
+        assert got == _path_model_bytes(cells, m)
+        assert codec.decode(NavPath, got).cells == [tuple(rc) for rc in cells.tolist()]
+    # Cells refilled in place: compared by value, not by the array.
+    cells = straight.copy()
+    first = encoder(cells, meta)
+    cells[5:, 1] += 1
+    assert encoder(cells, meta) == _path_model_bytes(cells, meta)
+    assert encoder(cells, meta) != first

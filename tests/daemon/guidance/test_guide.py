@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from daemon.guidance.clearance import forward_clearance_m
 from daemon.guidance.cues import CueLimiter
-from daemon.guidance.guide import Guidance, GuidanceOutput, forward_clearance_m
+from daemon.guidance.guide import Guidance, GuidanceOutput
 from daemon.planning.grid import cell_to_xy
 from daemon.planning.reference import ReferencePlanner
 from protocol.messages import CuePriority, PatternKind, Pose

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from daemon.guidance.guide import Guidance
-from daemon.guidance.route_watch import RouteWatch, _nearest_m
+from daemon.guidance.route_watch import RouteWatch, _nearest_m, _sampled
 from protocol.messages import PatternKind, Pose
 from sim.closed_loop import route_departs
 
@@ -111,3 +111,32 @@ def test_the_compiled_nearest_distance_equals_numpys_to_the_bit(points, route):
     d = p[:, None, :] - r[None, :, :]
     want = np.sqrt((d * d).sum(axis=2)).min(axis=1) * 0.05
     assert np.array_equal(_nearest_m(p, r, 0.05), want)
+
+
+def test_sampling_keeps_every_step_th_cell_and_the_end():
+    for cell_m in (0.1, 0.05, 0.03):
+        step = max(1, math.ceil(0.1 / cell_m))
+        for n in range(12):
+            path = np.array([(r, 2 * r) for r in range(n)], np.int64).reshape(-1, 2)
+            want = [tuple(path[i]) for i in range(0, n, step)]
+            if n and (n - 1) % step:
+                want.append(tuple(path[-1]))
+            got = _sampled(path, cell_m)
+            assert got.dtype == np.float64 and got.shape == (len(want), 2)
+            assert [tuple(p) for p in got.astype(np.int64)] == want
+
+
+def test_the_route_kept_after_a_check_is_the_path_checked():
+    a, b = RouteWatch(), RouteWatch()
+    first = np.array([(r, 5) for r in range(40, 0, -1)])
+    second = np.array([(40, c) for c in range(5, 30)] + [(r, 29) for r in range(39, 0, -1)])
+    for w in (a, b):
+        w.keep(first, 0.05)
+    assert a.check(second, 0.05) == b.check(second, 0.05)
+    a.keep(second, 0.05)  # after the check: its samples
+    b.reset()
+    b.keep(second, 0.05)  # afresh
+    assert np.array_equal(a._last, b._last)
+    a.check(first, 0.05)
+    a.keep(second, 0.05)  # another path than the one checked: sampled afresh
+    assert np.array_equal(a._last, b._last)

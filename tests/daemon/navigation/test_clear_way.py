@@ -143,3 +143,17 @@ def test_a_way_out_never_passes_between_two_diagonal_obstacle_cells(monkeypatch,
         assert len(path) == 0  # no way out: NO_PATH, never a lead through the wall
     else:
         assert len(path) and (10, 10) in {tuple(int(v) for v in p) for p in path}
+
+
+def test_the_cell_of_a_position_is_the_cell_numpy_floors_to():
+    """``_cell`` on scalars: the cell the array form gave, on and off the map and on borders."""
+    from daemon.navigation.clear_way import _cell
+
+    rng = np.random.default_rng(3)
+    xs = np.concatenate([rng.uniform(-2.0, 12.0, 500), np.arange(-3, 104) * 0.1])
+    ys = np.concatenate([rng.uniform(-2.0, 12.0, 500), np.arange(-3, 104)[::-1] * 0.1])
+    for shape, cell_m in (((100, 100), 0.1), ((200, 150), 0.05)):
+        for x, y in zip(xs, ys, strict=True):
+            r = shape[0] - 1 - np.floor(np.array([y]) / cell_m).astype(np.int64)[0]
+            c = np.floor(np.array([x]) / cell_m).astype(np.int64)[0]
+            assert _cell(shape, float(x), float(y), cell_m) == (r, c)

@@ -3,29 +3,16 @@
 from __future__ import annotations
 
 import logging
-import sys
 
 import pytest
-from numba.core.registry import CPUDispatcher
 
 from daemon.navigation.warm import warm_up
 from daemon.planning.registry import PLANNERS
+from sim.numba_loads import numba_signatures
 from sim.scenarios import make_scenario
 from sim.walk import walk
 
 pytestmark = pytest.mark.timeout(120)
-
-
-def compiled_signatures() -> dict[str, int]:
-    """How many signatures each numba function of the product has compiled or loaded so far."""
-    out = {}
-    for name, module in list(sys.modules.items()):
-        if not name.startswith("daemon.") or module is None:
-            continue
-        for attr, value in vars(module).items():
-            if isinstance(value, CPUDispatcher):
-                out[f"{name}.{attr}"] = len(value.signatures)
-    return out
 
 
 @pytest.mark.parametrize("planner", list(PLANNERS))
@@ -33,9 +20,9 @@ def test_after_the_warm_up_a_walk_compiles_nothing(planner: str) -> None:
     # A world walked first, untimed: the simulator's own compiled code is not the product's.
     scenario = make_scenario("courtyard", 50, 0.4, 0)
     assert warm_up(planner, "cpu") > 0
-    before = compiled_signatures()
+    before = numba_signatures()
     walk(scenario, mode=planner, max_steps=60)
-    after = compiled_signatures()
+    after = numba_signatures()
     new = {k: after[k] - before.get(k, 0) for k in after if after[k] != before.get(k, 0)}
     assert new == {}, f"compiled during the walk, not in the warm-up: {new}"
 

@@ -28,14 +28,14 @@ pytestmark = [
 ]
 
 
-def frames(n: int):
+def frames(n: int, out: np.ndarray | None = None):
     scenario = make_courtyard(100, 0.2, 0)
     scene = scene_from_scenario(scenario)
     cam = RgbdCamera()
     rng = np.random.default_rng(0)
     for i in range(n):
         pose = cam.pose(5.05, 0.65 + 0.1 * i, math.pi / 2 + 0.05 * i)
-        yield cam.render(scene, pose, 10.0 + i, rng)
+        yield cam.render(scene, pose, 10.0 + i, rng, out=out)
 
 
 def test_same_cells_and_rays_as_the_cpu():
@@ -117,3 +117,25 @@ def test_a_frame_is_refused_on_cuda_as_on_the_cpu():
     assert (cpu.occupancy != gpu.occupancy).sum() <= 2
     cpu.close()
     gpu.close()
+
+
+def test_a_frame_in_the_lent_buffer_maps_as_a_copied_one():
+    """Frames rendered into the buffer the mapper lends (``depth_buffer``: the pass's own
+    page-locked upload, so the frame is not copied on its path) give the same changes,
+    proximity and map as the same frames in their own arrays, copied by the pass."""
+    copied = OccupancyMapper(MapperSettings(backend="cuda"))
+    lent = OccupancyMapper(MapperSettings(backend="cuda"))
+    buf = lent.depth_buffer(480, 640)
+    assert buf is lent.depth_buffer(480, 640) and buf.dtype == np.uint16
+    changed = 0
+    for a, b in zip(frames(6), frames(6, out=buf), strict=True):
+        assert b.depth is buf and np.array_equal(a.depth, b.depth)
+        ra, rb = copied.process(a), lent.process(b)
+        assert np.array_equal(ra.cells, rb.cells) and np.array_equal(ra.values, rb.values)
+        assert (ra.proximity, ra.valid) == (rb.proximity, rb.valid)
+        changed += ra.cells.size
+    assert changed > 100
+    assert np.array_equal(copied.occupancy, lent.occupancy)
+    assert np.array_equal(copied.logodds, lent.logodds)
+    for m in (copied, lent):
+        m.close()

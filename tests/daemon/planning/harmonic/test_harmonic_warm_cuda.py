@@ -9,7 +9,8 @@ import pytest
 
 from daemon.navigation.warm import warm_up
 from daemon.planning import cuda_available
-from sim.harmonic_bench import _navigator, numba_signatures
+from sim.harmonic_bench import _navigator
+from sim.numba_loads import numba_signatures
 from sim.scenarios import make_scenario
 from sim.walk import walk
 
