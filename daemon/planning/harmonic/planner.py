@@ -128,7 +128,8 @@ class HarmonicPlanner(GlobalPlanner):
         """Steps whose relaxation ran beside the host's search and stood."""
         self.undone = 0
         """Steps whose early relaxation the search overruled (cells cut off): undone, run again."""
-        self._early: tuple[int, Callable[[], tuple[int, float, bool]]] | None = None
+        self._early: tuple[int, Callable[[], tuple[int, float, bool]],
+                           Callable[[], tuple[int, int]] | None] | None = None  # fmt: skip
         self._overlap = False  # ``overlap`` as the last plan found it, where the host searches
 
     @property
@@ -185,10 +186,10 @@ class HarmonicPlanner(GlobalPlanner):
         early = self._start_early if self._overlap and self.step_sweeps is not None else None
         lost, gained = self.reach.apply(padded, np.ascontiguousarray(values), early)
         if self._early is not None:
-            handed, wait = self._early
+            handed, wait, filled = self._early
             if lost.size == handed and gained.size == 0:
                 self.overlaps += 1
-                return self._step_end(t0, wait)
+                return self._step_end(t0, wait, filled)
             wait()  # cells were cut off: the launch read them as free
             self.engine.undo()
             self.undone += 1
@@ -247,7 +248,11 @@ class HarmonicPlanner(GlobalPlanner):
         profile: the search 0.72–0.91 ms, the relaxation and fill 0.25–0.56; not yet measured
         with the overlap)."""
         self.engine.set(lost, rx.BLOCKED_W, True)
-        self._early = (lost.size, self._step_start(int(self.step_sweeps or 0), keep=True))
+        wait = self._step_start(int(self.step_sweeps or 0), keep=True)
+        # The fill too, where the engine can launch it behind the sweeps (the CUDA engine's
+        # ``fill_start``): on a step that leaves pits it runs beside the search as well.
+        fill_start = getattr(self.engine, "fill_start", None)
+        self._early = (lost.size, wait, fill_start(fl.EPS) if fill_start else None)
 
     def _step(self, t0: float, budget: int) -> UpdateStats:
         """A replanning step: at most ``step_cap`` sweeps, then the pits' basins filled."""
@@ -261,10 +266,12 @@ class HarmonicPlanner(GlobalPlanner):
         finally:
             self.engine.omega = omega
 
-    def _step_end(self, t0: float, wait: Callable[[], tuple[int, float, bool]]) -> UpdateStats:
+    def _step_end(self, t0: float, wait: Callable[[], tuple[int, float, bool]],
+                  filled: Callable[[], tuple[int, int]] | None = None) -> UpdateStats:  # fmt: skip
+        """``filled``: the answer of a fill already launched behind the sweeps."""
         sweeps, self.residual, _ = wait()
         # Even a step that met ``tol`` fills: the residual skips cells with no value yet.
-        self.filled, left = self.engine.fill(fl.EPS)
+        self.filled, left = filled() if filled is not None else self.engine.fill(fl.EPS)
         self.fills += int(self.filled > 0)
         self.settled = left == 0
         return self._stats(t0, sweeps)
