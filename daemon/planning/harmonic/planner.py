@@ -49,6 +49,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import numba
 import numpy as np
 
 from ..grid import INF, Cell, checked_plan_input, checked_update_input, in_bounds, path_cost
@@ -86,6 +87,17 @@ searches: at 400² the device's search took 1.05 ms where the host's breadth-fir
 its diff took ~0.3; at 2000² the device's 6.3 ms against ~40 ms on the host. Between the two
 the crossing is interpolated (~1000²), not measured."""
 _EMPTY = np.empty((0, 2), dtype=np.int32)
+
+
+@numba.njit(cache=True, nogil=True)
+def _map_cells(flat: np.ndarray, width: int) -> np.ndarray:
+    """A descent's padded flat cells as map cells, ``(k, 2) int32``: numpy's divide, modulo,
+    stack and cast took ~20 µs a 600-cell path (dev VM), on every path read of a step."""
+    out = np.empty((flat.size, 2), dtype=np.int32)
+    for k in range(flat.size):
+        out[k, 0] = flat[k] // width - 1
+        out[k, 1] = flat[k] % width - 1
+    return out
 
 
 class HarmonicPlanner(GlobalPlanner):
@@ -300,11 +312,7 @@ class HarmonicPlanner(GlobalPlanner):
             self.retries += 1
             self.engine.relax(RETRY_SWEEPS, self.tol / 10)
             flat = self.engine.descend(s)
-        if flat is None:
-            path = _EMPTY
-        else:
-            w = self._shape[1] + 2
-            path = np.stack((flat // w - 1, flat % w - 1), axis=1).astype(np.int32)
+        path = _EMPTY if flat is None else _map_cells(flat, self._shape[1] + 2)
         self._cache = (key, path)
         return path
 
