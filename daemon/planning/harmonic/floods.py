@@ -30,40 +30,7 @@ def flood(blocked, reach, width, queue, head, tail) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def reached(blocked, goal, width, reach, stack) -> int:
-    """Every free cell the goal reaches (8-connected) into ``reach``; returns their count
-    (``_spans`` says how)."""
-    count = _spans(blocked, goal, width, reach, stack)
-    for i in range(reach.size):
-        reach[i] = reach[i] != blocked[i]
-    return count
-
-
-@numba.njit(cache=True, nogil=True)
-def reached_changes(blocked, goal, width, reach, taken, stack, lost, gained):
-    """``reached`` into ``reach``, which holds the reach before the change, and the cells
-    whose reach changed, in ascending order: ``(count, n_lost, n_gained)``, the cells in
-    ``lost`` and ``gained``. ``taken``: map-sized bool scratch for the search. The diff
-    is taken in the pass that writes the answer, where the caller's copy of the reach and
-    numpy's compare, ``flatnonzero`` and split took 0.10 ms more (dev VM, a 400² map)."""
-    count = _spans(blocked, goal, width, taken, stack)
-    n_lost = n_gained = 0
-    for i in range(reach.size):
-        now = taken[i] != blocked[i]
-        if now != reach[i]:
-            reach[i] = now
-            if now:
-                gained[n_gained] = i
-                n_gained += 1
-            else:
-                lost[n_lost] = i
-                n_lost += 1
-    return count, n_lost, n_gained
-
-
-@numba.njit(cache=True, nogil=True)
-def _spans(blocked, goal, width, reach, stack) -> int:
-    """The goal's reach into ``reach`` as "blocked or reached" (one load a cell read, not
-    two: the callers take the blocked cells out); returns the count. The
+    """Every free cell the goal reaches (8-connected) into ``reach``; returns their count. The
     whole-map search of a change that may have cut cells off, by spans (a scanline fill): a
     popped cell's run along its row is taken whole, and the rows above and below are read
     one cell past each end (the diagonals) for the runs it touches, each pushed once, by its
@@ -72,8 +39,10 @@ def _spans(blocked, goal, width, reach, stack) -> int:
     queue order: ~13–19 ns a reached cell, 1.1–1.65 ms on the 400² walk's step 27 (dev VM,
     CPU time); ``bfs_steps`` also counts steps (int64, a plan's first guess, not needed
     here) into a queue it allocates, 32 MB at 2000²."""
+    # ``reach`` holds "blocked or taken" while it runs (one load a cell read, not two); the
+    # blocked cells are taken out again at the end.
     if blocked[goal]:
-        reach[:] = blocked
+        reach[:] = False
         return 0
     reach[:] = blocked
     reach[goal] = True
@@ -104,4 +73,6 @@ def _spans(blocked, goal, width, reach, stack) -> int:
                         k += 1
                 else:
                     k += 1
+    for i in range(reach.size):
+        reach[i] = reach[i] != blocked[i]
     return count

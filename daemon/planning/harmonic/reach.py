@@ -25,7 +25,7 @@ import numpy as np
 
 from .clusters import _joined_each
 from .cut_off import cut_off, neighbour_offsets
-from .floods import flood, reached_changes
+from .floods import flood, reached
 from .relax import bfs_steps
 
 MARGIN = 16
@@ -173,8 +173,6 @@ class Reach:
         self._flips = np.empty(blocked.size, dtype=np.int64)
         # Only the newly blocked cells' old reach is kept (a whole copy costs ~1 ms at 2000²).
         self._was = np.empty(blocked.size, dtype=np.bool_)
-        # The host's whole-map search's own map (never written where the device searches).
-        self._taken = np.empty(blocked.size, dtype=np.bool_)
         # Written now, so the kernel maps their pages at plan, not in a step (np.zeros and
         # np.empty leave each 4 KiB page to a fault on its first write): the scratch indexed
         # by cell whole, as a sweep's changes spread over the map write it nearly everywhere;
@@ -234,11 +232,11 @@ class Reach:
                                          self._failed)  # fmt: skip
             self.count += n_gained - n_lost
             return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
-        self.reach[now_blocked] = was
-        self.count, n_lost, n_gained = reached_changes(
-            self.blocked, self.goal, self.width, self.reach, self._taken, self._queue,
-            self._out, self._failed)  # fmt: skip
-        return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
+        before = self.reach.copy()
+        before[now_blocked] = was
+        self.count = reached(self.blocked, self.goal, self.width, self.reach, self._queue)
+        changed = np.flatnonzero(before != self.reach)
+        return changed[~self.reach[changed]], changed[self.reach[changed]]
 
     def _cut_off(self, seeds: int, limit: int) -> int:
         return cut_off(self.blocked, self.reach, self._failed[:seeds], self.width, self.goal,

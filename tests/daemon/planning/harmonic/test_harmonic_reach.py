@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.harmonic.floods import reached, reached_changes
+from daemon.planning.harmonic.floods import reached
 from daemon.planning.harmonic.reach import MARGIN, Reach, _joined_each
 
 pytestmark = pytest.mark.timeout(60)
@@ -233,37 +233,6 @@ def test_the_whole_map_search_by_spans_is_the_breadth_first_search(maps, density
                         np.empty(flat.size, dtype=np.int64))  # fmt: skip
         want = padded(~maps.reachable(blocked, goal) | blocked)
         assert (out == ~want).all() and count == int(out.sum())
-
-
-@pytest.mark.parametrize("density", [0.0, 0.3, 0.55])
-def test_the_whole_map_search_gives_the_cells_whose_reach_changed_in_order(maps, density):
-    # ``Reach``'s host search: the reach before a change in, the new reach and the cells lost
-    # and gained out, as the search's answer compared with the mask before gives them
-    # (ascending), whatever the scratch held.
-    rng = np.random.default_rng(7 + int(density * 10))
-    for _ in range(10):
-        h, w = int(rng.integers(1, 50)), int(rng.integers(1, 50))
-        before_map = maps.random_map(rng, h, w, density)
-        after_map = before_map.copy()
-        flip = rng.random((h, w)) < 0.1
-        after_map[flip] = ~after_map[flip]
-        goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
-        g = (goal[0] + 1) * (w + 2) + goal[1] + 1
-        before, after = padded(before_map), padded(after_map)
-        reach = np.zeros(before.size, dtype=np.bool_)
-        stack = np.empty(before.size, dtype=np.int64)
-        reached(before, g, w + 2, reach, stack)
-        old = reach.copy()
-        taken = rng.random(before.size) < 0.5  # scratch: whatever it held
-        lost, gained = np.full(before.size, -1), np.full(before.size, -1)
-        count, n_lost, n_gained = reached_changes(after, g, w + 2, reach, taken, stack, lost,
-                                                  gained)  # fmt: skip
-        fresh = np.zeros(before.size, dtype=np.bool_)
-        assert count == reached(after, g, w + 2, fresh, stack)
-        assert (reach == fresh).all()
-        changed = np.flatnonzero(old != fresh)
-        assert np.array_equal(lost[:n_lost], changed[~fresh[changed]])
-        assert np.array_equal(gained[:n_gained], changed[fresh[changed]])
 
 
 def test_the_scratch_is_mapped_at_construction_not_by_the_first_sweep():
