@@ -137,8 +137,7 @@ class CudaField:
         # first launch, and each launch clears them as it ends.
         self.flags = cp.zeros(6, dtype=cp.uint32)
         self.worst, self.pits = self.flags[:2], self.flags[2:]
-        # The launch's result words; 4..7 are a fill's launched behind a relaxation
-        # (``fill_start``), both fetched together.
+        # Result words; 4..7 a fill's launched behind a relaxation (``fill_start``).
         self.result = cp.zeros(8, dtype=cp.int32)
         self.result_host = pinned(8, np.int32)
         self.pit_list = cp.empty(n, dtype=cp.int32)
@@ -299,14 +298,12 @@ class CudaField:
         return n_basin + more, left
 
     def fill_start(self, eps: float = fl.EPS) -> Callable[[], tuple[int, int]]:
-        """``fill`` launched now, behind the relaxation just launched (``relax_start``), before
-        anyone knows whether it leaves a pit: the function returned gives ``fill``'s answer
-        once that relaxation's wait has returned. Where it left none, the launch found no
-        basin and changed nothing (``w``, and Idx written again from it; its pit list is
-        the relaxation's, empty), and the answer is ``fill``'s without a launch: (0, 0), no
-        passes. For the planner's early relaxation, which runs beside the host's search:
-        the fill then runs there too (the 400² walk's step 26, 15 502 basin cells: 0.26 ms
-        of fill after the search, H100, round 18)."""
+        """``fill`` launched behind the relaxation just launched, before anyone knows if it
+        leaves a pit; the function returned gives ``fill``'s answer after that relaxation's
+        wait. With no pit the launch finds no basin and changes nothing (Idx written again
+        from the same ``w``), and the answer is ``fill``'s without a launch: (0, 0). For the
+        planner's early relaxation: its fill runs beside the host's search too (the 400²
+        walk's step 26, 15 502 basin cells: 0.26 ms of fill after the search, H100)."""
         self._fill_behind(eps=eps)
         self.launches += 1
         return lambda: self._filled_behind(eps)
