@@ -255,10 +255,10 @@ class HarmonicPlanner(GlobalPlanner):
         the search reads only the host's arrays; the fill follows the wait.
 
         On the 400² bench walk the steps that search the whole map (26, 34 and 40 at 1/64)
-        cut nothing off (their recorded deltas, replayed): each should cost about the larger
-        of the host's search and the relaxation instead of their sum (H100 host, round 15's
-        profile: the search 0.72–0.91 ms, the relaxation and fill 0.25–0.56; not yet measured
-        with the overlap)."""
+        cut nothing off (their recorded deltas, replayed), and all three start early. H100,
+        round 18, interleaved with main in one call: those steps 1.68 / 1.53 / 1.53 and 1.78 /
+        1.55 / 1.51 ms against main's 1.98 / 1.65 / 1.67 and 1.85 / 1.61 / 1.24; the host's
+        search itself, 0.75–1.2 ms there, is what they cost now."""
         self.engine.set(lost, rx.BLOCKED_W, True)
         wait = self._step_start(int(self.step_sweeps or 0), keep=True)
         # The fill too, where the engine can launch it behind the sweeps (the CUDA engine's
