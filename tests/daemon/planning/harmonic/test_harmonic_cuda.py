@@ -335,8 +335,6 @@ def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
 def test_cuda_reach_search_is_the_host_search(maps, seed):
     # ``harmonic_reach`` (tiles grown from the goal) against the host's breadth-first search
     # of the same padded map, the goal blocked once: the cells whose reach changed.
-    from daemon.planning.harmonic.floods import reached
-
     rng = np.random.default_rng(300 + seed)
     h, w = int(rng.integers(60, 200)), int(rng.integers(60, 200))
     blocked = maps.random_map(rng, h, w, 0.3 + 0.05 * seed)
@@ -349,8 +347,8 @@ def test_cuda_reach_search_is_the_host_search(maps, seed):
     flat = flat.reshape(-1)
     g = (goal[0] + 1) * (w + 2) + goal[1] + 1
     before = rng.random(flat.size) < 0.5
-    fresh = np.zeros(flat.size, dtype=np.bool_)
-    count = reached(flat, g, w + 2, fresh, np.empty(flat.size, dtype=np.int64))
+    fresh = maps.flat_reachable(flat, g, w + 2)
+    count = int(fresh.sum())
     got = gpu.engine.reach_search(flat, before, g)
     assert np.array_equal(np.sort(got), np.flatnonzero(fresh != before))
     assert (count > 0) == (seed != 3) and gpu.engine.reach_passes >= 1
