@@ -71,9 +71,12 @@ def _navigator(scenario, name: str, backend: str, step: str = "", smooth: bool =
 
 def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: float = 0.4,
                 planners: tuple[str, ...] = ("harmonic", "eds"),
-                steps: tuple[str, ...] = ("",)) -> list[dict]:  # fmt: skip
+                steps: tuple[str, ...] = ("",),
+                overlap: bool | None = None) -> list[dict]:  # fmt: skip
     """``steps``: the harmonic planner's replanning stops to measure in turn (``_navigator``).
-    Each row's ``residual`` is the field's after each step (what an early stop left)."""
+    Each row's ``residual`` is the field's after each step (what an early stop left).
+    ``overlap``: the harmonic planner's ``overlap`` (None: its own, on for the CUDA engine);
+    False, it never starts a relaxation before its reach search ends."""
     from daemon.navigation.warm import warm_up
 
     for name in planners:
@@ -89,6 +92,8 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
             walk(scenario, backend=backend, mode=name, max_steps=3, navigator=nav)  # warm
             t0 = time.perf_counter()
             nav = _navigator(scenario, name, backend, step)
+            if overlap is not None and hasattr(nav.route.planner, "overlap"):
+                nav.route.planner.overlap = overlap
             residuals: list[float] = []
             filled: list[int] = []
             passes: list[int] = []
@@ -144,6 +149,11 @@ def replan_rows(grids: list[int], backend: str, max_steps: int | None, unknown: 
                 # a step slow for want of the CPU, not for more work (the host's other load).
                 "off_cpu_ms": [round(x, 3) for x in off_cpu[skip:]],
                 "wall_s": round(time.perf_counter() - t0, 1),
+                # Steps whose relaxation ran beside the host's search and stood, and those
+                # undone (cells cut off).
+                "overlap": bool(getattr(nav.route.planner, "overlap", False)),
+                "overlaps": int(getattr(nav.route.planner, "overlaps", 0)),
+                "undone": int(getattr(nav.route.planner, "undone", 0)),
                 # Each step's flipped cells, sweeps and ms: which changes cost the tail.
                 "trace": [[int(c), int(i), round(float(m), 3)] for c, i, m
                           in zip(r.changed, r.iterations, r.step_ms, strict=True)],
@@ -275,10 +285,14 @@ def main() -> None:
     parser.add_argument("--max-steps", type=int, default=None)
     parser.add_argument("--json", default=None)
     parser.add_argument("--steps", default="", help="replan: harmonic step stops, e.g. full,20")
+    parser.add_argument(
+        "--no-overlap", action="store_true", help="replan: relax only after the reach search"
+    )
     a = parser.parse_args()
     grids = [int(x) for x in a.grid.split(",")]
     if a.what == "replan":
-        rows = replan_rows(grids, a.backend, a.max_steps, steps=tuple(a.steps.split(",")))
+        rows = replan_rows(grids, a.backend, a.max_steps, steps=tuple(a.steps.split(",")),
+                           overlap=False if a.no_overlap else None)  # fmt: skip
     elif a.what == "band":
         rows = band_rows(grids, a.backend, a.max_steps)
     else:
@@ -307,6 +321,7 @@ def summary(rows: list[dict]) -> list[str]:
         lines.append(f"{r['planner']} {r['grid']}² median {ms['median']} p99 {ms['p99']} "
                      f"max {ms['max']} total {sum(t[2] for t in trace):.2f} largest {top} "
                      f"full {r.get('full_searches')} cut {r.get('cut_searches')} "
+                     f"early {r.get('overlaps', 0)} undone {r.get('undone', 0)} "
                      f"loaded {sorted(int(k) for k in r.get('loaded', {}))} "
                      f"off-cpu max {off[worst]} at {worst}")  # fmt: skip
     return lines

@@ -4,10 +4,14 @@ The engine interface (the CUDA engine, ``cuda.py``, has the same): ``load`` the 
 (obstacles, cells the goal cannot reach, the goal) and a first field; ``set`` some cells'
 value and fixedness (the map's changes, as ``planner.py`` works them out); ``relax`` to the
 tolerance, or past a budget of sweeps to a field without a pit; ``fill`` the basins of the
-pits a relaxation left (``fill.py``); ``descend`` from a cell; ``field``, a host copy of ``w``.
+pits a relaxation left (``fill.py``); ``descend`` from a cell; ``field``, a host copy of ``w``;
+``relax_start`` and ``undo`` for a relaxation started before the step knows all its changes
+(``planner.py``'s overlap).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -46,6 +50,27 @@ class CpuField:
         return rx.relax_log(self.w, self.fixed, self.width, self.order, self.omega, sweeps,
                             self.check_every, tol, self.scratch,
                             sweeps if budget is None else budget)  # fmt: skip
+
+    def keep_for_undo(self) -> None:
+        """Room for ``relax_start``'s copy of the field (after ``load``)."""
+        self.w_kept, self.fixed_kept = np.empty_like(self.w), np.empty_like(self.fixed)
+
+    def relax_start(self, sweeps: int, tol: float, budget: int | None = None,
+                    keep: bool = False) -> Callable[[], tuple[int, float, bool]]:  # fmt: skip
+        """``relax``, returning what gives its result (the CUDA engine's runs meanwhile; here
+        it has run already). ``keep``: ``w`` and the fixedness copied first, for ``undo``."""
+        if keep:
+            np.copyto(self.w_kept, self.w)
+            np.copyto(self.fixed_kept, self.fixed)
+        out = self.relax(sweeps, tol, budget)
+        return lambda: out
+
+    def undo(self) -> None:
+        """The field and fixedness as the last ``relax_start(keep=True)`` found them. What was
+        ``set`` before that start is in them here, but not on the CUDA engine (its changes go
+        in with the launch): a caller sets them again."""
+        np.copyto(self.w, self.w_kept)
+        np.copyto(self.fixed, self.fixed_kept)
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
         """Fill the basins of the field's pits (``fill.py``); returns the basins' cells and

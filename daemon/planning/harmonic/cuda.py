@@ -36,6 +36,7 @@ import numpy as np
 
 from . import fill as fl
 from . import relax as rx
+from .launch import D2D, D2H, H2D, Launch, copy_async, pinned
 
 SOURCES = tuple(
     Path(__file__).with_name("kernels") / name for name in ("harmonic.cu", "harmonic_reach.cu")
@@ -55,8 +56,6 @@ FILL_TILE = 32
 _CODES = {(True, True): 0, (True, False): 1, (False, True): 2}
 """``set``'s (w is BLOCKED_W, fixed) → the kernel's change code (``harmonic.cu``): blocked or
 cut off, newly reachable without a value yet, the goal's fixed zero."""
-_H2D = cp.cuda.runtime.memcpyHostToDevice
-_D2H = cp.cuda.runtime.memcpyDeviceToHost
 # Plain (not cooperative) launches for the fill's gather and scatter: every function of the
 # cooperative module launches cooperatively, and cupy trims such a grid to the resident blocks.
 _GATHER = cp.ElementwiseKernel("raw T w, int32 c", "T v", "v = w[c]", "harmonic_gather")
@@ -82,20 +81,6 @@ def _blocks(real: str, function: str) -> int:
     # Four blocks of 256 a multiprocessor is enough to cover the grid's memory latency; the
     # occupancy bound keeps the cooperative launch legal if the kernel ever needs more.
     return max(1, min(resident_blocks(k, THREADS), 4 * sms))
-
-
-def _pinned(count: int, dtype: type) -> np.ndarray:
-    dtype = np.dtype(dtype)
-    memory = cp.cuda.alloc_pinned_memory(max(1, count) * dtype.itemsize)
-    return np.frombuffer(memory, dtype=dtype, count=count)
-
-
-def _copy(dst: int, src: int, nbytes: int, kind: int) -> None:
-    """An asynchronous copy on the current stream, in order with its launches (pinned host
-    memory: the host goes on at once)."""
-    if nbytes:
-        stream = cp.cuda.get_current_stream().ptr
-        cp.cuda.runtime.memcpyAsync(dst, src, nbytes, kind, stream)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -152,25 +137,26 @@ class CudaField:
         # first launch, and each launch clears them as it ends.
         self.flags = cp.zeros(6, dtype=cp.uint32)
         self.worst, self.pits = self.flags[:2], self.flags[2:]
-        self.result = cp.zeros(4, dtype=cp.int32)
-        self.result_host = _pinned(4, np.int32)
+        # Result words; 4..7 a fill's launched behind a relaxation (``fill_start``).
+        self.result = cp.zeros(8, dtype=cp.int32)
+        self.result_host = pinned(8, np.int32)
         self.pit_list = cp.empty(n, dtype=cp.int32)
-        self.pits_host = _pinned(min(FIRST_PITS, n), np.int32)
+        self.pits_host = pinned(min(FIRST_PITS, n), np.int32)
         self.pit_count = 0
         # The changes ``set`` queued for the next launch (cell << 2 | code).
         self.changes = cp.empty(n, dtype=cp.int32)
-        self.queued = _pinned(n, np.int32)
+        self.queued = pinned(n, np.int32)
         self.n_queued, self.late = 0, False
         # The fill's cells and values, on both sides.
         self.io_cells = cp.empty(n, dtype=cp.int32)
         self.io_vals = cp.empty(n, dtype=self.dtype)
-        self.cells_host = _pinned(n, np.int32)
-        self.vals_host = _pinned(n, self.dtype)
+        self.cells_host = pinned(n, np.int32)
+        self.vals_host = pinned(n, self.dtype)
         self.vals = np.empty(n, dtype=self.dtype)  # the fill's host copy of some w
         self.mark = np.zeros(n, dtype=np.int8)
         self.cells = np.empty(n, dtype=np.int64)
         self.idx = cp.full(n, 4, dtype=cp.int8)
-        self.idx_view = _pinned(n, np.int8)
+        self.idx_view = pinned(n, np.int8)
         self.buf = np.empty(n, dtype=np.int64)
         self.kernel = _module(self.real).get_function("harmonic_relax")
         self.blocks = _blocks(self.real, "harmonic_relax")
@@ -191,7 +177,7 @@ class CudaField:
         # from pageable memory held the host (the 2000² reveal's start took 1.9 ms with
         # them, H100 host). The event says when the pinned copy may be written again.
         self.masks_dev = cp.empty(2 * n, dtype=cp.uint8)
-        self.masks_host = _pinned(2 * n, np.uint8)
+        self.masks_host = pinned(2 * n, np.uint8)
         self.masks_up = cp.cuda.Event(disable_timing=True)
         self.reach_dev = cp.empty(n, dtype=cp.uint8)
         self.changed_dev = cp.empty(n, dtype=cp.int32)
@@ -201,6 +187,33 @@ class CudaField:
         """The last whole-map reach search's device passes."""
         self.fill_passes = 0
         """The last step's device fill passes (0: no fill ran)."""
+        self._launches()
+
+    def _launches(self) -> None:
+        """The three kernels' launches, their arguments in place (``launch.py`` says why);
+        the named ones change from launch to launch."""
+        h, w, n = np.int32(self.height), np.int32(self.width), self.w.size
+        zero, real = np.int32(0), self.dtype.type
+        self._relax_launch = Launch(self.kernel, self.blocks, THREADS,
+            (self.w, self.fixed, self.prev, h, w, np.int32(self.jacobi), self.omega, zero,
+             np.int32(self.check_every), np.float32(0), self.worst, self.result, self.idx, zero,
+             self.pits, self.pit_list, self.changes, zero, zero),
+            ("",) * 6 + ("omega", "sweeps", "", "tol") + ("",) * 3 + ("budget",) + ("",) * 3
+            + ("n", "late"))  # fmt: skip
+        self._fill_launch = Launch(self.fill_kernel, self.fill_blocks, THREADS,
+            (self.w, self.fixed, h, w, self.down, self.lift, real(fl.EPS), np.int32(FILL_PASSES),
+             self.fill_flags, self.result, self.idx, self.pit_list, self.tile_active,
+             self.tile_stamp),
+            ("",) * 6 + ("eps",))  # fmt: skip
+        self._fill_behind = Launch(self.fill_kernel, self.fill_blocks, THREADS,
+            (self.w, self.fixed, h, w, self.down, self.lift, real(fl.EPS), np.int32(FILL_PASSES),
+             self.fill_flags, self.result[4:], self.idx, self.pit_list, self.tile_active,
+             self.tile_stamp),
+            ("",) * 6 + ("eps",))  # fmt: skip
+        self._reach_launch = Launch(self.reach_kernel, self.reach_blocks, THREADS,
+            (self.masks_dev[:n], self.masks_dev[n:], self.reach_dev, h, w, np.int32(self.goal),
+             self.fill_flags, self.result, self.changed_dev, self.tile_stamp),
+            ("",) * 5 + ("goal",))  # fmt: skip
 
     def set(self, cells: np.ndarray, w: float, fixed: bool) -> None:
         """Set ``cells``' ``w`` and fixedness, on the device at the next ``relax`` (``field``
@@ -228,20 +241,40 @@ class CudaField:
 
     def relax(self, sweeps: int, tol: float, budget: int | None = None) -> tuple[int, float, bool]:
         """As ``CpuField.relax``: sweeps, residual, and whether the field ends without a pit."""
+        return self.relax_start(sweeps, tol, budget)()
+
+    def keep_for_undo(self) -> None:
+        """Room on the device for ``relax_start``'s copy of the field (after ``load``)."""
+        self.w_kept, self.fixed_kept = cp.empty_like(self.w), cp.empty_like(self.fixed)
+
+    def undo(self) -> None:
+        """``w`` and the fixedness as the last ``relax_start(keep=True)``'s launch found them:
+        copied back in the stream, after that launch. The launch's other outputs (Idx, the
+        result words, the pit list) every launch writes afresh, and it clears its flags. The
+        changes ``set`` before that launch are undone with it: a caller sets them again."""
+        copy_async(self.w.data.ptr, self.w_kept.data.ptr, self.w.nbytes, D2D)
+        copy_async(self.fixed.data.ptr, self.fixed_kept.data.ptr, self.fixed.nbytes, D2D)
+
+    def relax_start(self, sweeps: int, tol: float, budget: int | None = None,
+                    keep: bool = False) -> Callable[[], tuple[int, float, bool]]:  # fmt: skip
+        """``relax`` launched: the function returned waits for it and gives its result. The
+        host may meanwhile do anything but ``set`` (the queue's pinned buffer is the launch's
+        until then). ``keep``: ``w`` and the fixedness copied first on the device (in the
+        stream, before the launch), for ``undo``."""
+        if keep:
+            copy_async(self.w_kept.data.ptr, self.w.data.ptr, self.w.nbytes, D2D)
+            copy_async(self.fixed_kept.data.ptr, self.fixed.data.ptr, self.fixed.nbytes, D2D)
         n = self.n_queued
-        _copy(self.changes.data.ptr, self.queued.ctypes.data, 4 * n, _H2D)
-        self.kernel(
-            (self.blocks,), (THREADS,),
-            (self.w, self.fixed, self.prev, np.int32(self.height), np.int32(self.width),
-             np.int32(self.jacobi), self.omega, np.int32(sweeps), np.int32(self.check_every),
-             np.float32(tol), self.worst, self.result, self.idx,
-             np.int32(sweeps if budget is None else budget), self.pits, self.pit_list,
-             self.changes, np.int32(n), np.int32(self.late)),
-        )  # fmt: skip
+        copy_async(self.changes.data.ptr, self.queued.ctypes.data, 4 * n, H2D)
+        self._relax_launch(omega=self.omega, sweeps=sweeps, tol=tol, n=n, late=self.late,
+                           budget=sweeps if budget is None else budget)  # fmt: skip
         self.n_queued, self.late = 0, False
         self.launches += 1
+        return self._relaxed
+
+    def _relaxed(self) -> tuple[int, float, bool]:
         self._fetch()
-        done, bits, settled, self.pit_count = (int(v) for v in self.result_host)
+        done, bits, settled, self.pit_count = (int(v) for v in self.result_host[:4])
         return done, float(np.array([bits], dtype=np.int32).view(np.float32)[0]), bool(settled)
 
     def fill(self, eps: float = fl.EPS) -> tuple[int, int]:
@@ -254,16 +287,33 @@ class CudaField:
         self.fill_passes = 0
         if self.pit_count == 0:
             return 0, 0
-        self.fill_kernel(
-            (self.fill_blocks,), (THREADS,),
-            (self.w, self.fixed, np.int32(self.height), np.int32(self.width), self.down,
-             self.lift, self.dtype.type(eps), np.int32(FILL_PASSES), self.fill_flags,
-             self.result, self.idx, self.pit_list, self.tile_active, self.tile_stamp),
-        )  # fmt: skip
+        self._fill_launch(eps=eps)
         self.launches += 1
         self._fetch()
         self.fill_passes, n_basin = int(self.result_host[0]), int(self.result_host[1])
         self.pit_count = int(self.result_host[3])
+        if self.pit_count == 0:
+            return n_basin, 0
+        more, left = self._fill_host(eps)
+        return n_basin + more, left
+
+    def fill_start(self, eps: float = fl.EPS) -> Callable[[], tuple[int, int]]:
+        """``fill`` launched behind the relaxation just launched, before anyone knows if it
+        leaves a pit; the function returned gives ``fill``'s answer after that relaxation's
+        wait. With no pit the launch finds no basin and changes nothing (Idx written again
+        from the same ``w``), and the answer is ``fill``'s without a launch: (0, 0). For the
+        planner's early relaxation: its fill runs beside the host's search too (the 400²
+        walk's step 26, 15 502 basin cells: 0.26 ms of fill after the search, H100)."""
+        self._fill_behind(eps=eps)
+        self.launches += 1
+        return lambda: self._filled_behind(eps)
+
+    def _filled_behind(self, eps: float) -> tuple[int, int]:
+        if self.pit_count == 0:  # the relaxation's: no pit, so the fill found no basin
+            self.fill_passes = 0
+            return 0, 0
+        self.fill_passes, n_basin = int(self.result_host[4]), int(self.result_host[5])
+        self.pit_count = int(self.result_host[7])
         if self.pit_count == 0:
             return n_basin, 0
         more, left = self._fill_host(eps)
@@ -287,19 +337,14 @@ class CudaField:
         self.masks_up.synchronize()  # the last search's copy has left the pinned masks
         np.copyto(self.masks_host[:n], blocked.view(np.uint8))
         np.copyto(self.masks_host[n:], before.view(np.uint8))
-        _copy(self.masks_dev.data.ptr, self.masks_host.ctypes.data, 2 * n, _H2D)
+        copy_async(self.masks_dev.data.ptr, self.masks_host.ctypes.data, 2 * n, H2D)
         self.masks_up.record()
-        self.reach_kernel(
-            (self.reach_blocks,), (THREADS,),
-            (self.masks_dev[:n], self.masks_dev[n:], self.reach_dev, np.int32(self.height),
-             np.int32(self.width), np.int32(goal), self.fill_flags, self.result,
-             self.changed_dev, self.tile_stamp),
-        )  # fmt: skip
+        self._reach_launch(goal=goal)
         self.launches += 1
         return self._reach_changed
 
     def _reach_changed(self) -> np.ndarray:
-        _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
+        copy_async(self.result_host.ctypes.data, self.result.data.ptr, 16, D2H)
         cp.cuda.get_current_stream().synchronize()
         self.reach_passes = int(self.result_host[0])
         # In the device's order, not sorted: ``Reach`` and ``set`` take the cells in any
@@ -314,9 +359,9 @@ class CudaField:
 
     def _fetch(self) -> None:
         """Idx, the result words and the first pits into pinned memory, then synchronise."""
-        _copy(self.idx_view.ctypes.data, self.idx.data.ptr, self.idx_view.size, _D2H)
-        _copy(self.result_host.ctypes.data, self.result.data.ptr, 16, _D2H)
-        _copy(self.pits_host.ctypes.data, self.pit_list.data.ptr, 4 * self.pits_host.size, _D2H)
+        copy_async(self.idx_view.ctypes.data, self.idx.data.ptr, self.idx_view.size, D2H)
+        copy_async(self.result_host.ctypes.data, self.result.data.ptr, 32, D2H)
+        copy_async(self.pits_host.ctypes.data, self.pit_list.data.ptr, 4 * self.pits_host.size, D2H)
         # The copies wait for the launch; the queued changes' buffer is free again after.
         cp.cuda.get_current_stream().synchronize()
 
@@ -329,10 +374,10 @@ class CudaField:
         cells = self.cells[:total]
         # Gather: the cells up (int32, pinned), their w down, one synchronisation.
         self.cells_host[:total] = cells
-        _copy(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * total, _H2D)
+        copy_async(self.io_cells.data.ptr, self.cells_host.ctypes.data, 4 * total, H2D)
         _GATHER(self.w, self.io_cells[:total], self.io_vals[:total])
-        _copy(self.vals_host.ctypes.data, self.io_vals.data.ptr,
-              total * self.dtype.itemsize, _D2H)  # fmt: skip
+        copy_async(self.vals_host.ctypes.data, self.io_vals.data.ptr,
+                   total * self.dtype.itemsize, D2H)  # fmt: skip
         cp.cuda.get_current_stream().synchronize()
         self.vals[cells] = self.vals_host[:total]
         left = fl.flood(self.vals, self.width, self.cells, *counts, eps, self.mark,
@@ -341,8 +386,8 @@ class CudaField:
         # first); the next launch or copy on the stream waits for it. The pinned values are
         # not written again before a synchronisation (the next relax).
         self.vals_host[:n_basin] = self.vals[cells[:n_basin]]
-        _copy(self.io_vals.data.ptr, self.vals_host.ctypes.data,
-              n_basin * self.dtype.itemsize, _H2D)  # fmt: skip
+        copy_async(self.io_vals.data.ptr, self.vals_host.ctypes.data,
+                   n_basin * self.dtype.itemsize, H2D)  # fmt: skip
         _SCATTER(self.io_cells[:n_basin], self.io_vals[:n_basin], self.w)
         self.pit_count = left
         return n_basin, left

@@ -36,6 +36,10 @@ First field of a cold plan (``init``): ``distance`` (default) starts from 0.05 p
 red–black SOR (omega 1.3), the GPU's; ``rows``, the paper's row-wise Gauss–Seidel (§II-A);
 ``jacobi``, eq. (1) as written.
 
+A step whose change frees nothing but may have cut cells off starts its relaxation on the
+newly blocked cells while the host searches for the cells cut off (``overlap``, the CUDA
+engine's default where the host searches; ``_start_early`` says why the field is the same).
+
 ``UpdateStats``: ``iterations`` = sweeps, ``cells_touched`` = sweeps × reachable cells;
 ``filled``: the basin cells the last step's fill took (0 when it needed none).
 """
@@ -43,7 +47,9 @@ red–black SOR (omega 1.3), the GPU's; ``rows``, the paper's row-wise Gauss–S
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
+import numba
 import numpy as np
 
 from ..grid import INF, Cell, checked_plan_input, checked_update_input, in_bounds, path_cost
@@ -83,6 +89,17 @@ the crossing is interpolated (~1000²), not measured."""
 _EMPTY = np.empty((0, 2), dtype=np.int32)
 
 
+@numba.njit(cache=True, nogil=True)
+def _map_cells(flat: np.ndarray, width: int) -> np.ndarray:
+    """A descent's padded flat cells as map cells, ``(k, 2) int32``: numpy's divide, modulo,
+    stack and cast took ~20 µs a 600-cell path (dev VM), on every path read of a step."""
+    out = np.empty((flat.size, 2), dtype=np.int32)
+    for k in range(flat.size):
+        out[k, 0] = flat[k] // width - 1
+        out[k, 1] = flat[k] % width - 1
+    return out
+
+
 class HarmonicPlanner(GlobalPlanner):
     is_distance = False
     """The field is not a cost-to-go: compare and the property tests judge it by its own
@@ -116,6 +133,16 @@ class HarmonicPlanner(GlobalPlanner):
         self._version = 0
         self._retried = -1
         self._band: tuple[np.ndarray, np.ndarray] | None = None
+        self.overlap = engine.backend == "cuda"
+        """Start a step's relaxation while the host searches for cells cut off (``_start_early``);
+        read at ``plan``."""
+        self.overlaps = 0
+        """Steps whose relaxation ran beside the host's search and stood."""
+        self.undone = 0
+        """Steps whose early relaxation the search overruled (cells cut off): undone, run again."""
+        self._early: tuple[int, Callable[[], tuple[int, float, bool]],
+                           Callable[[], tuple[int, int]] | None] | None = None  # fmt: skip
+        self._overlap = False  # ``overlap`` as the last plan found it, where the host searches
 
     @property
     def goal(self) -> Cell:
@@ -157,6 +184,9 @@ class HarmonicPlanner(GlobalPlanner):
         self.reach.search = search if flat.size >= DEVICE_SEARCH_CELLS else None
         if search is not None:
             self.reach.warm()  # on any map: the warm-up's is too small to search on the device
+        self._overlap = self.overlap and self.reach.search is None
+        if self._overlap:
+            self.engine.keep_for_undo()
         return self._relax(t0, COLD_SWEEPS)
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
@@ -164,7 +194,17 @@ class HarmonicPlanner(GlobalPlanner):
         cells, values = checked_update_input(self._shape, cells, blocked)
         w = self._shape[1]
         padded = padded_cells(cells, w)
-        lost, gained = self.reach.apply(padded, np.ascontiguousarray(values))
+        self._early = None
+        early = self._start_early if self._overlap and self.step_sweeps is not None else None
+        lost, gained = self.reach.apply(padded, np.ascontiguousarray(values), early)
+        if self._early is not None:
+            handed, wait, filled = self._early
+            if lost.size == handed and gained.size == 0:
+                self.overlaps += 1
+                return self._step_end(t0, wait, filled)
+            wait()  # cells were cut off: the launch read them as free
+            self.engine.undo()
+            self.undone += 1
         if lost.size == 0 and gained.size == 0:
             return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3)
         # Cut off or blocked: u = 1, fixed. Newly reachable: no value yet (the next sweep
@@ -195,18 +235,55 @@ class HarmonicPlanner(GlobalPlanner):
             sweeps += more
         return self._stats(t0, sweeps)
 
+    def _start_early(self, lost: np.ndarray) -> None:
+        """``Reach.apply``'s ``early``: the step's relaxation started on the newly blocked
+        cells the goal reached (``lost``) while the host searches the whole map for cells they
+        cut off (its cut-off try gave up).
+
+        Exact (the field, sweeps, residual, Idx and fill are the sequential step's, bit for
+        bit): ``Reach`` calls this only for a change that frees no cell and leaves the goal
+        free, so the step's changes are ``lost`` and the cells cut off C, and no cell gains
+        the goal. If the search finds C empty, the launch already running is the step's own:
+        ``update`` would queue the same cells with the same value and fixedness (the kernel
+        writes each queued cell alike in any order, so the whole-map search's order of the
+        same cells is the same launch). If C is not empty, the launch read C's cells as free
+        (its residual and pit checks count them), so ``update`` waits for it, ``undo`` copies
+        back ``w`` and the fixedness the engine kept just before it (the launch's other
+        outputs, Idx, the result words and the pit list, every launch writes afresh), and the
+        step runs as before from there. Ordering: the host writes the queue before this launch
+        and not again until it has waited for it (``set`` runs after the wait in either case);
+        the search reads only the host's arrays; the fill follows the wait.
+
+        On the 400² bench walk the steps that search the whole map (26, 34 and 40 at 1/64)
+        cut nothing off (their recorded deltas, replayed), and all three start early. H100,
+        round 18, interleaved with main in one call: those steps 1.68 / 1.53 / 1.53 and 1.78 /
+        1.55 / 1.51 ms against main's 1.98 / 1.65 / 1.67 and 1.85 / 1.61 / 1.24; the host's
+        search itself, 0.75–1.2 ms there, is what they cost now."""
+        self.engine.set(lost, rx.BLOCKED_W, True)
+        wait = self._step_start(int(self.step_sweeps or 0), keep=True)
+        # The fill too, where the engine can launch it behind the sweeps (the CUDA engine's
+        # ``fill_start``): on a step that leaves pits it runs beside the search as well.
+        fill_start = getattr(self.engine, "fill_start", None)
+        self._early = (lost.size, wait, fill_start(fl.EPS) if fill_start else None)
+
     def _step(self, t0: float, budget: int) -> UpdateStats:
         """A replanning step: at most ``step_cap`` sweeps, then the pits' basins filled."""
+        return self._step_end(t0, self._step_start(budget))
+
+    def _step_start(self, budget: int, keep: bool = False) -> Callable[[], tuple[int, float, bool]]:
         omega = self.engine.omega
         self.engine.omega = type(omega)(STEP_OMEGA)
         try:
-            sweeps, self.residual, _ = self.engine.relax(
-                max(self.step_cap, budget), self.tol, budget
-            )
+            return self.engine.relax_start(max(self.step_cap, budget), self.tol, budget, keep)
         finally:
             self.engine.omega = omega
+
+    def _step_end(self, t0: float, wait: Callable[[], tuple[int, float, bool]],
+                  filled: Callable[[], tuple[int, int]] | None = None) -> UpdateStats:  # fmt: skip
+        """``filled``: the answer of a fill already launched behind the sweeps."""
+        sweeps, self.residual, _ = wait()
         # Even a step that met ``tol`` fills: the residual skips cells with no value yet.
-        self.filled, left = self.engine.fill(fl.EPS)
+        self.filled, left = filled() if filled is not None else self.engine.fill(fl.EPS)
         self.fills += int(self.filled > 0)
         self.settled = left == 0
         return self._stats(t0, sweeps)
@@ -235,11 +312,7 @@ class HarmonicPlanner(GlobalPlanner):
             self.retries += 1
             self.engine.relax(RETRY_SWEEPS, self.tol / 10)
             flat = self.engine.descend(s)
-        if flat is None:
-            path = _EMPTY
-        else:
-            w = self._shape[1] + 2
-            path = np.stack((flat // w - 1, flat % w - 1), axis=1).astype(np.int32)
+        path = _EMPTY if flat is None else _map_cells(flat, self._shape[1] + 2)
         self._cache = (key, path)
         return path
 

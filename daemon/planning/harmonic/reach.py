@@ -11,7 +11,8 @@ and more at 2000², the whole step's budget, so a change is checked where it hap
   widened by ``MARGIN``), every path the change crossed can be rerouted round it and nothing
   was cut off (splice the old path at its first and last contact with each cluster).
   Otherwise the cells cut off are found from where the change happened (``cut_off``), and
-  only past a budget by one search of the whole map (``floods.reached``, or the device's).
+  only past a budget by one search of the whole map (``floods.reached_runs``, or the
+  device's).
 - A freed cell joins the reachable set when it touches it, and brings with it the pocket it
   opens: a BFS from there through cells not reached yet.
 """
@@ -25,7 +26,7 @@ import numpy as np
 
 from .clusters import _joined_each
 from .cut_off import cut_off, neighbour_offsets
-from .floods import flood, reached
+from .floods import flood, free_runs, reached_runs
 from .relax import bfs_steps
 
 MARGIN = 16
@@ -34,17 +35,16 @@ CUT_SHARE = 8
 """``cut_off`` gives up (the whole-map search follows) past 1/CUT_SHARE of the map where
 ``Reach.search`` (the device's) is at hand, ..."""
 HOST_CUT_SHARE = 64
-"""... and past 1/HOST_CUT_SHARE where the whole-map search is the host's (``floods.reached``,
-by spans: ~4 ns a cell of the map, dev VM), as a try costs ~12 times that a cell it searches
-(~47 ns): a try that gives up past 1/8 of the map cost more than the search it then needs.
-The 400² bench walk's recorded deltas, replayed (dev VM, idle, min of 7): the delta that
-needs the whole-map search (26) 1.57 → 0.67 ms, two others now searched whole instead
-(0.24 / 0.62 → 0.67 / 0.61), the walk's 59 deltas 5.43 → 3.88 ms in all. On the H100 (the
-bench's walk, one call, against c81ad7b's 1/8, whose other host code differs little at 400²:
-step 0 1.00 there, 1.07 here): step 26 1.95 → 1.51 ms, 34 and 40 0.60 / 0.80 → 1.23 /
-1.24, so the walk's total is ~0.6 ms more, but its p99 (at 59 steps the largest two steps)
-1.40 → 1.36 and its max 1.95 → 1.51: at 1/8 the one step whose try fails pays the try and the
-search together."""
+"""... and past 1/HOST_CUT_SHARE where the whole-map search is the host's
+(``floods.reached_runs``: ~0.07–0.10 ms on the 400² bench walk's map, ~800 free runs, dev
+VM; it was a scanline fill, ~0.4–0.7), as a try costs ~47 ns a cell it searches. Tried at
+1/256 on the walk's 59 recorded deltas (dev VM, CPU time, min of 7, load 3–4): the three
+that need the whole-map search (26, 34, 40) 0.16–0.18 → 0.14–0.15 ms, no delta slower; at
+1/1024 the tries of 42, 53 and 54 (which find cells cut off) give up too, 0.05–0.07 →
+0.10–0.11 ms. Kept at 1/64: at 1/256 a ring round a pocket of 15² on a 300² map, or 39² on
+1024², no longer ends in the try, and the whole-map search grows with the map where the try
+grows with the pocket. At 1/8, with the scanline fill, the one step whose try fails paid the
+try and the search together (H100, the bench's walk: step 26 1.95 ms, 1.51 at 1/64)."""
 SCRATCH_SHARE = 8
 """``Reach``'s lists are written at construction as far as a large step reaches, 1/8 of the
 map (the 2000² walk's first sweep and reveal: 119 514 and 137 243 of 4 M cells)."""
@@ -187,13 +187,17 @@ class Reach:
         for scratch in (self._queue, self._failed, self._out, self._flips):
             scratch[:front] = 0
         self._was[:front] = False
+        # The host's whole-map search's scratch, by runs (int32: a map of under 2**31 cells):
+        # twice the runs of the map as first given, grown when a change leaves more.
+        self._runs = np.empty((4, 0), dtype=np.int32)
+        self._more_runs(2 * free_runs(self.blocked, self._runs[0], self._runs[1]))
         self.full_searches = 0
         """Changes that needed the whole-map BFS."""
         self.search: Callable[[np.ndarray, np.ndarray, int], Callable[[], np.ndarray]] | None = None
         """The whole-map search elsewhere (the GPU engine's ``reach_search_start``): given the
         map, the reach before the change and the goal (both read before it returns), it
         starts the search and returns what waits for its answer, the cells whose reach
-        changed (in any order); None: the host's (``floods.reached``)."""
+        changed (in any order); None: the host's (``floods.reached_runs``)."""
         self.cut_searches = 0
         """Changes whose cut-off cells ``cut_off`` found without it."""
         bfs_steps(self.blocked, self.goal, self.width, self._steps)
@@ -203,12 +207,24 @@ class Reach:
         self.count = int(self.reach.sum())
         """Cells reached; kept up by ``apply`` (a sum over 4 M cells is ~1 ms at 2000²)."""
 
+    def _more_runs(self, count: int) -> None:
+        """Scratch for ``count`` runs (at least 1024: a few KiB)."""
+        cap = max(count, 1024)
+        self._runs = np.zeros((4, cap), dtype=np.int32)
+        self._run_flags = np.zeros(cap, dtype=np.int8)
+        self._run_stack = np.zeros(cap, dtype=np.int32)
+
     def warm(self) -> None:
-        """Compile ``_answered`` (or load it from numba's cache) now: only a ``search``'s answer
-        runs it, and the warm-up's small map searches on the host, so a walk's first device
-        search paid it (H100, the 2000² bench walk's reveal: 223 ms with the compile)."""
+        """Compile ``_answered`` and the host's whole-map search (or load them from numba's
+        cache) now: only a ``search``'s answer runs the one, only a try that gives up the
+        other, so a walk's first such step paid it (H100, the 2000² bench walk's reveal: 223
+        ms with ``_answered``'s compile)."""
         none = np.empty(0, dtype=np.int64)
         _answered(self.reach, none, none, self._was[:0], self._out, self._failed)
+        tiny = np.ones(9, dtype=np.bool_)  # one free cell, the goal, inside its border
+        tiny[4] = False
+        reached_runs(tiny, 4, 3, np.zeros(9, dtype=np.bool_), none, True, self._runs,
+                     self._run_flags, self._run_stack, self._out, self._failed)  # fmt: skip
 
     def _start(self, now_blocked: np.ndarray, was: np.ndarray) -> Callable[[], np.ndarray]:
         """``search`` started on the reach before the change; ``reach`` is left as it was."""
@@ -219,11 +235,16 @@ class Reach:
         return wait
 
     def _afresh(
-        self, now_blocked: np.ndarray, was: np.ndarray, wait: Callable[[], np.ndarray] | None = None
+        self,
+        now_blocked: np.ndarray,
+        was: np.ndarray,
+        split_only: bool,
+        wait: Callable[[], np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Every reached cell found afresh (a change may have cut some off): ``(lost,
         gained)`` against the reach before the change (``now_blocked``'s old reach ``was``);
-        ``wait``: the answer of a ``search`` already started."""
+        ``split_only``: the change freed no cell (the host's search then reads one cell a run
+        for its old reach); ``wait``: the answer of a ``search`` already started."""
         self.full_searches += 1
         if self.search is not None:
             if wait is None:
@@ -232,20 +253,37 @@ class Reach:
                                          self._failed)  # fmt: skip
             self.count += n_gained - n_lost
             return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
-        before = self.reach.copy()
-        before[now_blocked] = was
-        self.count = reached(self.blocked, self.goal, self.width, self.reach, self._queue)
-        changed = np.flatnonzero(before != self.reach)
-        return changed[~self.reach[changed]], changed[self.reach[changed]]
+        was_lost = np.sort(now_blocked[was])
+        while True:
+            count, n_lost, n_gained = reached_runs(
+                self.blocked, self.goal, self.width, self.reach, was_lost, split_only,
+                self._runs, self._run_flags, self._run_stack, self._out, self._failed,
+            )  # fmt: skip
+            if count >= 0:
+                break
+            self._more_runs(-2 * count)
+        self.count = count
+        return self._out[:n_lost].copy(), self._failed[:n_gained].copy()
 
     def _cut_off(self, seeds: int, limit: int) -> int:
         return cut_off(self.blocked, self.reach, self._failed[:seeds], self.width, self.goal,
                        self._group, self._queue, self._out, limit)  # fmt: skip
 
-    def apply(self, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def apply(
+        self,
+        cells: np.ndarray,
+        values: np.ndarray,
+        early: Callable[[np.ndarray], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Set ``blocked[cells] = values``; returns ``(lost, gained)``: padded flat cells whose
         reachability changed (newly blocked cells count as lost; newly freed ones that the goal
-        reaches as gained)."""
+        reaches as gained). ``early``: called with the newly blocked cells the goal reached
+        before the host's whole-map search starts (the cut-off try gave up), when the change
+        frees none and leaves the goal free: then ``lost`` is those cells and the cells cut
+        off, ``gained`` empty (the planner starts the relaxation on them meanwhile). Not before
+        the try: on the 400² bench walk's recorded deltas the three tries that end (42, 53,
+        54) each find cells cut off (12, 201, 4), where a relaxation started early is undone,
+        and the three whole-map searches (26, 34, 40) none."""
         flips = self._flips
         nb, nf = _flips(self.blocked, self.reach, cells, values, self._label, flips,
                         self._was)  # fmt: skip
@@ -253,7 +291,7 @@ class Reach:
             return flips[:0], flips[:0]
         now_blocked, freed, was = flips[:nb], flips[flips.size - nf :], self._was[:nb]
         if not self.blocked[self.goal] and not self.reach[self.goal]:
-            return self._afresh(now_blocked, was)  # the goal itself freed
+            return self._afresh(now_blocked, was, nf == 0)  # the goal itself freed
         cut = 0
         seeds = 0  # the contacts of the clusters that failed, listed in self._failed
         if nb and not self.blocked[self.goal]:
@@ -277,7 +315,9 @@ class Reach:
                 else:
                     cut = self._cut_off(seeds, limit)
             if self.blocked[self.goal] or cut < 0:
-                return self._afresh(now_blocked, was, wait)
+                if early is not None and nf == 0 and self.search is None and wait is None:
+                    early(now_blocked[was])
+                return self._afresh(now_blocked, was, nf == 0, wait)
             self.cut_searches += 1
         lost = now_blocked[was]
         if cut:

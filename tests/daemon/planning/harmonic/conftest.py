@@ -66,6 +66,13 @@ def reachable(blocked: np.ndarray, goal: tuple) -> np.ndarray:
     return steps.reshape(h + 2, w + 2)[1:-1, 1:-1] >= 0
 
 
+def flat_reachable(flat: np.ndarray, goal: int, width: int) -> np.ndarray:
+    """The plain breadth-first search's reach (8-connected) of a padded flat map, bool."""
+    steps = np.empty(flat.size, dtype=np.int64)
+    rx.bfs_steps(flat, goal, width, steps)
+    return steps >= 0
+
+
 def descents_hold(planner, blocked: np.ndarray, reach: np.ndarray, steps: bool = False) -> None:
     """From every free cell: a descent to the goal through free cells where the goal is
     reachable, no path where it is not; ``steps``: and each move is to a neighbour."""
@@ -91,5 +98,6 @@ def maps():
         segments_free=segments_free,
         serpentine=serpentine,
         reachable=reachable,
+        flat_reachable=flat_reachable,
         descents_hold=descents_hold,
     )

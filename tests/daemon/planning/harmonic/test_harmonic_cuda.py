@@ -119,14 +119,17 @@ def test_cuda_steps_filled_are_pit_free_and_converge_to_the_cold_field(maps, see
     assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
 
 
-def _walled_with_two_doors():
+def _walled_with_two_doors(overlap: bool = True):
     """A 40² room cut by a wall with two doors, planned on the GPU with a 5-sweep step; the
-    far door's cells, closing which leaves a basin behind the wall to fill."""
+    far door's cells, closing which leaves a basin behind the wall to fill. Closing it takes
+    the whole-map search (the door's two sides join only through the other door), so with
+    ``overlap`` the step's sweeps and fill start before it (``HarmonicPlanner._start_early``)."""
     blocked = np.zeros((40, 40), dtype=bool)
     blocked[20, :] = True
     blocked[20, 2:4] = blocked[20, 34:38] = False
     door = 20 * 40 + np.arange(34, 38)
     gpu = cuda_planner("rb")
+    gpu.overlap = overlap
     gpu.plan(blocked, (2, 36))
     gpu.step_sweeps, gpu.step_cap = 5, 5
     return blocked, door, gpu
@@ -187,7 +190,10 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
 
     if passes is not None:
         monkeypatch.setattr(hc, "FILL_PASSES", passes)
-    blocked, door, gpu = _walled_with_two_doors()
+    # In order: the field between the sweeps and the fill is read here, which the early
+    # relaxation's fill (launched behind the sweeps) never leaves on the host; that one is
+    # checked against this one below.
+    blocked, door, gpu = _walled_with_two_doors(overlap=False)
     engine, before = gpu.engine, {}
     device_fill = engine.fill
 
@@ -213,6 +219,27 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
         assert np.abs(host.w[free] - after[free]).max() < GPU_TOL
     else:
         assert engine.fill_passes == 1
+
+
+@pytest.mark.parametrize("passes", [None, 1])
+def test_cuda_fill_behind_the_early_relaxation_is_the_fill_after_it(monkeypatch, passes):
+    # ``CudaField.fill_start``: the step's fill launched behind its early relaxation, before
+    # the host knows whether the sweeps left a pit, gives the field and the counts of the fill
+    # run after the wait; capped at one pass, both leave the rest to the host's flood.
+    from daemon.planning.harmonic import cuda as hc
+
+    if passes is not None:
+        monkeypatch.setattr(hc, "FILL_PASSES", passes)
+    _, door, early = _walled_with_two_doors(overlap=True)
+    _, _, ordered = _walled_with_two_doors(overlap=False)
+    a, b = early.update(door, True), ordered.update(door, True)
+    assert (early.overlaps, early.undone, ordered.overlaps) == (1, 0, 0)
+    assert a.iterations == b.iterations and early.residual == ordered.residual
+    assert early.filled == ordered.filled > 100 and early.settled and ordered.settled
+    assert np.array_equal(early.field(), ordered.field())
+    assert np.array_equal(early.path((39, 2)), ordered.path((39, 2)))
+    if passes is not None:
+        assert early.engine.fill_passes == ordered.engine.fill_passes == 1
 
 
 def _fixed_point_f32(w: np.ndarray, cells: np.ndarray, width: int, eps: float) -> np.ndarray:
@@ -308,8 +335,6 @@ def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
 def test_cuda_reach_search_is_the_host_search(maps, seed):
     # ``harmonic_reach`` (tiles grown from the goal) against the host's breadth-first search
     # of the same padded map, the goal blocked once: the cells whose reach changed.
-    from daemon.planning.harmonic.floods import reached
-
     rng = np.random.default_rng(300 + seed)
     h, w = int(rng.integers(60, 200)), int(rng.integers(60, 200))
     blocked = maps.random_map(rng, h, w, 0.3 + 0.05 * seed)
@@ -322,8 +347,8 @@ def test_cuda_reach_search_is_the_host_search(maps, seed):
     flat = flat.reshape(-1)
     g = (goal[0] + 1) * (w + 2) + goal[1] + 1
     before = rng.random(flat.size) < 0.5
-    fresh = np.zeros(flat.size, dtype=np.bool_)
-    count = reached(flat, g, w + 2, fresh, np.empty(flat.size, dtype=np.int64))
+    fresh = maps.flat_reachable(flat, g, w + 2)
+    count = int(fresh.sum())
     got = gpu.engine.reach_search(flat, before, g)
     assert np.array_equal(np.sort(got), np.flatnonzero(fresh != before))
     assert (count > 0) == (seed != 3) and gpu.engine.reach_passes >= 1

@@ -202,7 +202,6 @@ def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
     from daemon.planning.harmonic import HarmonicPlanner
     from daemon.planning.harmonic import planner as hp
     from daemon.planning.harmonic.cpu import CpuField
-    from daemon.planning.harmonic.floods import reached
 
     calls = []
 
@@ -210,9 +209,7 @@ def test_the_whole_map_search_goes_to_an_engine_that_has_one(maps, monkeypatch):
         def reach_search_start(self, blocked, before, goal):
             # Answered as the device does: from the masks as they were when it started.
             calls.append(goal)
-            fresh = np.zeros(blocked.size, dtype=np.bool_)
-            reached(blocked, goal, self.width, fresh, np.empty(blocked.size, dtype=np.int64))
-            changed = np.flatnonzero(fresh != before)
+            changed = np.flatnonzero(maps.flat_reachable(blocked, goal, self.width) != before)
             return lambda: changed
 
     monkeypatch.setattr(hp, "DEVICE_SEARCH_CELLS", 0)

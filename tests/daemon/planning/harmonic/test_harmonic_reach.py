@@ -11,8 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning.harmonic.floods import reached
+from daemon.planning.harmonic import reach as rmod
+from daemon.planning.harmonic.floods import free_runs, reached_runs
 from daemon.planning.harmonic.reach import MARGIN, Reach, _joined_each
+from daemon.planning.harmonic.relax import bfs_steps
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -56,12 +58,17 @@ def shape_cells(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     return np.flatnonzero(mask.reshape(-1))
 
 
+def bfs_reach(flat: np.ndarray, goal: int, width: int) -> np.ndarray:
+    """The plain breadth-first search's reach (8-connected) of a padded flat map."""
+    steps = np.empty(flat.size, dtype=np.int64)
+    bfs_steps(flat, goal, width, steps)
+    return steps >= 0
+
+
 def host_search(blocked: np.ndarray, before: np.ndarray, goal: int, width: int) -> np.ndarray:
     """A ``Reach.search``'s answer as the GPU engine gives it: the cells whose reach differs
     from ``before`` in a fresh search of ``blocked``, in no set order (its compaction's)."""
-    fresh = np.zeros(blocked.size, dtype=np.bool_)
-    reached(blocked, goal, width, fresh, np.empty(blocked.size, dtype=np.int64))
-    changed = np.flatnonzero(fresh != before)
+    changed = np.flatnonzero(bfs_reach(blocked, goal, width) != before)
     return np.random.default_rng(changed.size).permutation(changed)
 
 
@@ -75,10 +82,15 @@ def started(changed: np.ndarray):
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(seed=st.integers(0, 2**31), h=st.integers(4, 40), w=st.integers(4, 40),
-       density=st.floats(0.0, 0.3), elsewhere=st.booleans())  # fmt: skip
-def test_reach_is_the_fresh_search_after_every_change(maps, seed, h, w, density, elsewhere):
+       density=st.floats(0.0, 0.3), elsewhere=st.booleans(), whole=st.booleans())  # fmt: skip
+def test_reach_is_the_fresh_search_after_every_change(
+    maps, monkeypatch, seed, h, w, density, elsewhere, whole
+):
     # elsewhere: the whole-map search handed to ``Reach.search`` (the GPU engine's), whose
-    # changed cells ``apply`` turns into the same mask, count, lost and gained.
+    # changed cells ``apply`` turns into the same mask, count, lost and gained; whole: the
+    # host's cut-off try given no budget, so every change that may cut cells off takes the
+    # host's whole-map search (``floods.reached_runs``).
+    monkeypatch.setattr(rmod, "HOST_CUT_SHARE", (h + 2) * (w + 2) + 1 if whole else 64)
     rng = np.random.default_rng(seed)
     blocked = maps.random_map(rng, h, w, density)
     goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
@@ -217,22 +229,75 @@ def test_beside_a_search_a_long_try_runs_while_the_search_it_started_works(maps)
     assert len(started) == 2 and len(waited) == 1
 
 
-@pytest.mark.parametrize("density", [0.0, 0.2, 0.45, 0.6])
-def test_the_whole_map_search_by_spans_is_the_breadth_first_search(maps, density):
-    # ``reached`` takes runs along rows and reads the rows beside them one cell past each end:
-    # corner-only gaps (a diagonal step between two blocked cells) count, as in the
-    # breadth-first search; and its count is the cells it marked.
-    rng = np.random.default_rng(int(density * 100))
-    for _ in range(10):
-        h, w = int(rng.integers(1, 60)), int(rng.integers(1, 60))
-        blocked = maps.random_map(rng, h, w, density)
-        goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
-        flat = padded(blocked)
-        out = np.ones(flat.size, dtype=np.bool_)  # reached clears what it does not reach
-        count = reached(flat, (goal[0] + 1) * (w + 2) + goal[1] + 1, w + 2, out,
-                        np.empty(flat.size, dtype=np.int64))  # fmt: skip
-        want = padded(~maps.reachable(blocked, goal) | blocked)
-        assert (out == ~want).all() and count == int(out.sum())
+def scratch(runs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``reached_runs``'s scratch for ``runs`` runs: their bounds and joins, flags, stack."""
+    return np.zeros((4, runs), np.int32), np.zeros(runs, np.int8), np.zeros(runs, np.int32)
+
+
+def door_steps(rng: np.random.Generator, h: int, w: int) -> list[tuple[np.ndarray, bool]]:
+    """A wall across with a door in it (built, the door opened), then the door closing: the
+    map cut in two by cells that are never newly blocked all at once."""
+    r = int(rng.integers(0, h))
+    wall = r * w + np.arange(w)
+    door = wall[int(rng.integers(0, w)) :][: int(rng.integers(1, 4))]
+    return [(wall, True), (door, False), (door, True)]
+
+
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(seed=st.integers(0, 2**31), h=st.integers(1, 40), w=st.integers(1, 40),
+       density=st.floats(0.0, 0.6))  # fmt: skip
+def test_the_search_over_runs_is_the_breadth_first_search_after_every_change(
+    maps, seed, h, w, density
+):
+    # ``reached_runs`` after blobs, rings (a pocket cut off), walls, doors closing and cells
+    # freed, from the reach before each change: the plain BFS's reach and count, and the cells
+    # lost and gained in map order (the newly blocked the goal reached among the lost). A
+    # change that frees no cell reads one cell a run for its old reach (``split_only``).
+    rng = np.random.default_rng(seed)
+    blocked = maps.random_map(rng, h, w, density)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    width = w + 2
+    g = (goal[0] + 1) * width + goal[1] + 1
+    flat = padded(blocked)
+    reach = bfs_reach(flat, g, width)
+    changes = [(shape_cells(rng, h, w), rng.random() < 0.7) for _ in range(4)]
+    goal_cell = np.array([goal[0] * w + goal[1]])
+    changes += [*door_steps(rng, h, w), (goal_cell, True), (goal_cell, False)]
+    for cells, value in changes:
+        cells = pad(cells, w)
+        freed = bool((flat[cells] & ~value).any())
+        before = reach.copy()
+        now_blocked = cells[~flat[cells] & value]
+        flat[cells] = value
+        reach[now_blocked] = False
+        lost, gained = np.empty(flat.size, np.int64), np.empty(flat.size, np.int64)
+        args = (flat, g, width, reach, np.sort(now_blocked[before[now_blocked]]), not freed)
+        # Scratch for one run at first: the search says how many it needs, reach untouched.
+        count, n_lost, n_gained = reached_runs(*args, *scratch(1), lost, gained)
+        n = free_runs(flat, np.empty(flat.size, np.int32), np.empty(flat.size, np.int32))
+        if n > 1:
+            assert count == -n and np.array_equal(reach, before & ~flat)
+            count, n_lost, n_gained = reached_runs(*args, *scratch(n), lost, gained)
+        fresh = bfs_reach(flat, g, width)
+        assert np.array_equal(reach, fresh) and count == int(fresh.sum())
+        assert np.array_equal(lost[:n_lost], np.flatnonzero(before & ~fresh))
+        assert np.array_equal(gained[:n_gained], np.flatnonzero(~before & fresh))
+
+
+def test_the_runs_are_the_rows_free_stretches_at_any_length():
+    # The map's bytes are read eight at a time: runs that start or end on a word's edge, in the
+    # last few cells past the last whole word, and a map of fewer than eight cells.
+    rng = np.random.default_rng(7)
+    for size in (3, 7, 8, 9, 15, 16, 17, 63, 64, 65, 333):
+        flat = rng.random(size) < 0.4
+        flat[0] = flat[-1] = True
+        edges = np.flatnonzero(np.diff(flat.astype(np.int8)))
+        starts, ends = np.zeros(size, np.int32), np.zeros(size, np.int32)
+        n = free_runs(flat, starts, ends)
+        assert n == edges.size // 2
+        assert np.array_equal(starts[:n], edges[0::2] + 1) and np.array_equal(ends[:n], edges[1::2])
 
 
 def test_the_scratch_is_mapped_at_construction_not_by_the_first_sweep():
