@@ -262,23 +262,18 @@ class UserRunner:
     def _gather(self) -> bool:
         """On the worker: wait for inputs. Urgent ones (map, goal, refusal, button) step at
         once; a pose alone waits for the user's guide period (later poses replace it
-        meanwhile), and a shed user steps only once per shed period. False: closing."""
-        while True:
-            with self._lock:
-                if self._inbox or self._closed:
-                    self._idle = False
-                    break
-                self._idle = True
-            if not self._worker.wait(None):
-                return False
+        meanwhile), and a shed user steps only once per shed period. Until the period is over
+        only an urgent input wakes the worker, even with nothing in the inbox: a pose then
+        would wake it only to wait out the rest of the period (two wakes a step). False:
+        closing."""
         while not self._closed:
             with self._lock:
                 wait = self._next_step_at - time.monotonic()
-                if wait <= 0 or (not self.shed and self._inbox.urgent()):
-                    self._pacing = False
+                if self._inbox and (wait <= 0 or (not self.shed and self._inbox.urgent())):
+                    self._idle = self._pacing = False
                     return True
-                self._pacing = True
-            if not self._worker.wait(wait):
+                self._idle, self._pacing = wait <= 0, wait > 0
+            if not self._worker.wait(wait if wait > 0 else None):
                 return False
         return False
 
