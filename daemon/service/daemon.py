@@ -107,9 +107,7 @@ class Daemon:
             slots=self.config.step_workers or os.cpu_count() or 1,
             guide_hz=self.config.guide_hz,
             shed_period_s=max(0.5, self.config.tick_s),
-            record=lambda user, lag_ms, cpu_ms: self.admission.record(
-                user, lag_ms, cpu_ms, time.monotonic()
-            ),
+            record=self.admission.record,
         )
         self._warm_up()
         say_who_may_connect(self.config.zenoh)
@@ -207,6 +205,8 @@ class Daemon:
             await asyncio.sleep(period)
             # How late the loop woke: every input waits that long before it reaches a user.
             late_ms = (loop.time() - due) * 1e3
+            if self._pacing is not None:
+                self._pacing.flush()  # the steps' records, before the loop's lateness is one
             self.admission.record_loop(late_ms, time.monotonic())
             if self._pacing is not None:
                 self._pacing.behind = late_ms > self.config.lag_budget_ms

@@ -1,10 +1,10 @@
 """The asyncio side of one user: an inbox filled on the loop, a worker that steps it.
 
-Inputs only touch the inbox (loop thread). One task per user takes the whole inbox and
-runs ``Navigator.step`` on the user's own worker thread, so planning never blocks the
-loop and a user's map and planner are only ever touched by one thread; the worker
-publishes what the step produced. While a step runs, new inputs pile up and are
-coalesced into the next one.
+Inputs only touch the inbox (on the loop, or zenoh's thread for poses). Each user's own
+worker thread waits out its turn, takes the whole inbox and runs ``Navigator.step``, so
+planning never blocks the loop, the loop does nothing per step, and a user's map and planner
+are only ever touched by one thread; the worker publishes what the step produced. While a
+step runs, new inputs pile up and are coalesced into the next one.
 """
 
 from __future__ import annotations
@@ -67,14 +67,12 @@ class UserRunner:
         self._publish = publish
         self._request = request
         self._snapshot_timeout_s = snapshot_timeout_s
-        self._worker = StepThread(f"plan-{self.user}")
         self._inbox = Inbox()
         self._lock = threading.Lock()
         """The inbox is filled on the loop and taken by the worker when its turn comes."""
-        self._wake = asyncio.Event()
         self._pacing = False
-        """The worker is waiting out its step period (a timer is set): an input that does not
-        step the user at once need not wake it, the timer will (loop thread only)."""
+        """The worker is waiting out its step period: an input that does not step the user at
+        once need not wake it, the period's end will (under ``_lock``)."""
         self._snapshot_pending = False
         self._urgent_at: float | None = None
         """When the inbox's first urgent input arrived (monotonic): the step's lag starts."""
@@ -95,11 +93,17 @@ class UserRunner:
         self._belt = BeltRefresh()
         self._path_bytes = codec.PathBytes()
         self._idle = False
-        """The worker waits for any input at all (no step period running, inbox empty): a
-        pose taken on zenoh's thread must wake it (under ``_lock``)."""
+        """The worker waits for any input at all (no step period running, inbox empty): any
+        input wakes it (under ``_lock``)."""
         self._loop = asyncio.get_running_loop()
         self.last_input = time.monotonic()
-        self._task = self._loop.create_task(self._run(), name=f"user-{self.user}")
+        self._worker = StepThread(f"plan-{self.user}", self._serve)
+        self._worker.start()
+
+    @property
+    def serving(self) -> bool:
+        """The user's worker still waits for and steps their inputs."""
+        return self._worker.alive and not self._closed
 
     # -- inputs (loop thread) -------------------------------------------------------------
 
@@ -150,10 +154,7 @@ class UserRunner:
             self._pose_read_at = max(self._pose_read_at, arrived)
             self._inbox.pose, self._inbox.pose_received = pose, arrived  # the latest wins
             self.last_input = time.monotonic()
-            wake, self._idle = self._idle, False
-        if wake:
-            with contextlib.suppress(RuntimeError):
-                self._loop.call_soon_threadsafe(self._wake.set)
+            self._ring()
 
     def _refuse_pose(self, code: StatusCode, reason: str, arrived: float) -> None:
         self.read_pose(arrived)
@@ -188,8 +189,8 @@ class UserRunner:
         known = self.navigator.controls.battery_v
         with self._lock:
             self._inbox.battery_v = health.battery_v
-        if health.battery_v < low and (known is None or known >= low):
-            self._wake.set()
+            if health.battery_v < low and (known is None or known >= low):
+                self._ring()
 
     def settings(self, now: float) -> UserSettings:
         return self.navigator.controls.state(self.navigator.guidance, now)
@@ -198,29 +199,31 @@ class UserRunner:
         self.last_input = time.monotonic()
         if urgent and self._urgent_at is None:
             self._urgent_at = time.monotonic()
-        # A pose woke the worker only to wait again: 20 poses a second per user, each an
-        # asyncio.wait_for (a task and a timer) on the loop.
-        if urgent or not self._pacing:
-            self._wake.set()
+        self._ring(urgent)
+
+    def _ring(self, urgent: bool = False) -> None:
+        """Wake the worker if it waits for this input (under ``_lock``): any input when it
+        has none, an urgent one while it waits out its period. A pose then would wake it only
+        to wait again (20 a second a user); while it steps, it looks at the inbox after."""
+        if self._idle or (urgent and self._pacing):
+            self._idle = self._pacing = False
+            self._worker.ring()
 
     def tick(self) -> None:
         with self._lock:
             self._inbox.tick = True
-        if not self._pacing:
-            self._wake.set()
+            self._ring()
 
     # -- the worker -----------------------------------------------------------------------
 
-    async def _run(self) -> None:
-        loop = asyncio.get_running_loop()
-        while not self._closed:
-            await self._gather()
+    def _serve(self) -> None:
+        """The worker's life: wait for the user's turn, step, again; the loop's jobs (a
+        snapshot to read, the last words) run between steps."""
+        while self._worker.poll() and not self._closed and self._gather():
             period = self.pacing.shed_period_s if self.shed else self.pacing.guide_period_s
-            self._next_step_at = loop.time() + period
+            self._next_step_at = time.monotonic() + period
             try:
-                done = await self._worker.run(self._take_and_step)
-            except asyncio.CancelledError:
-                raise
+                done = self._take_and_step()
             except Exception:  # even the error report failed: log it, keep serving
                 log.exception("worker failed", extra={"fields": {"user": self.user}})
                 continue
@@ -256,28 +259,23 @@ class UserRunner:
             gc_policy.after_step()  # the output is out: collect between steps
         return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
 
-    async def _gather(self) -> None:
-        """Wait for inputs. Urgent ones (map, goal, refusal, button) step at once; a pose
-        alone waits for the user's guide period (later poses replace it meanwhile), and a
-        shed user steps only once per shed period."""
-        with self._lock:
-            self._idle = idle = not self._inbox
-        if idle:
-            await self._wake.wait()
+    def _gather(self) -> bool:
+        """On the worker: wait for inputs. Urgent ones (map, goal, refusal, button) step at
+        once; a pose alone waits for the user's guide period (later poses replace it
+        meanwhile), and a shed user steps only once per shed period. Until the period is over
+        only an urgent input wakes the worker, even with nothing in the inbox: a pose then
+        would wake it only to wait out the rest of the period (two wakes a step). False:
+        closing."""
+        while not self._closed:
             with self._lock:
-                self._idle = False
-        loop = asyncio.get_running_loop()
-        self._pacing = True
-        try:
-            while (wait := self._next_step_at - loop.time()) > 0 and (
-                self.shed or not self._inbox.urgent()
-            ):
-                self._wake.clear()
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(self._wake.wait(), wait)
-        finally:
-            self._pacing = False
-        self._wake.clear()
+                wait = self._next_step_at - time.monotonic()
+                if self._inbox and (wait <= 0 or (not self.shed and self._inbox.urgent())):
+                    self._idle = self._pacing = False
+                    return True
+                self._idle, self._pacing = wait <= 0, wait > 0
+            if not self._worker.wait(wait if wait > 0 else None):
+                return False
+        return False
 
     def _step(self, inbox: Inbox) -> float:
         """On the worker: step, then publish straight away (zenoh publishers are
@@ -353,7 +351,7 @@ class UserRunner:
                 self._inbox.snapshot_failed = True
                 if refusal is not None:
                     self._inbox.rejections.append(refusal)
-        self._wake.set()
+            self._ring(urgent=True)
 
     # -- queries --------------------------------------------------------------------------
 
@@ -378,7 +376,6 @@ class UserRunner:
         if self._closed:
             return
         self._closed = True
-        self._task.cancel()
         try:
             await self._worker.run(
                 lambda: self._emit(self.navigator.halt(time.time(), code, reason), True)

@@ -1,14 +1,13 @@
-"""One user's worker thread: runs what the loop hands it, in order, and settles an asyncio
-future with the result.
+"""One user's worker thread: it waits for its own turn, steps, and between steps runs what
+the loop hands it, in order, settling an asyncio future with each result.
 
-What ``loop.run_in_executor`` on a one-thread ``ThreadPoolExecutor`` did, with less on the
-way: an executor's ``submit`` takes two locks, builds a ``concurrent.futures.Future`` (a
-``Condition`` of its own), puts on a ``queue.Queue`` (Python code, another ``Condition``) and
-checks its idle semaphore; asyncio then chains that future to one of its own. Here the
-item goes on a ``queue.SimpleQueue`` (C) and the result comes back with one
-``call_soon_threadsafe``. Dispatch is paid on every step of every user: 20-23 µs of CPU a
-step here against 39-54 µs through the executor (25 users × 400 empty steps under uvloop,
-dev VM); a worker at 25 users spent ~10 % of its GIL time in ``submit`` (py-spy).
+The thread owns its pacing (``UserRunner._serve``): it sleeps on its own queue until an input
+rings it or its step period has passed, so a step costs the loop nothing. Before, the loop
+waited out each user's period (``asyncio.wait_for``: a task and a timer), handed the step
+over and was woken again with its result: two thread hand-overs and ~100 µs of the loop's
+Python a step, ~25,000 context switches a second at 50 users (dev VM, round 14). The queue is a
+``queue.SimpleQueue`` (C: ``put`` and a timed ``get`` that releases the GIL), not a
+``Condition`` (Python); a job's result comes back with one ``call_soon_threadsafe``.
 """
 
 from __future__ import annotations
@@ -20,7 +19,9 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-_STOP = None
+_STOP = object()
+_RING = object()
+"""Wakes the thread to look at its inputs again (a ring it no longer needs is harmless)."""
 
 
 def _settle(future: asyncio.Future, ok: bool, value: Any) -> None:
@@ -33,14 +34,22 @@ def _settle(future: asyncio.Future, ok: bool, value: Any) -> None:
 
 
 class StepThread:
-    """A thread that runs callables in the order given; ``close`` ends it once those given
-    before have run. Every call comes from the loop's thread."""
+    """A thread that runs ``serve()`` and, whenever ``serve`` waits (``wait``, ``poll``), the
+    callables the loop gives it, in the order given. ``close`` ends it once those given
+    before have run. ``run`` and ``close`` come from the loop's thread; ``ring`` from any."""
 
-    def __init__(self, name: str) -> None:
+    def __init__(self, name: str, serve: Callable[[], None] | None = None) -> None:
         self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._closed = False
-        self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
+        self._stopped = False
+        """The thread has taken the stop: ``serve`` must return."""
+        self._serve = serve or self._idle
+        self._thread = threading.Thread(target=self._main, name=name, daemon=True)
+
+    def start(self) -> StepThread:
+        """Start the thread (once whoever ``serve`` belongs to holds this object)."""
         self._thread.start()
+        return self
 
     def run(self, fn: Callable[..., Any], *args: Any) -> asyncio.Future:
         """``fn(*args)`` on this thread; its result (or exception) in the returned future."""
@@ -52,6 +61,15 @@ class StepThread:
             self._queue.put((loop, future, fn, args))
         return future
 
+    @property
+    def alive(self) -> bool:
+        """The thread runs and has not been told to stop."""
+        return self._thread.is_alive() and not self._stopped
+
+    def ring(self) -> None:
+        """Wake the thread from ``wait`` (any thread)."""
+        self._queue.put(_RING)
+
     def close(self) -> None:
         """No more work: the thread ends after what it was given (a later ``run`` is
         cancelled at once)."""
@@ -59,8 +77,36 @@ class StepThread:
             self._closed = True
             self._queue.put(_STOP)
 
-    def _serve(self) -> None:
-        while (item := self._queue.get()) is not _STOP:
+    # -- on the thread --------------------------------------------------------------------
+
+    def wait(self, timeout: float | None) -> bool:
+        """Sleep until rung, a job has run, or ``timeout`` seconds have passed (None: no
+        limit). False once the thread is told to stop."""
+        if self._stopped:
+            return False
+        if timeout is not None and timeout <= 0:
+            return self.poll()
+        try:
+            item = self._queue.get(timeout=timeout)
+        except queue.Empty:
+            return True
+        self._take(item)
+        return not self._stopped
+
+    def poll(self) -> bool:
+        """Run the jobs given so far without waiting; False once told to stop."""
+        while not self._stopped:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            self._take(item)
+        return not self._stopped
+
+    def _take(self, item: Any) -> None:
+        if item is _STOP:
+            self._stopped = True
+        elif item is not _RING:
             loop, future, fn, args = item
             try:
                 ok, value = True, fn(*args)
@@ -68,3 +114,15 @@ class StepThread:
                 ok, value = False, exc
             with contextlib.suppress(RuntimeError):  # the loop closed: nobody awaits it
                 loop.call_soon_threadsafe(_settle, future, ok, value)
+
+    def _idle(self) -> None:
+        while self.wait(None):
+            pass
+
+    def _main(self) -> None:
+        try:
+            self._serve()
+        finally:
+            # Jobs given before the stop still run (a user's last words are one).
+            while not self._stopped:
+                self._take(self._queue.get())

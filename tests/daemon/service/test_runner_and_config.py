@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import socket
+import threading
 import time
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 from daemon.navigation import Navigator
 from daemon.service.config import DaemonConfig, load_config
 from daemon.service.logs import JournalFormatter
-from daemon.service.runner import UserRunner
+from daemon.service.runner import Pacing, UserRunner
 from daemon.service.sdnotify import Notifier
 from protocol import codec
 from protocol.messages import (
@@ -37,8 +38,9 @@ def delta(seq, cells, values, shape=SHAPE) -> MapDelta:
 
 def pose(cell, stamp=None) -> Pose:
     r, c = cell
-    return Pose(x=(c + 0.5) / 10, y=(SHAPE[0] - r - 0.5) / 10, heading=1.57,
-                stamp=stamp or time.time())
+    return Pose(
+        x=(c + 0.5) / 10, y=(SHAPE[0] - r - 0.5) / 10, heading=1.57, stamp=stamp or time.time()
+    )
 
 
 def goal(r, c) -> Goal:
@@ -50,12 +52,19 @@ def test_the_latest_pose_wins_and_deltas_coalesce_in_the_runner():
 
     async def scenario():
         navigator = Navigator("u", DaemonConfig(backend="cpu").navigator_settings())
-        runner = UserRunner(navigator, lambda k, b: published.append((k, b)), lambda *a: None, 1.0)
-        runner.put_delta(delta(0, [], []))
-        runner.put_goal(goal(3, 15))
+        pacing = Pacing(slots=1)
+        runner = UserRunner(
+            navigator, lambda k, b: published.append((k, b)), lambda *a: None, 1.0, pacing=pacing
+        )
         poses = [pose((20, c), stamp=time.time() - 0.01 * (5 - c)) for c in range(5)]
-        for p in poses:  # all before the worker runs: one step, the last pose
-            runner.put_pose(p)
+        # The worker takes its inbox once it holds a step slot: here all arrive while another
+        # user's step holds the only one, so one step takes them all, with the last pose.
+        with pacing.slots:
+            runner.put_delta(delta(0, [], []))
+            runner.put_goal(goal(3, 15))
+            for p in poses:
+                runner.put_pose(p)
+            await asyncio.sleep(0.05)  # the worker woke and waits for the slot
         for _ in range(200):
             await asyncio.sleep(0.01)
             if any(k.endswith("/path") for k, _ in published):
@@ -85,7 +94,14 @@ def test_a_step_that_raises_stops_the_user_and_says_why():
             await asyncio.sleep(0.01)
             if any(k.endswith("/status") for k, _ in published):
                 break
+        assert runner.serving  # the failed step did not end the user's worker
         await runner.close()
+        assert not runner.serving
+        for _ in range(200):  # the worker's thread ends once its last words are out
+            if not any(t.name == "plan-u" for t in threading.enumerate()):
+                break
+            await asyncio.sleep(0.01)
+        assert not any(t.name == "plan-u" for t in threading.enumerate())
 
     asyncio.run(scenario())
     belts = [codec.decode(BeltPattern, b) for k, b in published if k.endswith("/belt")]
@@ -135,9 +151,7 @@ def test_journal_lines_carry_priority_and_fields():
     assert line == '<4>guidebelt.x: rejected user=ann reason="pose is 2 s old"'
 
 
-
 def test_a_pose_alone_waits_for_the_guide_period_and_a_map_change_steps_at_once():
-    from daemon.service.runner import Pacing
 
     async def scenario():
         steps: list[tuple[float, bool]] = []

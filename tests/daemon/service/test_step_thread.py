@@ -15,7 +15,7 @@ from daemon.service.step_thread import StepThread
 @pytest.mark.timeout(10)
 def test_runs_in_order_on_its_own_thread_and_ends_when_closed():
     async def main() -> None:
-        worker = StepThread("plan-test")
+        worker = StepThread("plan-test").start()
         seen: list[tuple[int, str]] = []
 
         def step(i: int) -> int:
@@ -43,3 +43,61 @@ def test_runs_in_order_on_its_own_thread_and_ends_when_closed():
             await asyncio.sleep(0.01)
 
     asyncio.run(main())
+
+
+@pytest.mark.timeout(10)
+def test_the_thread_paces_itself_a_ring_wakes_it_and_jobs_run_while_it_waits():
+    async def main() -> None:
+        woke: list[tuple[str, float]] = []
+        worker: StepThread
+
+        def serve() -> None:
+            t0 = time.monotonic()
+            assert worker.wait(0.05)  # nobody rings: the period passes
+            woke.append(("timeout", time.monotonic() - t0))
+            t0 = time.monotonic()
+            assert worker.wait(5.0)  # rung long before the 5 s
+            woke.append(("ring", time.monotonic() - t0))
+            while worker.wait(None):  # jobs, then the stop
+                pass
+            woke.append(("stopped", 0.0))
+
+        worker = StepThread("plan-paced", serve)
+        worker.start()
+        await asyncio.sleep(0.2)
+        worker.ring()
+        assert await worker.run(threading.current_thread) is not threading.current_thread()
+        worker.close()
+        deadline = time.monotonic() + 2.0
+        while len(woke) < 3:
+            assert time.monotonic() < deadline, "the thread did not stop"
+            await asyncio.sleep(0.01)
+        assert woke[0][0] == "timeout" and woke[0][1] >= 0.05
+        assert woke[1][0] == "ring" and woke[1][1] < 1.0
+        assert woke[2][0] == "stopped"
+
+    asyncio.run(main())
+
+
+@pytest.mark.timeout(10)
+def test_steps_recorded_on_worker_threads_reach_admission_only_when_the_loop_flushes():
+    from daemon.service.pacing import Pacing
+
+    got: list[tuple[str, float, float, float, str]] = []
+    pacing = Pacing(record=lambda *a: got.append((*a, threading.current_thread().name)))
+    workers = [
+        threading.Thread(target=pacing.record, args=(f"u{i}", 5.0, 0.5), name=f"plan-u{i}")
+        for i in range(3)
+    ]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    assert got == []  # nothing touched on the workers' threads
+    before = time.monotonic()
+    pacing.flush()
+    assert sorted(u for u, *_ in got) == ["u0", "u1", "u2"]
+    assert all(lag == 5.0 and cpu == 0.5 and at <= before for _, lag, cpu, at, _ in got)
+    assert {name for *_, name in got} == {threading.current_thread().name}
+    pacing.flush()
+    assert len(got) == 3  # each step once
