@@ -370,7 +370,7 @@ class Daemon:
 
     def _map_too_big(self, user: str, cells: int | None) -> str | None:
         """Why a map of ``cells`` cells may not be ``user``'s (None: it may)."""
-        others = [self.map_cells.others(user)]
+        others = self.map_cells.others(user)
         return map_too_big(cells, others, self.config.max_map_cells, self.config.memory_budget_mb)
 
     def _refuse_user(self, user: str) -> None:
