@@ -6,7 +6,7 @@ value and fixedness (the map's changes, as ``planner.py`` works them out); ``rel
 tolerance, or past a budget of sweeps to a field without a pit; ``fill`` the basins of the
 pits a relaxation left (``fill.py``); ``descend`` from a cell; ``field``, a host copy of ``w``;
 ``relax_start`` and ``undo`` for a relaxation started before the step knows all its changes
-(``planner.py``'s overlap).
+(``planner.py``'s overlap), ``fill_start`` for a fill started behind it.
 """
 
 from __future__ import annotations
@@ -83,6 +83,13 @@ class CpuField:
                            self.cells)  # fmt: skip
         left = fl.flood(self.w, self.width, self.cells, *counts, eps, self.mark, self.idx)
         return counts[0], left
+
+    def fill_start(self, eps: float = fl.EPS) -> Callable[[], tuple[int, int]]:
+        """``fill`` right behind ``relax_start`` (the CUDA engine launches it so, gated on the
+        device by the sweeps' pits); here the relaxation has run already, so it is ``fill``
+        now, the function returned gives its answer."""
+        out = self.fill(eps)
+        return lambda: out
 
     def descend(self, start: int) -> np.ndarray | None:
         """Flat padded cells of the descent from ``start``; None if it stops short."""

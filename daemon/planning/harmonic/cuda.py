@@ -189,16 +189,13 @@ class CudaField:
              self.pits, self.pit_list, self.changes, zero, zero),
             ("",) * 6 + ("omega", "sweeps", "", "tol") + ("",) * 3 + ("budget",) + ("",) * 3
             + ("n", "late"))  # fmt: skip
-        self._fill_launch = Launch(self.fill_kernel, self.fill_blocks, THREADS,
-            (self.w, self.fixed, h, w, self.down, self.lift, real(fl.EPS), np.int32(FILL_PASSES),
-             self.fill_flags, self.result, self.idx, self.pit_list, self.tile_active,
-             self.tile_stamp),
-            ("",) * 6 + ("eps",))  # fmt: skip
-        self._fill_behind = Launch(self.fill_kernel, self.fill_blocks, THREADS,
-            (self.w, self.fixed, h, w, self.down, self.lift, real(fl.EPS), np.int32(FILL_PASSES),
-             self.fill_flags, self.result[4:], self.idx, self.pit_list, self.tile_active,
-             self.tile_stamp),
-            ("",) * 6 + ("eps",))  # fmt: skip
+        # ``fill``'s, ungated (the host decided), and ``fill_start``'s: result words 4..7,
+        # gated by the relaxation's pit count (word 3).
+        self._fill_launch, self._fill_behind = (Launch(self.fill_kernel, self.fill_blocks,
+            THREADS, (self.w, self.fixed, h, w, self.down, self.lift, real(fl.EPS),
+                      np.int32(FILL_PASSES), self.fill_flags, self.result[at:], self.idx,
+                      self.pit_list, self.tile_active, self.tile_stamp, gate),
+            ("",) * 6 + ("eps",)) for at, gate in ((0, None), (4, self.result[3:4])))  # fmt: skip
         self._reach_launch = Launch(self.reach_kernel, self.reach_blocks, THREADS,
             (self.masks_dev[:n], self.masks_dev[n:], self.reach_dev, h, w, np.int32(self.goal),
              self.fill_flags, self.result, self.changed_dev, self.tile_stamp),
@@ -287,18 +284,31 @@ class CudaField:
         return n_basin + more, left
 
     def fill_start(self, eps: float = fl.EPS) -> Callable[[], tuple[int, int]]:
-        """``fill`` launched behind the relaxation just launched, before anyone knows if it
-        leaves a pit; the function returned gives ``fill``'s answer after that relaxation's
-        wait. With no pit the launch finds no basin and changes nothing (Idx written again
-        from the same ``w``), and the answer is ``fill``'s without a launch: (0, 0). For the
-        planner's early relaxation: its fill runs beside the host's search too (the 400²
-        walk's step 26, 15 502 basin cells: 0.26 ms of fill after the search, H100)."""
+        """``fill`` launched right behind the relaxation just launched, before the host knows
+        whether it leaves a pit; the function returned gives ``fill``'s answer after that
+        relaxation's wait (no second round trip between the sweeps and the fill). The launch
+        is gated on the device by the relaxation's own pit count (result word 3,
+        ``harmonic_fill``'s ``gate``): with none it returns at once and writes nothing, and the
+        answer is ``fill``'s without a launch, (0, 0) with ``fill_passes`` 0.
+
+        Invariant: the field, Idx, pit list, ``fill_passes`` and counts are those of ``fill``
+        called after the relaxation's wait. Both decide on the same word (the host's
+        ``pit_count`` is word 3 as fetched), whether the relaxation settled, met ``tol`` or
+        neither (a step fills in every case), and both fill the field that relaxation left:
+        nothing may be ``set`` between ``relax_start`` and this (``fill``'s ``_flush`` then has
+        nothing to apply). The fill's words are 4..7, read only when word 3 is not zero; Idx
+        and the pits come back in the relaxation's wait, which follows both launches, so the
+        host's flood (``_fill_host``, for what ``FILL_PASSES`` left) reads the fill's. ``undo``
+        after the wait restores ``w`` and the fixedness past both launches (stream order); the
+        fill leaves its scratch (lift, tile marks) as it found them, a gated one never touches
+        it. Plain ``relax`` (``plan``'s, its omega-1 rest, ``converge``, a path read's retry,
+        ``_flush``) launches no fill, so a gate never reads another launch's count."""
         self._fill_behind(eps=eps)
         self.launches += 1
         return lambda: self._filled_behind(eps)
 
     def _filled_behind(self, eps: float) -> tuple[int, int]:
-        if self.pit_count == 0:  # the relaxation's: no pit, so the fill found no basin
+        if self.pit_count == 0:  # the relaxation's: no pit, so the gate kept the fill out
             self.fill_passes = 0
             return 0, 0
         self.fill_passes, n_basin = int(self.result_host[4]), int(self.result_host[5])

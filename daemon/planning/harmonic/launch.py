@@ -65,7 +65,10 @@ _REALS = (ctypes.c_float, ctypes.c_double)
 
 
 def _slot(value: object) -> ctypes._SimpleCData:
-    """A typed cell for one kernel argument: a device array's address, or a numpy scalar."""
+    """A typed cell for one kernel argument: a device array's address (None: a null
+    pointer), or a numpy scalar."""
+    if value is None:
+        return ctypes.c_void_p()
     if isinstance(value, cp.ndarray):
         return ctypes.c_void_p(value.data.ptr)
     if isinstance(value, np.generic):

@@ -39,6 +39,8 @@ red–black SOR (omega 1.3), the GPU's; ``rows``, the paper's row-wise Gauss–S
 A step whose change frees nothing but may have cut cells off starts its relaxation on the
 newly blocked cells while the host searches for the cells cut off (``overlap``, the CUDA
 engine's default where the host searches; ``_start_early`` says why the field is the same).
+Every step's fill is launched right behind its sweeps (``fill_behind``; the CUDA engine gates
+it on the device by the sweeps' pit count), so a step waits once.
 
 ``UpdateStats``: ``iterations`` = sweeps, ``cells_touched`` = sweeps × reachable cells;
 ``filled``: the basin cells the last step's fill took (0 when it needed none).
@@ -143,6 +145,10 @@ class HarmonicPlanner(GlobalPlanner):
         self._early: tuple[int, Callable[[], tuple[int, float, bool]],
                            Callable[[], tuple[int, int]] | None] | None = None  # fmt: skip
         self._overlap = False  # ``overlap`` as the last plan found it, where the host searches
+        self.fill_behind = True
+        """Launch a step's fill right behind its sweeps where the engine can (the CUDA engine's
+        ``fill_start``, gated on the device by the sweeps' pit count): one wait a step, not
+        one for the sweeps and one for the fill. False: ``fill`` after the sweeps' wait."""
 
     @property
     def goal(self) -> Cell:
@@ -261,14 +267,22 @@ class HarmonicPlanner(GlobalPlanner):
         search itself, 0.75–1.2 ms there, is what they cost now."""
         self.engine.set(lost, rx.BLOCKED_W, True)
         wait = self._step_start(int(self.step_sweeps or 0), keep=True)
-        # The fill too, where the engine can launch it behind the sweeps (the CUDA engine's
-        # ``fill_start``): on a step that leaves pits it runs beside the search as well.
-        fill_start = getattr(self.engine, "fill_start", None)
-        self._early = (lost.size, wait, fill_start(fl.EPS) if fill_start else None)
+        # The fill too (``_fill_start``): on a step that leaves pits it runs beside the search.
+        self._early = (lost.size, wait, self._fill_start())
 
     def _step(self, t0: float, budget: int) -> UpdateStats:
         """A replanning step: at most ``step_cap`` sweeps, then the pits' basins filled."""
-        return self._step_end(t0, self._step_start(budget))
+        wait = self._step_start(budget)
+        return self._step_end(t0, wait, self._fill_start())
+
+    def _fill_start(self) -> Callable[[], tuple[int, int]] | None:
+        """The step's fill launched behind the sweeps just launched (``fill_behind``, where
+        the engine has ``fill_start``): the same field and counts as ``engine.fill`` after
+        their wait (``CudaField.fill_start`` states the invariant), without the host's round
+        trip between the two (a 20-sweep filling step at 400²: relaxation, wait, fill, wait).
+        None: ``_step_end`` fills after the wait."""
+        fill_start = getattr(self.engine, "fill_start", None) if self.fill_behind else None
+        return fill_start(fl.EPS) if fill_start is not None else None
 
     def _step_start(self, budget: int, keep: bool = False) -> Callable[[], tuple[int, float, bool]]:
         omega = self.engine.omega

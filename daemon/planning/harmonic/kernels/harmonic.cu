@@ -271,10 +271,20 @@ __device__ bool fill_tile(REAL* w, const REAL* lift, int height, int width, int 
     return any;
 }
 
+//
+// `gate` (null: none): the pit count of the relaxation this fill was launched behind (its
+// result[3], cuda.py's `fill_start`). Zero means that relaxation left no pit, so there is no
+// basin: every thread returns at once, before any barrier, and the launch writes nothing —
+// not Idx, the pit list or its result words, which the relaxation's stand for (the host reads
+// the fill's words only when that count is not zero). The launch reads it on the device, so
+// the host need not wait for the sweeps to decide whether to launch the fill.
 extern "C" __global__ void __launch_bounds__(256)
 harmonic_fill(REAL* w, const unsigned char* fixed, int height, int width, int* down,
               REAL* lift, REAL eps, int max_passes, unsigned* flags, int* result,
-              signed char* idx, int* pit_list, unsigned char* active, int* stamp) {
+              signed char* idx, int* pit_list, unsigned char* active, int* stamp,
+              const int* gate) {
+    // Written by the launch before this one on the stream, which has ended: a plain load.
+    if (gate != nullptr && *gate == 0) return;
     cg::grid_group grid = cg::this_grid();
     __shared__ REAL s[FILL_SPAN * FILL_SPAN];
     __shared__ unsigned s_count;

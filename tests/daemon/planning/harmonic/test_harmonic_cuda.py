@@ -119,17 +119,18 @@ def test_cuda_steps_filled_are_pit_free_and_converge_to_the_cold_field(maps, see
     assert np.abs(warm.field()[reach] - cold.field()[reach]).max() < GPU_TOL
 
 
-def _walled_with_two_doors(overlap: bool = True):
+def _walled_with_two_doors(overlap: bool = True, behind: bool = True):
     """A 40² room cut by a wall with two doors, planned on the GPU with a 5-sweep step; the
     far door's cells, closing which leaves a basin behind the wall to fill. Closing it takes
     the whole-map search (the door's two sides join only through the other door), so with
-    ``overlap`` the step's sweeps and fill start before it (``HarmonicPlanner._start_early``)."""
+    ``overlap`` the step's sweeps and fill start before it (``HarmonicPlanner._start_early``).
+    ``behind``: the planner's ``fill_behind`` (False: ``engine.fill`` after the sweeps' wait)."""
     blocked = np.zeros((40, 40), dtype=bool)
     blocked[20, :] = True
     blocked[20, 2:4] = blocked[20, 34:38] = False
     door = 20 * 40 + np.arange(34, 38)
     gpu = cuda_planner("rb")
-    gpu.overlap = overlap
+    gpu.overlap, gpu.fill_behind = overlap, behind
     gpu.plan(blocked, (2, 36))
     gpu.step_sweeps, gpu.step_cap = 5, 5
     return blocked, door, gpu
@@ -190,10 +191,10 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
 
     if passes is not None:
         monkeypatch.setattr(hc, "FILL_PASSES", passes)
-    # In order: the field between the sweeps and the fill is read here, which the early
-    # relaxation's fill (launched behind the sweeps) never leaves on the host; that one is
-    # checked against this one below.
-    blocked, door, gpu = _walled_with_two_doors(overlap=False)
+    # In order: the field between the sweeps and the fill is read here, which a fill launched
+    # behind the sweeps never leaves on the host; that one is checked against this one below
+    # and in ``test_harmonic_fill_behind_cuda.py``.
+    blocked, door, gpu = _walled_with_two_doors(overlap=False, behind=False)
     engine, before = gpu.engine, {}
     device_fill = engine.fill
 
@@ -223,23 +224,28 @@ def test_cuda_fill_is_the_cpu_fill_and_falls_back_to_the_host(maps, monkeypatch,
 
 @pytest.mark.parametrize("passes", [None, 1])
 def test_cuda_fill_behind_the_early_relaxation_is_the_fill_after_it(monkeypatch, passes):
-    # ``CudaField.fill_start``: the step's fill launched behind its early relaxation, before
-    # the host knows whether the sweeps left a pit, gives the field and the counts of the fill
-    # run after the wait; capped at one pass, both leave the rest to the host's flood.
+    # ``CudaField.fill_start``: the step's fill launched behind its early relaxation (or the
+    # ordered step's sweeps), before the host knows whether the sweeps left a pit, gives the
+    # field and the counts of the fill run after the wait; capped at one pass, all leave the
+    # rest to the host's flood.
     from daemon.planning.harmonic import cuda as hc
 
     if passes is not None:
         monkeypatch.setattr(hc, "FILL_PASSES", passes)
     _, door, early = _walled_with_two_doors(overlap=True)
-    _, _, ordered = _walled_with_two_doors(overlap=False)
-    a, b = early.update(door, True), ordered.update(door, True)
-    assert (early.overlaps, early.undone, ordered.overlaps) == (1, 0, 0)
-    assert a.iterations == b.iterations and early.residual == ordered.residual
-    assert early.filled == ordered.filled > 100 and early.settled and ordered.settled
-    assert np.array_equal(early.field(), ordered.field())
-    assert np.array_equal(early.path((39, 2)), ordered.path((39, 2)))
+    _, _, behind = _walled_with_two_doors(overlap=False)
+    _, _, after = _walled_with_two_doors(overlap=False, behind=False)
+    a, b, c = (p.update(door, True) for p in (early, behind, after))
+    assert (early.overlaps, early.undone, behind.overlaps, after.overlaps) == (1, 0, 0, 0)
+    for p, s in ((early, a), (behind, b)):
+        assert s.iterations == c.iterations and p.residual == after.residual
+        assert p.filled == after.filled > 100 and p.settled and after.settled
+        assert np.array_equal(p.field(), after.field())
+        assert np.array_equal(p.engine.idx_view, after.engine.idx_view)
+        assert p.engine.fill_passes == after.engine.fill_passes
+        assert np.array_equal(p.path((39, 2)), after.path((39, 2)))
     if passes is not None:
-        assert early.engine.fill_passes == ordered.engine.fill_passes == 1
+        assert after.engine.fill_passes == 1
 
 
 def _fixed_point_f32(w: np.ndarray, cells: np.ndarray, width: int, eps: float) -> np.ndarray:
@@ -291,6 +297,7 @@ def test_cuda_tiled_fill_is_the_fixed_point_to_the_bit(maps, monkeypatch, seed):
     goal = (int(rng.integers(2, row - 10)), int(rng.integers(2, 40)))
     blocked[goal] = False
     gpu = cuda_planner("rb")
+    gpu.fill_behind = False  # the wrapper below reads the field between the sweeps and the fill
     gpu.plan(blocked, goal)
     gpu.step_sweeps, gpu.step_cap = 1, 1
     engine, seen = gpu.engine, []
