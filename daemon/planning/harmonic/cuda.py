@@ -7,12 +7,12 @@ A relaxation is one cooperative launch — the map's changes ``set`` queued, eve
 residual and pit checks, and the paper's Idx with the list of pits it leaves — with one copy
 of the queued changes before it and, after it, one synchronisation for three copies into
 page-locked host memory: Idx (one byte a cell, the host walks the descent itself), the sweep
-count, residual, pit verdict and pit count, and the first pits. ``fill`` (after a replanning
-step's sweeps, when pits are left) finds their basins from Idx (pointer jumping) and fills
-them on the device (``harmonic_fill``: the fixed point ``fill.flood`` reaches by a heap, by
-passes over tiles of the basins, each iterated in shared memory until stable, then Idx and
-the pits left, in one more launch);
-the host's flood, from the few values of ``w`` it gathers, only takes what the passes left.
+count, residual, pit verdict and pit count, and the first pits. ``fill`` (a step's, launched
+behind its sweeps by ``fill_start`` and gated on their pit count) finds the pits' basins from
+Idx (pointer jumping) and fills them on the device (``harmonic_fill``: the fixed point
+``fill.flood`` reaches by a heap, by passes over tiles of the basins, each iterated in shared
+memory until stable, then Idx and the pits left, in one more launch); the host's flood, from
+the few values of ``w`` it gathers, only takes what the passes left.
 ``float32`` by default: ``w`` grows about linearly with distance, so single precision holds
 it at any grid size (``python -m sim.harmonic_bench plateau`` measures it); ``float64`` on
 request.

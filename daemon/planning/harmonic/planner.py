@@ -258,7 +258,8 @@ class HarmonicPlanner(GlobalPlanner):
         outputs, Idx, the result words and the pit list, every launch writes afresh), and the
         step runs as before from there. Ordering: the host writes the queue before this launch
         and not again until it has waited for it (``set`` runs after the wait in either case);
-        the search reads only the host's arrays; the fill follows the wait.
+        the search reads only the host's arrays; the fill is launched behind the sweeps
+        (``_fill_start``; with ``fill_behind`` off, after their wait).
 
         On the 400² bench walk the steps that search the whole map (26, 34 and 40 at 1/64)
         cut nothing off (their recorded deltas, replayed), and all three start early. H100,
