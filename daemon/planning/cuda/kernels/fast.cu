@@ -247,7 +247,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     // raise round left empty and the tokened count (start_relaxation). Every block enters,
     // even with nothing pending: a block that is late to read `pending` may find the count
     // already changed by the others' visits.
-    bool tokens = false;
+    unsigned* work = ctrl + C_CNT + r % 3;
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
             pending = raise_round(G, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
@@ -260,18 +260,19 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             keep_below_change(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
                               ctrl + C_CNT + (r + 1) % 3, seeds, stale, deferred, lb, ctrl, &bar);
             ++r;
+            work = ctrl + C_CNT + r % 3;
         } else {
             // The focus's g after the raise (INF if it was raised): an upper bound of its
             // final g, as the relaxation only lowers it, whenever it is read.
             const int g_focus = focus >= 0 ? __ldcg(g + focus) : INF;
-            start_relaxation(G, seeds, (r & 1) ? pong : ping, ctrl + C_WORK, raised, deferred, lb,
-                             g_focus, fy, fx, s_list, &s_n);
-            tokens = true;
+            work = ctrl + C_WORK;
+            start_relaxation(G, seeds, (r & 1) ? pong : ping, work, raised, deferred, lb, g_focus,
+                             fy, fx, s_list, &s_n);
         }
     }
     stamp(ctrl, 3);
-    relax_async(G, (r & 1) ? pong : ping, tokens ? ctrl + C_WORK : ctrl + C_CNT + r % 3, depth,
-                stale, ctrl, g, blocked, gs, bs, s_list, &s_n, focus, fy, fx, deferred, lb);
+    relax_async(G, (r & 1) ? pong : ping, work, depth, stale, ctrl, g, blocked, gs, bs, s_list,
+                &s_n, focus, fy, fx, deferred, lb);
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 4);
     if (start >= 0) {

@@ -89,7 +89,9 @@ __device__ int take_flagged(unsigned* flags, int ntiles, int base, int* s_list, 
 // g loads go out with the blocked byte's: one round trip. A g read here that another thread
 // already set to INF belongs to a newly blocked cell, whose own term is lower: the least is
 // the same.
-__device__ void apply_delta(const Grid& G, const int* delta, int ndelta, int* g,
+// Not inlined: it runs once a call, and inlined it added to plan_call's spills (ptxas -v,
+// sm_90: 180 bytes of stores a thread against 176; main's plan_call spilled 152).
+__device__ __noinline__ void apply_delta(const Grid& G, const int* delta, int ndelta, int* g,
                             unsigned char* blocked, unsigned char* raised, unsigned* flags,
                             unsigned* cnt, unsigned* seeds, unsigned* stale,
                             const unsigned* deferred, const int* lb, unsigned* ctrl) {
@@ -98,10 +100,6 @@ __device__ void apply_delta(const Grid& G, const int* delta, int ndelta, int* g,
     unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
     int low = INF;
     if (tid == 0) ctrl[C_WORK] = GSIZE;  // the relaxation's tokens (start_relaxation)
-    // This thread's first tile of the deferred tiles' sweep below (every tile, but past
-    // 11,000² cells a side), loaded now: its round trip overlaps the delta's.
-    const unsigned first_deferred = tid < G.ntiles ? __ldcg(deferred + tid) : 0u;
-    const int first_bound = tid < G.ntiles ? __ldcg(lb + tid) : INF;
     for (int base = tid - lane; base < ndelta; base += stride) {
         int i = base + lane;
         int near[4] = {-1, -1, -1, -1};  // the tiles of a newly blocked cell's 3 x 3
@@ -153,8 +151,7 @@ __device__ void apply_delta(const Grid& G, const int* delta, int ndelta, int* g,
         unsigned same = __match_any_sync(FULL, seed);
         if (seed >= 0 && lane == __ffs(same) - 1 && !__ldcg(seeds + seed)) seeds[seed] = 1u;
     }
-    if (first_deferred) low = min(low, first_bound);
-    for (int t = tid + stride; t < G.ntiles; t += stride) {
+    for (int t = tid; t < G.ntiles; t += stride) {
         const unsigned is_deferred = __ldcg(deferred + t);
         const int bound = __ldcg(lb + t);  // with the flag: one round trip, not two
         if (is_deferred) low = min(low, bound);
@@ -224,11 +221,6 @@ __device__ unsigned raise_round(const Grid& G, unsigned* in, unsigned* next, uns
 __device__ void start_relaxation(const Grid& G, unsigned* seeds, unsigned* dirty, unsigned* work,
                                  unsigned char* raised, unsigned* deferred, int* lb, int g_focus,
                                  int fy, int fx, int* s_list, int* s_n) {
-    // This thread's first tile of the sweep below (every tile, but past 11,000² cells a side):
-    // its words are loaded before the take, so that both round trips overlap.
-    const int first = GBLOCK * THREADS + threadIdx.x;
-    const unsigned first_deferred = first < G.ntiles ? __ldcg(deferred + first) : 0u;
-    const int first_bound = first < G.ntiles ? __ldcg(lb + first) : INF;
     for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
         int count = take_flagged(seeds, G.ntiles, base, s_list, s_n);
         for (int i = 0; i < count; ++i) {
@@ -237,10 +229,10 @@ __device__ void start_relaxation(const Grid& G, unsigned* seeds, unsigned* dirty
         }
         if ((int)threadIdx.x < count) flag_tile(dirty, work, s_list[threadIdx.x]);
     }
-    for (int t = first; t < G.ntiles; t += GSIZE * THREADS) {
+    for (int t = GBLOCK * THREADS + threadIdx.x; t < G.ntiles; t += GSIZE * THREADS) {
         // Both words at once: the bound read after the flag would be a second round trip.
-        const unsigned is_deferred = t == first ? first_deferred : __ldcg(deferred + t);
-        const int bound = t == first ? first_bound : __ldcg(lb + t);
+        const unsigned is_deferred = __ldcg(deferred + t);
+        const int bound = __ldcg(lb + t);
         if (!is_deferred) continue;
         if (fy >= 0 && bound + tile_h(G, t, fy, fx) > g_focus) continue;  // stays deferred
         deferred[t] = 0u;

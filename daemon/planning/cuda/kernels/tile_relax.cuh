@@ -7,7 +7,6 @@
 #include "tile.cuh"
 
 #define CHANGED_ANY 256u  // with the edge bits N S W E NW NE SW SE: some cell of the tile changed
-#define RAISED_G (-(1 << 20))  // raise_tile's shared g of a raised cell: below every g + step
 
 
 
@@ -228,13 +227,10 @@ __device__ unsigned raise_tile(const Grid& G, int t, int* g, unsigned char* rais
         const int g0 = halo_g(G, g, oy, ox, i0), g1 = two ? halo_g(G, g, oy, ox, i1) : INF;
         const unsigned char r0 = halo_raised(G, raised, oy, ox, i0);
         const unsigned char r1 = two ? halo_raised(G, raised, oy, ox, i1) : 0;
-        // A raised cell holds INF, not the g it had (raised cells take INF as they rise,
-        // which stands in for the reset round): it is stored here as RAISED_G, below every
-        // g, so that it counts as a support whatever its old g (see the tight test below).
-        gs[i0 / HT][i0 % HT] = r0 ? RAISED_G : g0;
+        gs[i0 / HT][i0 % HT] = g0;
         rs[i0 / HT][i0 % HT] = r0;
         if (two) {
-            gs[i1 / HT][i1 % HT] = r1 ? RAISED_G : g1;
+            gs[i1 / HT][i1 % HT] = g1;
             rs[i1 / HT][i1 % HT] = r1;
         }
     }
@@ -244,15 +240,17 @@ __device__ unsigned raise_tile(const Grid& G, int t, int* g, unsigned char* rais
     int gv = gs[y + 1][x + 1];
     unsigned tight = 0;  // bit k: neighbour k supports g (the goal has none and never rises)
     if (inside && gv > 0 && gv < INF) {
-        // A raised neighbour (RAISED_G) counts as a support whatever its old g. That changes
-        // nothing: v rises when its supports are all raised, and a raised non-support adds a
-        // raised cell to them; every finite g > 0 has a true support (a value is the cost of
-        // a path through a neighbour whose g was no higher, and a cell whose supports all
-        // rose rose with them), so none rises for want of one. (A raised v itself reads
-        // RAISED_G, not > 0: it was raised already and takes no part.)
+        // A raised neighbour holds INF, not the g it had (raised cells take INF as they are
+        // raised, which stands in for the reset round): it counts as a support whatever its
+        // old g. That changes nothing: v rises when its supports are all raised, and a
+        // raised non-support adds a raised cell to them; every finite g > 0 has a true support
+        // (a value is the cost of a path through a neighbour whose g was no higher, and a
+        // cell whose supports all rose rose with them), so none rises for want of one.
 #pragma unroll
-        for (int k = 0; k < 8; ++k)
-            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] <= gv) tight |= 1u << k;
+        for (int k = 0; k < 8; ++k) {
+            const int sy = y + 1 + NB_DR[k], sx = x + 1 + NB_DC[k];
+            if (rs[sy][sx] || gs[sy][sx] + NB_COST[k] <= gv) tight |= 1u << k;
+        }
     }
     const bool was = rs[y + 1][x + 1] != 0;
     // Warp y is row y, lane x its cell x.
