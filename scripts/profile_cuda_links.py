@@ -36,7 +36,7 @@ planner.FLAG_SEGMENTS = 8  # the flags' times: before the first planner
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import profile_cuda_phases as phases  # noqa: E402
 
-WORDS = slice(abi.PF_R_VISITS, abi.PF_R_IDLE + 1)
+WORDS = slice(abi.PF_R_VISITS, abi.PF_NS + 1)
 
 
 def record_words() -> None:

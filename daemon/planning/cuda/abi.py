@@ -104,11 +104,6 @@ C_RAISE_RING = 25
 """EDS: three rotating sums of the cells raised in a round (beside ``C_CNT``'s, zeroed with
 them): every block adds them up after each barrier to decide the cut-over, so no visit waits
 for an atomic's return to compare the running total with the limit."""
-C_WORK = 31
-"""EDS: the relaxation's work count after a repair that did not cut over: block 0 sets it to
-the group's blocks in round 0, and each block takes its token back once it has flagged its
-tiles (``start_relaxation``, rounds.cuh), so no block sees it at 0 before every block did.
-Zeroed by the call's last block."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
 
@@ -118,7 +113,7 @@ C_RELEASE = 32
 # raise visits, likewise; PF_B_*: block 0's grid barriers; PF_T_LAG: block 0's exit from the
 # relaxation after the last visit ended (ns); PF_CYCLES, PF_NS: block 0's clock and the global
 # timer over the call (the cycles' rate).
-PF_R_VISITS, PF_R_TAKE, PF_R_IDLE_N, PF_R_IDLE = 28, 29, 30, 55
+PF_R_VISITS, PF_R_TAKE, PF_R_IDLE_N, PF_R_IDLE = 28, 29, 30, 31
 PF_R_LOAD, PF_R_SETTLE, PF_R_STORE, PF_R_FLAG, PF_R_QUEUE, PF_R_QUEUE_N = range(33, 39)
 PF_A_VISITS = 39
 PF_A_TAKE, PF_A_LOAD, PF_A_FIX, PF_A_VISIT = range(43, 47)
@@ -171,8 +166,7 @@ _WORDS = (
     "MODE_DSS", "MODE_EDS",
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
-    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_WORK", "C_RELEASE", "P_SEG",
-    "P_NSEGS",
+    "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_RELEASE", "P_SEG", "P_NSEGS",
     "PF_R_VISITS", "PF_R_TAKE", "PF_R_IDLE_N", "PF_R_IDLE", "PF_R_LOAD", "PF_R_SETTLE",
     "PF_R_STORE", "PF_R_FLAG", "PF_R_QUEUE", "PF_R_QUEUE_N", "PF_A_VISITS", "PF_A_TAKE",
     "PF_A_LOAD", "PF_A_FIX", "PF_A_VISIT", "PF_B_N", "PF_B_ARRIVE", "PF_B_WAIT", "PF_B_LEAVE",

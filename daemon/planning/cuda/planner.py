@@ -92,9 +92,8 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
     """EDS (``dss=False``) or DSS on one CUDA device; ``variant`` is ``fast`` or ``paper``.
 
     Calls are serialised on the device (``device.DEVICE_LOCK``): the resident loop needs every
-    block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise rounds,
-    a cut-over's reset) plus the longest chain of tile visits of the relaxation, the rounds it
-    stands in for.
+    block resident. ``UpdateStats.iterations`` of ``fast``: grid-wide rounds (EDS raise and
+    reset) plus the longest chain of tile visits of the relaxation, the rounds it stands in for.
     ``cut_over`` (``fast``): the cells an EDS repair may raise per row and column of the map
     before the call gives the repair up and relaxes from below the change (default ``CUT_OVER``;
     ``math.inf``: never). ``focused`` (``fast`` EDS, default ``FOCUSED``): a walking step's

@@ -36,14 +36,13 @@
 #define C_BASE 14
 #define C_STAMP 16
 #define C_RAISE_RING 25
-#define C_WORK 31
 #define C_RELEASE 32
 #define P_SEG 40
 #define P_NSEGS 42
 #define PF_R_VISITS 28
 #define PF_R_TAKE 29
 #define PF_R_IDLE_N 30
-#define PF_R_IDLE 55
+#define PF_R_IDLE 31
 #define PF_R_LOAD 33
 #define PF_R_SETTLE 34
 #define PF_R_STORE 35

@@ -23,12 +23,10 @@
 // neighbour), so it costs at least STRAIGHT + g*(n) >= level; costs of paths avoiding the
 // change did not move. Hence new g*(v) = old g(v) for every v with g(v) < level, exactly.
 // (3) The cells at or above level take INF; the tiles that held one, and the tiles of the
-// changed and the raised cells (which took INF as they were raised: their old g, at least a
-// newly blocked cell's g plus a step, lay at or above level), are flagged. No other cell is
-// inconsistent: a kept cell is exact, and a cell that already held INF with a finite kept
-// neighbour would be unreachable across an unchanged edge from a cell below level, impossible
-// by (1), or across a changed edge, whose ends both lie next to a changed cell and so at or
-// above level. The relaxation (fast.cu) then finds
+// changed cells, are flagged. No other cell is inconsistent: a kept cell is exact, and a cell
+// that already held INF with a finite kept neighbour would be unreachable across an unchanged
+// edge from a cell below level, impossible by (1), or across a changed edge, whose ends both
+// lie next to a changed cell and so at or above level. The relaxation (fast.cu) then finds
 // the exact field from any flagged field of upper bounds, focused or not, and the deferrals
 // are all dropped (their pending values were at or above lb >= level: reset).
 //
@@ -37,18 +35,43 @@
 #pragma once
 #include "rounds.cuh"
 
-// Every block of the call's group, after the raise round that passed the limit. The level
-// came from round 0 (apply_delta, rounds.cuh: ctrl[C_KEEP] = INF - level, from the old field
-// before anything changed it, final since round 0's barrier). left: the flags the last raise
-// round left; dirty, cnt: the flags the relaxation takes and their count (zero); seeds: the
-// tiles of the changed and the raised cells (which hold INF already: raise_tile); stale,
-// deferred, lb: the path exits' and the focused repair's per-tile words. One group barrier,
-// after the reset.
-__device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, unsigned* left,
-                                  unsigned* dirty, unsigned* cnt, unsigned* seeds,
-                                  unsigned* stale, unsigned* deferred, int* lb, unsigned* ctrl,
-                                  unsigned* bar) {
-    const int tid = GBLOCK * THREADS + threadIdx.x;
+// Every block of the call's group, after the raise round that passed the limit. delta/ndelta:
+// the call's delta (cell * 2 + blocked). left: the flags the last raise round left; dirty, cnt:
+// the flags the relaxation takes and their count (zero); seeds: the tiles of the changed
+// cells; stale, deferred, lb: the path exits' and the focused repair's per-tile words. Two
+// group barriers: the level, then the reset.
+__device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, const int* delta,
+                                  int ndelta, unsigned* left, unsigned* dirty, unsigned* cnt,
+                                  unsigned* seeds, unsigned* stale, unsigned* deferred, int* lb,
+                                  unsigned* ctrl, unsigned* bar) {
+    const int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
+    int low = INF;
+    for (int i = tid; i < ndelta; i += stride) {
+        int code = __ldcv(delta + i);
+        int cell = code >> 1;
+        if (code & 1) {
+            low = min(low, __ldcg(g + cell));
+            continue;
+        }
+        int cy = cell / G.w, cx = cell % G.w;
+#pragma unroll
+        for (int k = 0; k < 8; ++k) {
+            int ny = cy + NB_DR[k], nx = cx + NB_DC[k];
+            if (ny >= 0 && nx >= 0 && ny < G.h && nx < G.w)
+                low = min(low, __ldcg(g + ny * G.w + nx) + STRAIGHT);
+        }
+    }
+    for (int t = tid; t < G.ntiles; t += stride) {
+        const unsigned is_deferred = __ldcg(deferred + t);
+        const int bound = __ldcg(lb + t);  // with the flag: one round trip, not two
+        if (is_deferred) low = min(low, bound);
+    }
+    // One atomic a warp; stored as INF - level so that the zero the word starts with means
+    // "no bound" and a max keeps the least level.
+    low = __reduce_min_sync(FULL, low);
+    if ((threadIdx.x & 31) == 0 && low < INF) atomicMax(ctrl + C_KEEP, (unsigned)(INF - low));
+    grid_barrier(ctrl, bar);
+
     const int level = INF - (int)__ldcg(ctrl + C_KEEP);
     for (int t = GBLOCK; t < G.ntiles; t += GSIZE) {
         const TileCell c = tile_cell(G, t);
@@ -72,9 +95,9 @@ __device__ void keep_below_change(const Grid& G, int* g, unsigned char* raised, 
         }
     }
     if (tid == 0) {
-        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the last barrier
+        ctrl[C_CUT] = __ldcg(ctrl + C_RAISED);  // every raise counted before the first barrier
         ctrl[C_RAISED] = 0u;
-        ctrl[C_ROUNDS] += 1;
+        ctrl[C_ROUNDS] += 2;
     }
     grid_barrier(ctrl, bar);
 }

@@ -13,9 +13,7 @@
 //
 // The relaxation has no rounds: block b of the call's GSIZE owns tiles b, b + GSIZE, ... and
 // relaxes each as soon as it is flagged, so the wave moves at the pace of one tile instead of
-// a grid-wide round. The EDS delta and raise phases run in grid-wide rounds (a few per step);
-// a raised cell takes INF as it is raised, so the relaxation starts without a reset round of
-// its own (start_relaxation, rounds.cuh: a grid barrier and a round trip fewer a step).
+// a grid-wide round. The EDS raise and reset phases run in grid-wide rounds (a few per step).
 //
 // Cut-over: an EDS call that raises more than `limit` cells (a wall across the route: the
 // whole shadow behind it) gives up the repair at the end of that round: raising and
@@ -38,9 +36,9 @@
 // the goal and leaves the rest. Why the path read is then the reference path, tie for tie: an
 // inconsistent cell u on a shortest path from the focus has a neighbour w that is exact, and
 // whichever visit last lowered w flagged or deferred u's tile with a bound <= g(w), so its key
-// is <= g(w) + h(u) <= g*(focus) <= g(focus): it was visited. The next call's start of the
-// relaxation (start_relaxation) takes the deferred tiles back whose key lb + h(new focus) is
-// no more than g(focus) after the raise (INF if raised: all of them), keeps the others deferred;
+// is <= g(w) + h(u) <= g*(focus) <= g(focus): it was visited. The next call's reset round
+// takes the deferred tiles back into the relaxation whose key lb + h(new focus) is no more
+// than g(focus) after the raise (INF if raised: all of them), and keeps the others deferred;
 // a call with focus < 0 (settle: costs(), cost_at()) takes them all back. Cells of deferred
 // tiles hold upper bounds (costs of real paths) that can exceed a neighbour's g + c: the raise
 // counts such a neighbour as a support (raise_tile), so no cost is ever under its true value.
@@ -167,8 +165,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
 // resident.cuh).
 //   MODE_DSS: apply the delta to `blocked`, g = INF everywhere, relax from the goal.
 //   MODE_EDS: apply the delta; raise the cells whose cost must rise (raise_tile)
-//   (newly blocked cells first), which take INF as they rise; relax from them and newly freed
-//   cells.
+//   (newly blocked cells first); reset them to INF; relax from them and newly freed cells.
 //   Past `limit` raised cells: the cells the change cannot reach keep their g, the others
 //   take INF, and the relaxation goes on from there (keep_below_change, cut_over.cuh).
 //   focus >= 0 (EDS): the relaxation is focused on that cell (see the header).
@@ -234,45 +231,95 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
         }
         if (tid == 0 && goal >= 0) flag_tile(pong, cnt1, tile_of(goal, w, G.tiles_x));
     } else {
-        apply_delta(G, delta, ndelta, g, blocked, raised, pong, cnt1, seeds, stale, deferred, lb,
-                    ctrl);
+        // Warp by warp, so that the flags are set once per distinct tile: a delta of 30,000
+        // cells (a 3 m sweep at 2000²) flagged 9 tiles a cell, two atomics each, most of them
+        // on one count, and spent ~200 µs here (scripts/profile_cuda_phases.py); a warp's cells lie mostly in
+        // one tile.
+        unsigned mine = 0, flagged = 0;  // mine: newly blocked cells, raised and counted
+        const int lane = threadIdx.x & 31;
+        for (int base = tid - lane; base < ndelta; base += stride) {
+            int i = base + lane;
+            int near[4] = {-1, -1, -1, -1};  // the tiles of a newly blocked cell's 3 x 3
+            int seed = -1;
+            if (i < ndelta) {
+                int code = __ldcv(delta + i);
+                int cell = code >> 1;
+                unsigned char now = code & 1;
+                if (__ldcg(blocked + cell) != now) {
+                    blocked[cell] = now;
+                    int cy = cell / w, cx = cell % w;
+                    seed = (cy / TILE) * G.tiles_x + cx / TILE;
+                    if (now) {
+                        // Its children may lie in the tiles around: each of those looks at it.
+                        raised[cell] = 1;
+                        ++mine;
+                        int y0 = max(cy - 1, 0) / TILE, y1 = min(cy + 1, h - 1) / TILE;
+                        int x0 = max(cx - 1, 0) / TILE, x1 = min(cx + 1, w - 1) / TILE;
+                        near[0] = y0 * G.tiles_x + x0;
+                        if (x1 != x0) near[1] = y0 * G.tiles_x + x1;
+                        if (y1 != y0) near[2] = y1 * G.tiles_x + x0;
+                        if (y1 != y0 && x1 != x0) near[3] = y1 * G.tiles_x + x1;
+                    }
+                }
+            }
+            // One flag per distinct tile of the warp (the raise round reads only whether a
+            // tile is flagged, and the count only whether it is 0).
+#pragma unroll
+            for (int k = 0; k < 4; ++k) {
+                unsigned same = __match_any_sync(FULL, near[k]);
+                if (near[k] >= 0 && lane == __ffs(same) - 1) {
+                    atomicAdd(pong + near[k], 1u);
+                    ++flagged;
+                }
+            }
+            unsigned same = __match_any_sync(FULL, seed);
+            if (seed >= 0 && lane == __ffs(same) - 1 && !__ldcg(seeds + seed)) seeds[seed] = 1u;
+        }
+        mine = __reduce_add_sync(FULL, mine);
+        flagged = __reduce_add_sync(FULL, flagged);
+        if (lane == 0 && flagged) atomicAdd(cnt1, flagged);
+        if (lane == 0 && mine) count_raised(ctrl, mine, 0);
     }
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 1);
     unsigned pending = round_pending(ctrl, 0, limit, &s_raised);
     int r = 1;
     if (mode == MODE_DSS) stamp(ctrl, 2);
-    // The relaxation's flags and count: after round 0 (DSS) or a cut-over, those the last
-    // round filled, (r & 1) ? pong : ping and C_CNT + r % 3; after a repair, the flags the last
-    // raise round left empty and the tokened count (start_relaxation). Every block enters,
-    // even with nothing pending: a block that is late to read `pending` may find the count
-    // already changed by the others' visits.
-    unsigned* work = ctrl + C_CNT + r % 3;
     if (mode == MODE_EDS) {
         while (pending && !(pending & CUT_PENDING)) {
-            pending = raise_round(G, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
-                                  ctrl, r, g, raised, gs, rs, s_list, &s_n, &bar, limit,
-                                  &s_raised);
+            pending = run_round(G, OP_RAISE, (r & 1) ? pong : ping, (r & 1) ? ping : pong, seeds, stale,
+                                ctrl, r, g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                &s_raised);
             ++r;
         }
         stamp(ctrl, 2);
         if (pending & CUT_PENDING) {
-            keep_below_change(G, g, raised, (r & 1) ? pong : ping, (r & 1) ? ping : pong,
-                              ctrl + C_CNT + (r + 1) % 3, seeds, stale, deferred, lb, ctrl, &bar);
-            ++r;
-            work = ctrl + C_CNT + r % 3;
+            keep_below_change(G, g, raised, delta, ndelta, (r & 1) ? pong : ping,
+                              (r & 1) ? ping : pong, ctrl + C_CNT + (r + 1) % 3, seeds, stale,
+                              deferred, lb, ctrl, &bar);
         } else {
-            // The focus's g after the raise (INF if it was raised): an upper bound of its
-            // final g, as the relaxation only lowers it, whenever it is read.
-            const int g_focus = focus >= 0 ? __ldcg(g + focus) : INF;
-            work = ctrl + C_WORK;
-            start_relaxation(G, seeds, (r & 1) ? pong : ping, work, raised, deferred, lb, g_focus,
-                             fy, fx, s_list, &s_n);
+            // The focus's g after the reset: the raise is over (its last barrier) and the
+            // reset round lowers nothing. Both words at once (one round trip, not two); g is
+            // read even where the focus was raised, and then not used.
+            int g_focus = INF;
+            if (focus >= 0) {
+                const unsigned char focus_raised = __ldcg(raised + focus);
+                const int g_old = __ldcg(g + focus);
+                if (!focus_raised) g_focus = g_old;
+            }
+            pending = run_round(G, OP_RESET, seeds, (r & 1) ? ping : pong, seeds, stale, ctrl, r,
+                                g, blocked, raised, gs, bs, rs, s_list, &s_n, &bar, limit,
+                                nullptr, deferred, lb, g_focus, fy, fx);
         }
+        ++r;
     }
+    // The flags and the count the last round filled: (r & 1) ? pong : ping, C_CNT + r % 3.
+    // Every block enters, even with nothing pending: a block that is late to read `pending`
+    // may find the count already changed by the others' visits.
+    (void)pending;
     stamp(ctrl, 3);
-    relax_async(G, (r & 1) ? pong : ping, work, depth, stale, ctrl, g, blocked, gs, bs, s_list,
-                &s_n, focus, fy, fx, deferred, lb);
+    relax_async(G, (r & 1) ? pong : ping, ctrl + C_CNT + r % 3, depth, stale, ctrl, g, blocked, gs,
+                bs, s_list, &s_n, focus, fy, fx, deferred, lb);
     grid_barrier(ctrl, &bar);
     stamp(ctrl, 4);
     if (start >= 0) {
@@ -325,7 +372,6 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             ctrl[C_CUT] = 0;
             ctrl[C_KEEP] = 0;
             for (int i = C_ROUNDS; i <= C_LONGEST; ++i) ctrl[i] = 0;
-            ctrl[C_WORK] = 0;  // a cut-over leaves the tokens of round 0
             ctrl[C_BASE] = bar;
         }
         for (int i = threadIdx.x; i < G.ntiles; i += THREADS) depth[i] = 0;

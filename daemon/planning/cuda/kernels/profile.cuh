@@ -87,7 +87,7 @@ __device__ __forceinline__ void prof_barrier(long long b1, long long b2, long lo
 // The last block, after copying ctrl to the host: the words start the next call at 0.
 #define PROF_ZERO(ctrl)                                                     \
     do {                                                                    \
-        if (threadIdx.x >= PF_R_VISITS && threadIdx.x <= PF_R_IDLE && threadIdx.x != C_RELEASE && \
+        if (threadIdx.x >= PF_R_VISITS && threadIdx.x <= PF_NS && threadIdx.x != C_RELEASE && \
             (threadIdx.x < P_SEG || threadIdx.x > P_NSEGS))                 \
             (ctrl)[threadIdx.x] = 0u;                                       \
     } while (0)

@@ -1,5 +1,5 @@
 // One 32 x 32 tile of the fast planner (fast.cu): load it with its halo into shared memory,
-// relax it until it settles, raise the cells whose cost must rise (which take INF).
+// relax it until it settles, raise the cells whose cost must rise, reset raised cells.
 // Every function is called by a whole block of THREADS == TILE * TILE threads, thread
 // (y, x) = (threadIdx.x / 32, threadIdx.x % 32) owning one cell.
 #pragma once
@@ -203,7 +203,7 @@ __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char
 // moves one cell a pass (a shadow 32 cells deep takes 32 passes): block-wide, each pass was
 // nine shared loads in each of 32 warps and a block barrier. The least fixpoint of a
 // monotone rule is the same whatever the passes' form, so the raised set is the old one.
-__device__ unsigned raise_tile(const Grid& G, int t, int* g, unsigned char* raised,
+__device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char* raised,
                                int (*gs)[HT], unsigned char (*rs)[HT], unsigned* sweeps,
                                bool* any_raised, unsigned* fresh) {
     __shared__ unsigned s_bits, s_passes;
@@ -240,17 +240,9 @@ __device__ unsigned raise_tile(const Grid& G, int t, int* g, unsigned char* rais
     int gv = gs[y + 1][x + 1];
     unsigned tight = 0;  // bit k: neighbour k supports g (the goal has none and never rises)
     if (inside && gv > 0 && gv < INF) {
-        // A raised neighbour holds INF, not the g it had (raised cells take INF as they are
-        // raised, which stands in for the reset round): it counts as a support whatever its
-        // old g. That changes nothing: v rises when its supports are all raised, and a
-        // raised non-support adds a raised cell to them; every finite g > 0 has a true support
-        // (a value is the cost of a path through a neighbour whose g was no higher, and a
-        // cell whose supports all rose rose with them), so none rises for want of one.
 #pragma unroll
-        for (int k = 0; k < 8; ++k) {
-            const int sy = y + 1 + NB_DR[k], sx = x + 1 + NB_DC[k];
-            if (rs[sy][sx] || gs[sy][sx] + NB_COST[k] <= gv) tight |= 1u << k;
-        }
+        for (int k = 0; k < 8; ++k)
+            if (gs[y + 1 + NB_DR[k]][x + 1 + NB_DC[k]] + NB_COST[k] <= gv) tight |= 1u << k;
     }
     const bool was = rs[y + 1][x + 1] != 0;
     // Warp y is row y, lane x its cell x.
@@ -310,12 +302,28 @@ __device__ unsigned raise_tile(const Grid& G, int t, int* g, unsigned char* rais
     bool newly = inside && now && !was;
     if (newly) {
         raised[idx] = 1;
-        __stcg(g + idx, INF);  // the reset, here: visible to the next round after its barrier
         atomicOr(&s_bits, edge_bits(y, x));
     }
     if (inside && now) s_any = 1;
     *fresh = __syncthreads_count(newly);
     if (threadIdx.x == 0) atomicAdd(sweeps, s_passes);
     *any_raised = s_any != 0;
+    return s_bits;
+}
+
+// EDS step 2, one tile: raised cells take INF and are cleared (they were counted as they
+// were raised). Returns the edge bits of reset cells and CHANGED_ANY if there were any (their
+// exits change).
+__device__ unsigned reset_tile(const Grid& G, int t, int* g, unsigned char* raised) {
+    __shared__ unsigned s_bits;
+    const TileCell c = tile_cell(G, t);
+    if (threadIdx.x == 0) s_bits = 0;
+    __syncthreads();
+    if (c.inside && __ldcg(raised + c.idx)) {
+        __stcg(g + c.idx, INF);
+        raised[c.idx] = 0;
+        atomicOr(&s_bits, edge_bits(c.y, c.x) | CHANGED_ANY);
+    }
+    __syncthreads();
     return s_bits;
 }
