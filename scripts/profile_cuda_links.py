@@ -138,8 +138,8 @@ def main(argv: list[str] | None = None) -> None:
                 log = phases.walk_logged(scenario, mode, None)
                 cut = np.asarray(log.cut, bool)
                 for part, sel in (("all", np.ones(cut.size, bool)), ("cut", cut), ("kept", ~cut)):
-                    if not sel.any():
-                        continue
+                    if part != "all" and not (cut.any() and (~cut).any()):
+                        continue  # DSS never cuts over: its "kept" calls are all of them
                     row = {"scenario": name, "grid": grid, "mode": mode, "calls_of": part}
                     row.update(parts(log, sel))
                     rows.append(row)
