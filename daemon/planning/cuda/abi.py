@@ -106,6 +106,19 @@ them): every block adds them up after each barrier to decide the cut-over, so no
 for an atomic's return to compare the running total with the limit."""
 C_RELEASE = 32
 """The barrier's release word, a cache line away from the arrivals."""
+
+# The link profile's words (ctrl; written only by a build with GB_PROFILE, kernels/profile.cuh,
+# which scripts/profile_cuda_links.py sets): per call, sums over the call. PF_R_*: the
+# relaxation's visits, summed over every block (SM cycles, but the queue in ns); PF_A_*: the
+# raise visits, likewise; PF_B_*: block 0's grid barriers; PF_T_LAG: block 0's exit from the
+# relaxation after the last visit ended (ns); PF_CYCLES, PF_NS: block 0's clock and the global
+# timer over the call (the cycles' rate).
+PF_R_VISITS, PF_R_TAKE, PF_R_IDLE_N, PF_R_IDLE = 28, 29, 30, 31
+PF_R_LOAD, PF_R_SETTLE, PF_R_STORE, PF_R_FLAG, PF_R_QUEUE, PF_R_QUEUE_N = range(33, 39)
+PF_A_VISITS = 39
+PF_A_TAKE, PF_A_LOAD, PF_A_FIX, PF_A_VISIT = range(43, 47)
+PF_B_N, PF_B_ARRIVE, PF_B_WAIT, PF_B_LEAVE, PF_B_LAG = range(47, 52)
+PF_T_LAG, PF_CYCLES, PF_NS = 52, 53, 54
 P_SEG = 40
 """Two words: the start's own path segment (exit, cells)."""
 P_NSEGS = 42
@@ -154,6 +167,10 @@ _WORDS = (
     "MB_BOX", "MB_STOP", "MB_POST", "MB_COUNT",
     "C_BAR", "C_CNT", "C_CUT", "C_KEEP", "C_EXITS", "C_ROUNDS", "C_TILES", "C_SWEEPS", "C_RAISED",
     "C_CHANGED", "C_LONGEST", "C_BASE", "C_STAMP", "C_RAISE_RING", "C_RELEASE", "P_SEG", "P_NSEGS",
+    "PF_R_VISITS", "PF_R_TAKE", "PF_R_IDLE_N", "PF_R_IDLE", "PF_R_LOAD", "PF_R_SETTLE",
+    "PF_R_STORE", "PF_R_FLAG", "PF_R_QUEUE", "PF_R_QUEUE_N", "PF_A_VISITS", "PF_A_TAKE",
+    "PF_A_LOAD", "PF_A_FIX", "PF_A_VISIT", "PF_B_N", "PF_B_ARRIVE", "PF_B_WAIT", "PF_B_LEAVE",
+    "PF_B_LAG", "PF_T_LAG", "PF_CYCLES", "PF_NS",
     "C_GO", "C_CMD", "C_SLOT", "C_SERVED",
     "C_TAKEN", "C_REJECT", "C_QUEUE",
     "BOX_SLOT", "BOX_STOP", "BOX_POST", "BOX_COUNT", "BOX_QUEUE", "BATCH_MAX", "BATCH_RING",

@@ -31,12 +31,19 @@ DEVICE_LOCK = threading.Lock()
 of its blocks resident, which a second concurrent launch could prevent."""
 
 
+DEFINES: tuple[str, ...] = ()
+"""Macros every kernel is compiled with: none in the product. The link profile
+(``scripts/profile_cuda_links.py``) sets ``("GB_PROFILE",)`` before the first compile
+(``kernels/profile.cuh``)."""
+
+
 @functools.cache
 def module(name: str) -> cp.RawModule:
     """``kernels/<name>.cu`` compiled (cached for the process)."""
     code = (KERNELS / f"{name}.cu").read_text()
     # NVRTC compiles a string: name the folder so `#include "tile_scans.cuh"` resolves.
-    return cp.RawModule(code=code, options=("--std=c++17", f"-I{KERNELS}"))
+    defines = tuple(f"-D{d}" for d in DEFINES)
+    return cp.RawModule(code=code, options=("--std=c++17", f"-I{KERNELS}", *defines))
 
 
 @functools.cache

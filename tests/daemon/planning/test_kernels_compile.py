@@ -15,8 +15,9 @@ import pytest
 KERNELS = Path(__file__).resolve().parents[3] / "daemon" / "planning" / "cuda" / "kernels"
 
 # What CudaPlanner compiles: fast.cu (the resident loop), path_tiles.cu (a path outside a fast
-# call), paper.cu (the paper's Figure 4 form).
-VARIANTS = [("fast", ()), ("path_tiles", ()), ("paper", ())]
+# call), paper.cu (the paper's Figure 4 form); and fast.cu as scripts/profile_cuda_links.py
+# builds it (kernels/profile.cuh).
+VARIANTS = [("fast", ()), ("path_tiles", ()), ("paper", ()), ("fast", ("GB_PROFILE",))]
 
 
 def compile_kernel(

@@ -89,13 +89,19 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
     // A block that owns no tile has nothing to wait for here (the grid barrier after waits).
     if (GBLOCK >= G.ntiles) return;
     if (threadIdx.x < 3) s_stats[threadIdx.x] = 0;  // take_flagged's barrier comes before use
+    PROF_FLAG_WORDS(flag_time, lb, G.ntiles);  // GB_PROFILE: the flags' times (an 8th word)
     unsigned idle = 0, longest = 0, visits = 0;
     while (true) {
         int visited = 0;
         for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
+            PROF_NOW(p0);
             // The first chunk's pass also reads the work count, for the test below.
             int count = take_flagged(dirty, G.ntiles, base, s_list, s_n,
                                      base == (int)GBLOCK ? work : nullptr, &s_work, &s_taken);
+            PROF_NOW(p1);
+            PROF_ADD(count ? PF_R_TAKE : PF_R_IDLE, p1 - p0);
+            PROF_ADD(PF_R_IDLE_N, count ? 0 : 1);
+            PROF_TAKE_TIME(flag_time, s_list, count, queued);
             for (int i = 0; i < count; ++i) {
                 int tile = s_list[i];
                 int k = threadIdx.x;
@@ -104,6 +110,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                 unsigned d = k < 8 ? __ldcg(depth + tile) + 1 : 0u;
                 int g_focus = k < 8 && focus >= 0 ? __ldcg(g + focus) : INF;
                 unsigned bits = relax_tile(G, tile, g, blocked, gs, bs, s_stats, s_emin);
+                PROF_NOW(v0);
                 if (k < 8 && (bits & (1u << k))) {
                     int n = tile_across(G, tile, k);
                     if (n >= 0 && focus >= 0 && s_emin[k] + tile_h(G, n, fy, fx) > g_focus) {
@@ -111,6 +118,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                         deferred[n] = 1u;
                     } else if (n >= 0) {
                         atomicMax(depth + n, d);
+                        PROF_FLAG_TIME(flag_time, n);
                         flag_tile(dirty, work, n, true);  // after the tile's g and the depth
                     }
                 }
@@ -120,7 +128,12 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
                     longest = max(longest, d);
                 }
                 __syncthreads();  // shared tile buffers are reused by the next tile
+                PROF_NOW(v1);
+                PROF_ADD(PF_R_FLAG, v1 - v0);
+                PROF_ADD(PF_R_VISITS, 1);
             }
+            PROF_QUEUED(queued);
+            if (count && threadIdx.x == 0) PROF_RELAX_END(ctrl);
             // The flags this block set are counted before the ones it took are uncounted.
             if (count && threadIdx.x == 0) atomicSub(work, s_taken);
             visited += count;
@@ -135,6 +148,7 @@ __device__ void relax_async(const Grid& G, unsigned* dirty, unsigned* work, unsi
         if (s_work == 0u) break;
         if (++idle == IDLE_LIMIT) __trap();  // a lost flag would otherwise hang the daemon
     }
+    PROF_RELAX_EXIT();
     if (threadIdx.x == 0) {  // settle_tile's thread 0 counted into s_stats
         atomicMax(ctrl + C_LONGEST, longest);
         atomicAdd(ctrl + C_TILES, visits);
@@ -189,6 +203,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     int tid = GBLOCK * THREADS + threadIdx.x, stride = GSIZE * THREADS;
     if (threadIdx.x < PARAM_USED) s_params[threadIdx.x] = __ldcg(params + threadIdx.x);
     if (threadIdx.x == 0) s_raised = 0;
+    PROF_START();
     __syncthreads();
     const int ndelta = s_params[PARAM_NDELTA], mode = s_params[PARAM_MODE];
     const int start = s_params[PARAM_START], goal = s_params[PARAM_GOAL];
@@ -338,6 +353,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
     // The result to the host: the last block in copies the ctrl words (statistics, stamps),
     // zeroes the counters and depth for the next call and, after everything it and every
     // other block wrote, sets the done word.
+    PROF_FLUSH(ctrl, bar);
     if (grid_arrive_last(ctrl, &bar)) {
         if (threadIdx.x == 0) ctrl[C_STAMP + 7] = (unsigned)global_ns();
         __syncthreads();
@@ -349,6 +365,7 @@ __device__ __noinline__ void plan_call(int* g, unsigned char* blocked, unsigned 
             io[threadIdx.x] = (int)v;
         }
         __syncthreads();  // every word is copied before it is zeroed
+        PROF_ZERO(ctrl);
         if (threadIdx.x == 0) {
             for (int i = 0; i < 3; ++i) ctrl[C_CNT + i] = ctrl[C_RAISE_RING + i] = 0;
             ctrl[C_EXITS] = 0;

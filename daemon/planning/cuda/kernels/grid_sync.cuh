@@ -17,6 +17,7 @@
 __shared__ unsigned s_gblock, s_gsize;
 #define GBLOCK s_gblock
 #define GSIZE s_gsize
+#include "profile.cuh"  // empty unless GB_PROFILE
 
 __device__ __forceinline__ void whole_grid_group() {
     if (threadIdx.x == 0) {
@@ -29,13 +30,18 @@ __device__ __forceinline__ void whole_grid_group() {
 __device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
     __syncthreads();
     if (threadIdx.x == 0) {
+        PROF_NOW(b1);
         *target += GSIZE;
+        PROF_BARRIER_ARRIVE(ctrl, *target);
         __threadfence();
         unsigned arrived = atomicAdd(ctrl + C_BAR, 1u) + 1u;
         volatile unsigned* release = ctrl + C_RELEASE;
+        PROF_DECL(b2);  // set in the branch taken: after the atomic's return
         if (arrived == *target) {
+            PROF_SET(b2);
             *release = arrived;
         } else {
+            PROF_SET(b2);
             // Blocks that are not all resident (another process's kernels under MPS, say)
             // would wait here forever; after seconds, trap: a CUDA error the host's CPU
             // fallback turns into a warning instead of a hung daemon.
@@ -45,7 +51,11 @@ __device__ void grid_barrier(unsigned* ctrl, unsigned* target) {
                 if (++spins == SPIN_LIMIT) __trap();
             }
         }
+        PROF_BARRIER_SEEN(seen);
+        PROF_NOW(b3);
         __threadfence();
+        PROF_NOW(b4);
+        PROF_BARRIER_DONE(b1, b2, b3, b4, seen);
     }
     __syncthreads();
 }

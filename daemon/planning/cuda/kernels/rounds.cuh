@@ -98,9 +98,13 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
         atomicAdd(ctrl + C_ROUNDS, 1u);  // a reduction: += would wait for the load
     }
     for (int base = GBLOCK; base < G.ntiles; base += GSIZE * THREADS) {
+        PROF_NOW(p0);
         int count = take_flagged(in, G.ntiles, base, s_list, s_n);
+        PROF_NOW(p1);
+        if (op == OP_RAISE) PROF_ADD(PF_A_TAKE, p1 - p0);
         for (int i = 0; i < count; ++i) {
             int tile = s_list[i];
+            PROF_NOW(v0);
             if (op == OP_RAISE) {
                 bool any = false;
                 unsigned fresh = 0;
@@ -116,6 +120,9 @@ __device__ unsigned run_round(const Grid& G, int op, unsigned* in, unsigned* nex
             }
             if (threadIdx.x == 0) atomicAdd(ctrl + C_TILES, 1u);
             __syncthreads();  // shared tile buffers are reused by the next tile
+            PROF_NOW(v1);
+            if (op == OP_RAISE) PROF_ADD(PF_A_VISIT, v1 - v0);
+            if (op == OP_RAISE) PROF_ADD(PF_A_VISITS, 1);
         }
     }
     if (deferred) {

@@ -109,6 +109,7 @@ __device__ void load_tile_g(const Grid& G, const int* g, int oy, int ox, int (*g
 __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*gs)[HT],
                                 unsigned char (*bs)[TILE + 1], unsigned* sweeps, int* emin) {
     __shared__ unsigned s_bits;
+    PROF_NOW(a);
     const int y = c.y, x = c.x;
     const bool blk = bs[y][x] != 0;
     const bool is_goal = c.inside && c.idx == G.goal;
@@ -150,6 +151,8 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
         scan_line(3, seg[3], gs);
         __syncthreads();
     }
+    PROF_NOW(b);
+    PROF_ADD(PF_R_SETTLE, b - a);
     int after = gs[y + 1][x + 1];
     bool changed = c.inside && after != before;
     if (changed) {
@@ -165,6 +168,8 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
         atomicAdd(sweeps, n);
         atomicAdd(sweeps + (C_CHANGED - C_SWEEPS), total);
     }
+    PROF_NOW(e);
+    PROF_ADD(PF_R_STORE, e - b);
     return s_bits;
 }
 
@@ -172,11 +177,14 @@ __device__ unsigned settle_tile(const Grid& G, const TileCell& c, int* g, int (*
 __device__ unsigned relax_tile(const Grid& G, int t, int* g, const unsigned char* blocked,
                                int (*gs)[HT], unsigned char (*bs)[TILE + 1], unsigned* sweeps,
                                int* emin) {
+    PROF_NOW(a);
     const TileCell c = tile_cell(G, t);
     bool blk = !c.inside || __ldcg(blocked + c.idx) != 0;
     load_tile_g(G, g, c.oy, c.ox, gs);
     bs[c.y][c.x] = blk ? 1 : 0;
     __syncthreads();
+    PROF_NOW(b);
+    PROF_ADD(PF_R_LOAD, b - a);
     return settle_tile(G, c, g, gs, bs, sweeps, emin);
 }
 
@@ -203,6 +211,7 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
     // s_tight[(dr + 1) * 3 + dc + 1][y]: bit x set when neighbour (dr, dc) supports (y, x);
     // s_rows[y]: row y's cells that may rise, then its raised cells.
     __shared__ unsigned s_tight[9][TILE], s_rows[TILE], s_was[TILE];
+    PROF_NOW(a);
     const TileCell c = tile_cell(G, t);
     const int oy = c.oy, ox = c.ox, y = c.y, x = c.x, idx = c.idx;
     const bool inside = c.inside;
@@ -226,6 +235,8 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
         }
     }
     __syncthreads();
+    PROF_NOW(b);
+    PROF_ADD(PF_A_LOAD, b - a);
     int gv = gs[y + 1][x + 1];
     unsigned tight = 0;  // bit k: neighbour k supports g (the goal has none and never rises)
     if (inside && gv > 0 && gv < INF) {
@@ -285,6 +296,8 @@ __device__ unsigned raise_tile(const Grid& G, int t, const int* g, unsigned char
         if (row == 0) s_passes = passes;
     }
     __syncthreads();
+    PROF_NOW(f);
+    PROF_ADD(PF_A_FIX, f - b);
     bool now = (s_rows[y] >> x) & 1u;
     bool newly = inside && now && !was;
     if (newly) {
