@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from daemon.planning.cuda import abi, device, planner
+from daemon.planning.cuda import abi, device
 
 device.DEFINES = ("GB_PROFILE",)  # before the first compile
-planner.FLAG_SEGMENTS = 8  # the flags' times: before the first planner
+abi.FLAG_SEGMENTS = 8  # the flags' times: before the first planner
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import profile_cuda_phases as phases  # noqa: E402

@@ -119,6 +119,8 @@ PF_A_VISITS = 39
 PF_A_TAKE, PF_A_LOAD, PF_A_FIX, PF_A_VISIT = range(43, 47)
 PF_B_N, PF_B_ARRIVE, PF_B_WAIT, PF_B_LEAVE, PF_B_LAG = range(47, 52)
 PF_T_LAG, PF_CYCLES, PF_NS = 52, 53, 54
+FLAG_SEGMENTS = 7
+"""Words per tile of ``fast``'s flags; 8 in the link profile's build (``kernels/profile.cuh``)."""
 P_SEG = 40
 """Two words: the start's own path segment (exit, cells)."""
 P_NSEGS = 42

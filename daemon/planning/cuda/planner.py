@@ -84,8 +84,6 @@ FOCUSED = True
 """Whether ``fast``'s EDS repair is focused on the user (``fast.cu``); False: every call
 settles the whole field, as before the focused repair. Read when a planner is made, so a
 benchmark can compare the two."""
-FLAG_SEGMENTS = 7
-"""Words per tile of ``fast``'s flags; 8 in the link profile's build (``kernels/profile.cuh``)."""
 
 
 class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
@@ -193,7 +191,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
             self._raised = cp.zeros(n, dtype=np.uint8)
             # fast.cu's tile flags: ping, pong, seeds, stale exits (all stale at first), depth,
             # deferred by a focused repair, and the deferred tiles' bounds (INF: none).
-            self._flags = cp.zeros(FLAG_SEGMENTS * tiles, dtype=np.uint32)
+            self._flags = cp.zeros(abi.FLAG_SEGMENTS * tiles, dtype=np.uint32)
             self._flags[3 * tiles : 4 * tiles] = 1
             self._flags[6 * tiles : 7 * tiles] = INF
         else:
@@ -362,7 +360,7 @@ class CudaPlanner(FastCall, PaperForm, PathReader, FieldPlanner):
         self._check_fault()
         if self.variant != "fast" or self._shape == (0, 0):
             return 0
-        tiles = self._flags.size // FLAG_SEGMENTS
+        tiles = self._flags.size // abi.FLAG_SEGMENTS
         return int(cp.count_nonzero(self._flags[5 * tiles : 6 * tiles]))
 
     def costs(self) -> np.ndarray:
