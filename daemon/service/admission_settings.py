@@ -10,11 +10,30 @@ from dataclasses import dataclass
 class AdmissionSettings:
     lag_budget_ms: float = 50.0
     """The delay every guided user should stay within (the p99 the daemon promises)."""
+    percentile: float = 99.0
+    """The percentile of the lag judged: the one the promise is made on. The p95 judged before
+    let a served p99 of 50-100 ms through (dev VM, 100 users, two workers, load16's traces):
+    in seconds where the map deltas' step lags had a p99 of 100-140 ms the judged p95 was
+    12-25 ms, under its 30 ms threshold, and nobody was shed for 3 s."""
+    unseen_ms: float = 10.0
+    """The part of a user's delay the daemon cannot see, kept as headroom: the map delta's
+    way to the worker and the belt pattern's way back through zenoh (the router in the parent
+    included) and the client's own receive. The load generator's delta→belt latency less the
+    daemon's lag for the same delta, p99 (dev VM, quiet, two workers, TLS): 8.2 and 11.7 ms
+    at 100 users, 5.3 ms at 50; 29 ms at 50 on the VM with another engineer's process taking
+    a core. The daemon judges its own lags against ``lag_budget_ms`` less this (at most half
+    the budget)."""
     cpu_budget_ms: float = 600.0
     """CPU ms per second all guided users' steps may take together."""
     window_s: float = 1.0
-    shed_fraction: float = 0.6
+    shed_fraction: float = 1.0
+    """Of the budget the daemon sees (``lag_budget_ms`` − ``unseen_ms``): the lag's p99 past
+    it sheds. The p99 is the tail itself, so the whole of it (the p95 was judged against 60 %
+    for the tail it did not see)."""
     readmit_fraction: float = 0.3
+    """Of the budget the daemon sees: a p99 under it is calm, and readmits. At 100 users
+    (dev VM, quiet) the deltas' p99 was 12-22 ms a second with 35-45 guided, and over the
+    budget within seconds of a readmission of 6 in each worker at a p95 of 5."""
     sustain_s: float = 0.5
     settle_s: float = 1.0
     calm_s: float = 2.0
