@@ -44,9 +44,11 @@ class AdmissionSettings:
     """The most of the guided users one lag-driven decision sheds: the lag is a queue's, not
     linear in the load, so the next round measures again rather than trusting one ratio."""
     capacity_memory_s: float = 30.0
-    readmit_share: float = 0.25
-    """The most users guided again at once, as a share of those guided (at least one): each
-    comes back with a snapshot to take and a whole path to plan."""
+    readmit_share: float = 0.0
+    """The most users guided again at once, as a share of those guided (at least one; 0: one
+    at a time): each comes back with a snapshot to take and a whole path to plan. At 100 users
+    (dev VM, quiet, two workers) a quarter (7-10 at once) took a worker from a p99 of 5-11 ms
+    to 56-105 ms, whatever its own lag said: the other worker shares the cores."""
     drain_ratio: float = 0.8
     """The newer half-window's lag p95 under this share of the older half's: the lag is
     draining (a burst that passes), not a load the daemon cannot carry."""

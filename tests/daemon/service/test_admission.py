@@ -156,7 +156,9 @@ def test_a_burst_that_has_passed_is_waited_out_and_a_lasting_lag_is_not():
 
 
 def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once():
-    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        20, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0, readmit_share=0.25
+    )
     for t in (10.0, 11.0):  # a burst of lag: half are shed at once
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -190,7 +192,9 @@ def test_late_again_above_the_remembered_capacity_keeps_the_lower_one():
     """Late at 320 ms/s; three come back (280), and long after (past ``overshoot_s``) cost
     more than before and the lag is over again at 340. The machine gave less than 340 both
     times: readmission stays within 0.9 × 320, or the same users would be shed again."""
-    adm, users = joined(8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0, readmit_share=0.25
+    )
     for t in (10.0, 11.0):
         steps(adm, users, t, cpu_ms=4.0, lag_ms=80.0)
         adm.review(t)
@@ -240,7 +244,7 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
     """The old rule remembered the CPU when the lag forced a shedding (past the knee), so
     readmission filled to 90 % of it, overshot, and half were shed again: here 15-17 users
     every 10 s; on the dev VM 8-25 every 2-3 s, each lag setting the guided users' p99."""
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0))
+    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, readmit_share=0.25))
     events = _flapping(adm, 130.0)
     sheds = [(t, -n) for t, n in events if n < 0]
     assert sheds[0][1] == 25  # the start: half of 50 at 80 ms
@@ -256,12 +260,18 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
     assert probes[:6] == [1, 1, 1, 1, 1, -1] and set(probes[6:]) <= {1, -1}
     assert len(adm.shed) == 21 and adm.calm_wanted_s == 16.0  # 29 guided: the knee
     # Without the overshoot rule (what the old one did), the same machine flaps.
-    old = _flapping(Admission(AdmissionSettings(lag_budget_ms=50.0, overshoot_s=0.0)), 130.0)
+    old = _flapping(
+        Admission(AdmissionSettings(lag_budget_ms=50.0, overshoot_s=0.0, readmit_share=0.25)),
+        130.0,
+    )
     assert len([n for _, n in old if n <= -15]) >= 5
 
 
 def test_a_lag_that_outlasts_the_undone_readmission_is_shed_by_the_lag_rule():
-    adm, users = joined(20, width=2, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        20, width=2, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0,
+        readmit_share=0.25,
+    )  # fmt: skip
     for t in (10.0, 11.0):
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -282,8 +292,9 @@ def test_a_user_shed_while_late_comes_back_priced_at_what_a_guided_user_costs_no
     """Shed while late, their inputs batched into fewer steps: 60 ms/s each then. Guided
     again, a user costs 90 (the dev VM: 7.3 ms/s each at 50 late users, ~10.4 at 25 calm)."""
     adm, users = joined(
-        20, width=2, cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5
-    )
+        20, width=2, cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5,
+        readmit_share=0.25,
+    )  # fmt: skip
     for t in (10.0, 11.0):  # 20 × 60 = 1200 ms/s and late: half shed, capacity 1200
         steps(adm, users, t, cpu_ms=6.0, lag_ms=600.0)
         shed, _ = adm.review(t)

@@ -108,7 +108,7 @@ def test_calm_is_judged_on_the_p99_too():
     for t in np.arange(16.0, 19.0, 0.25):  # p99 10 ms: calm
         window(adm, guided_now, t, tail(0.02, 10.0))
         back += adm.review(t)[1]
-    assert back == ["u10", "u11", "u12"]
+    assert back[0] == "u10"
 
 
 def test_joining_users_first_steps_are_judged_at_the_p95_against_the_whole_budget():
@@ -128,3 +128,36 @@ def test_joining_users_first_steps_are_judged_at_the_p95_against_the_whole_budge
         if shed:
             break
     assert adm.last_lag_ms == 70.0 and shed == [f"u{i:02d}" for i in range(11, 20)]
+
+
+def test_users_come_back_one_at_a_time_and_a_lag_right_after_sends_them_back_at_once():
+    """A quarter of the guided at once (7-10) took a worker of the dev VM at 100 users from a
+    p99 of 5-11 ms to 56-105; a lag over the line within ``overshoot_s`` of a readmission is
+    that readmission's and is undone at its first review, not after ``sustain_s`` or a wait
+    for a drain (those 7 stayed 4.1 s with the p99 going over and under the line)."""
+    adm, users = guided(min_shed_s=1.0, calm_s=1.0)
+    for t in (10.0, 10.6):
+        window(adm, users, t, np.full(100, 600.0))
+        adm.review(t)
+    assert len(adm.shed) == 10
+    back: list[str] = []
+    t = 11.0
+    while not back:
+        window(adm, users[:10], t, np.full(100, 5.0))
+        back = adm.review(t)[1]
+        t += 0.25
+    assert back == ["u10"]  # one, however calm
+    for _ in range(3):  # no decision for settle_s after one
+        window(adm, users[:11], t, np.full(100, 5.0))
+        assert adm.review(t) == ([], [])
+        t += 0.25
+    # Over the line at the first review after, draining or not: the one brought back goes.
+    lags = np.r_[np.full(50, 90.0), np.full(50, 45.0)]  # the newer half under the older
+    window(adm, users[:11], t, lags)
+    assert adm.review(t) == (["u10"], []) and adm.overshoots == 1 and adm.draining
+    # The same lag with no readmission behind it waits out sustain_s and the drain.
+    other, users = guided()
+    window(other, users, 10.0, np.full(100, 5.0))
+    other.review(10.0)
+    window(other, users, 10.25, lags)
+    assert other.review(10.25) == ([], [])
