@@ -57,32 +57,9 @@ from collections import deque
 import numpy as np
 
 from .admission_settings import AdmissionSettings
+from .memory_budget import BYTES_PER_CELL, map_too_big
 
 __all__ = ["BYTES_PER_CELL", "Admission", "AdmissionSettings", "map_too_big"]
-
-BYTES_PER_CELL = 64
-"""What one map cell costs a user, all told, for the memory budget: the map keeper's occupancy,
-cover and inflation (~8 B), the CPU planner's state (17 B at 2000²), the CUDA planner's host
-and device copies, with room for the copies a step makes."""
-
-
-def map_too_big(
-    cells: int | None, others: int, max_map_cells: int, memory_budget_mb: float
-) -> str | None:
-    """Why a map of ``cells`` cells may not be taken (None: it may): past the per-user cap, or
-    past the memory budget with the other users' maps' ``others`` cells (``MapCells.others``)."""
-    if cells is None:
-        return None  # no header: the decoder says what is wrong with it
-    if cells > max_map_cells:
-        return f"a map of {cells} cells exceeds max_map_cells {max_map_cells}"
-    need_mb = (others + cells) * BYTES_PER_CELL / 2**20
-    if need_mb > memory_budget_mb:
-        return (
-            f"a map of {cells} cells would bring all users' maps to {need_mb:.0f} MB, "
-            f"past memory_budget_mb {memory_budget_mb:g}"
-        )
-    return None
-
 
 class Admission:
     def __init__(self, settings: AdmissionSettings | None = None) -> None:
@@ -126,6 +103,8 @@ class Admission:
         """Lags over the threshold for ``sustain_s`` that were draining, so nobody was shed
         then (one count per lag, however many reviews it was waited out)."""
         self._waited: float | None = None
+        self._waited_at = -math.inf
+        """When a lag was last waited out as draining."""
         self.last_p95_ms = 0.0
         """The window's lag p95 (health reports it; the judged lag is ``last_lag_ms``)."""
         self.last_lag_ms = 0.0
@@ -277,10 +256,18 @@ class Admission:
         # looking like a drain, they were shed 4.1 s later, the served users' p99 100 ms then.
         after = now - self._readmitted_at <= self.s.overshoot_s
         if self._over_since is not None and (after or now - self._over_since >= self.s.sustain_s):
-            if self.draining and not after and now - self._over_since < self.s.drain_patience_s:
+            # A burst passes once: a lag over the line again soon after one waited out is the
+            # load's. At 100 users (dev VM) a worker at 50 guided went over every 1-6 s, each
+            # time draining, and was waited out for 8 s with its p99 at 45-55 ms.
+            again = self._waited != self._over_since and (
+                self._over_since - self._waited_at <= self.s.drain_memory_s
+            )
+            patient = now - self._over_since < self.s.drain_patience_s
+            if self.draining and not after and not again and patient:
                 if self._waited != self._over_since:
                     self._waited = self._over_since
                     self.drain_waits += 1
+                self._waited_at = now
                 return []  # a burst passing: those shed for it would come back in seconds
             threshold = self._threshold(now)
             # While users join, their first whole-map steps are part of the lag: a burst, not

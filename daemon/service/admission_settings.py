@@ -55,6 +55,11 @@ class AdmissionSettings:
     drain_patience_s: float = 2.0
     """How long a draining lag over the threshold is waited out before shedding anyway. A lag
     that grows or holds sheds after ``sustain_s`` as before."""
+    drain_memory_s: float = 5.0
+    """A lag over the threshold within this of one waited out as draining is not waited out
+    again: bursts that come back are the load. At 100 users (dev VM, quiet) a worker's p99
+    went over the line 1.2, 6, 1.3 and 3.8 s apart, each time draining; at 50 users the
+    stalls waited out came 20 s apart."""
     overshoot_s: float = 10.0
     """A lag-driven shedding this soon after a readmission was that readmission's doing: at 100
     users on two workers (dev VM, quiet) sheds of 8-25 users came 1-9 s after readmissions of
