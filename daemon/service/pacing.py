@@ -27,7 +27,7 @@ class Pacing:
         slots: int = 1,
         guide_hz: float = 20.0,
         shed_period_s: float = 0.5,
-        record: Callable[[str, float, float, float], None] | None = None,
+        record: Callable[[str, float, float, float, bool], None] | None = None,
     ) -> None:
         self.slots = threading.Semaphore(slots)
         """Taken by a user's worker thread for its step: held for the step alone, never for
@@ -40,16 +40,17 @@ class Pacing:
         self.guide_period_s = 1.0 / guide_hz
         self.shed_period_s = shed_period_s
         self._record = record
-        self._steps: deque[tuple[str, float, float, float]] = deque()
+        self._steps: deque[tuple[str, float, float, float, bool]] = deque()
         self.behind = False
         """The daemon's loop is late on its inputs: a pose missing now may be ours to blame."""
 
-    def record(self, user: str, lag_ms: float, cpu_ms: float) -> None:
-        """One step's lag and CPU, from the user's worker thread: kept until the loop
-        ``flush``es them into ``record(user, lag_ms, cpu_ms, monotonic time)``, so admission
-        control's records are only ever touched on the loop (a deque's append is atomic)."""
+    def record(self, user: str, lag_ms: float, cpu_ms: float, urgent: bool = True) -> None:
+        """One step's lag and CPU (``urgent``: it answered an input, not a pose alone), from
+        the user's worker thread: kept until the loop ``flush``es them into ``record(user,
+        lag_ms, cpu_ms, monotonic time, urgent)``, so admission control's records are only ever
+        touched on the loop (a deque's append is atomic)."""
         if self._record is not None:
-            self._steps.append((user, lag_ms, cpu_ms, time.monotonic()))
+            self._steps.append((user, lag_ms, cpu_ms, time.monotonic(), urgent))
 
     def flush(self) -> None:
         """On the loop, before admission control reads its records."""

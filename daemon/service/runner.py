@@ -230,12 +230,12 @@ class UserRunner:
             if done is not None:
                 self.pacing.record(self.user, *done)
 
-    def _take_and_step(self) -> tuple[float, float] | None:
+    def _take_and_step(self) -> tuple[float, float, bool] | None:
         """On the worker: wait for a step slot (one per core, first come first served: fifty
         users' threads fighting over the GIL would make every step slow instead of a few
         late), take the inbox then, so the step has the freshest inputs, and step. Returns
-        (lag ms from the first urgent input, or from the turn coming; CPU ms), None if the
-        inbox was empty."""
+        (lag ms from the first urgent input, or from the turn coming; CPU ms; whether an
+        urgent input was answered), None if the inbox was empty."""
         gate = self.pacing.shed_gate if self.shed else contextlib.nullcontext()
         with gate, self.pacing.slots:
             with self._lock:
@@ -257,7 +257,7 @@ class UserRunner:
             inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
             gc_policy.after_step()  # the output is out: collect between steps
-        return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms
+        return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms, urgent_at is not None
 
     def _gather(self) -> bool:
         """On the worker: wait for inputs. Urgent ones (map, goal, refusal, button) step at

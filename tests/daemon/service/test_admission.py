@@ -56,12 +56,12 @@ def test_over_the_cpu_budget_the_newest_users_are_shed_until_the_rest_fit():
 
 
 def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_never_shed():
-    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5)  # threshold 30 ms
-    steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=40.0)
+    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5)  # threshold 50 − 10 = 40 ms
+    steps(adm, users, 10.0, cpu_ms=0.1, lag_ms=60.0)
     assert adm.review(10.0) == ([], [])  # over, but not for sustain_s yet
-    steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=40.0)
+    steps(adm, users, 10.6, cpu_ms=0.1, lag_ms=60.0)
     shed, _ = adm.review(10.6)
-    assert shed == [f"u{i}" for i in range(15, 20)]  # 1 − 30/40: a quarter
+    assert shed == [f"u{i}" for i in range(13, 20)]  # 1 − 40/60: a third, rounded up
     far = Admission(AdmissionSettings(lag_budget_ms=50.0, sustain_s=0.5))
     for u in users:
         far.join(u, 0.0)
@@ -89,10 +89,10 @@ def test_a_sustained_lag_sheds_in_proportion_to_its_excess_and_a_single_user_is_
     for t in (10.0, 10.6, 11.2):
         steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
         assert burst.review(t) == ([], [])  # joining: within the whole budget, nobody shed
-    for t in (11.7, 12.3):  # the joins over, the same lag is over 60 % of the budget
+    for t in (11.7, 12.3):  # the joins over, the same lag is over the budget less the unseen
         steps(burst, users, t, cpu_ms=0.1, lag_ms=45.0)
         shed, _ = burst.review(t)
-    assert shed == [f"u{i}" for i in range(13, 20)]  # 1 − 30/45 of 20, rounded up
+    assert shed == [f"u{i}" for i in range(17, 20)]  # 1 − 40/45 of 20, rounded up
     alone = Admission(AdmissionSettings(cpu_budget_ms=10.0))
     alone.join("only", 0.0)
     steps(alone, ["only"], 10.0, cpu_ms=50.0, lag_ms=500.0)
@@ -156,7 +156,9 @@ def test_a_burst_that_has_passed_is_waited_out_and_a_lasting_lag_is_not():
 
 
 def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once():
-    adm, users = joined(20, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        20, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0, readmit_share=0.25
+    )
     for t in (10.0, 11.0):  # a burst of lag: half are shed at once
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -171,7 +173,7 @@ def test_calm_brings_back_as_many_as_fit_up_to_a_quarter_of_the_guided_at_once()
 def test_no_user_comes_back_past_the_capacity_the_lag_measured():
     adm, users = joined(8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
     for t in (10.0, 11.0):  # 8 × 40 = 320 ms/s of CPU, far under the budget, yet late
-        steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
+        steps(adm, users, t, cpu_ms=4.0, lag_ms=80.0)
         shed, _ = adm.review(t)
     assert shed == ["u4", "u5", "u6", "u7"]
     back = []
@@ -190,18 +192,20 @@ def test_late_again_above_the_remembered_capacity_keeps_the_lower_one():
     """Late at 320 ms/s; three come back (280), and long after (past ``overshoot_s``) cost
     more than before and the lag is over again at 340. The machine gave less than 340 both
     times: readmission stays within 0.9 × 320, or the same users would be shed again."""
-    adm, users = joined(8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        8, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0, readmit_share=0.25
+    )
     for t in (10.0, 11.0):
-        steps(adm, users, t, cpu_ms=4.0, lag_ms=60.0)
+        steps(adm, users, t, cpu_ms=4.0, lag_ms=80.0)
         adm.review(t)
     first, back = users[:4], []
     for t in np.arange(12.0, 27.0, 1.0):  # the last came back at 15
         steps(adm, first + back, t, cpu_ms=4.0, lag_ms=2.0)
         back += adm.review(t)[1]
     assert back == ["u4", "u5", "u6"]
-    for t in (27.0, 28.0):  # 4 × 40 + 3 × 60 = 340 ms/s, late: a quarter of 7 shed
-        steps(adm, first, t, cpu_ms=4.0, lag_ms=40.0)
-        steps(adm, back, t, cpu_ms=6.0, lag_ms=40.0)
+    for t in (27.0, 28.0):  # 4 × 40 + 3 × 60 = 340 ms/s, late: 1 − 40/48 of 7 shed
+        steps(adm, first, t, cpu_ms=4.0, lag_ms=48.0)
+        steps(adm, back, t, cpu_ms=6.0, lag_ms=48.0)
         shed, _ = adm.review(t)
     assert shed == ["u5", "u6"] and adm.overshoots == 0  # 13 s after: not that readmission's
     again = []
@@ -240,7 +244,7 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
     """The old rule remembered the CPU when the lag forced a shedding (past the knee), so
     readmission filled to 90 % of it, overshot, and half were shed again: here 15-17 users
     every 10 s; on the dev VM 8-25 every 2-3 s, each lag setting the guided users' p99."""
-    adm = Admission(AdmissionSettings(lag_budget_ms=50.0))
+    adm = Admission(AdmissionSettings(lag_budget_ms=50.0, readmit_share=0.25))
     events = _flapping(adm, 130.0)
     sheds = [(t, -n) for t, n in events if n < 0]
     assert sheds[0][1] == 25  # the start: half of 50 at 80 ms
@@ -256,12 +260,18 @@ def test_a_readmission_that_overshoots_is_undone_and_not_repeated():
     assert probes[:6] == [1, 1, 1, 1, 1, -1] and set(probes[6:]) <= {1, -1}
     assert len(adm.shed) == 21 and adm.calm_wanted_s == 16.0  # 29 guided: the knee
     # Without the overshoot rule (what the old one did), the same machine flaps.
-    old = _flapping(Admission(AdmissionSettings(lag_budget_ms=50.0, overshoot_s=0.0)), 130.0)
+    old = _flapping(
+        Admission(AdmissionSettings(lag_budget_ms=50.0, overshoot_s=0.0, readmit_share=0.25)),
+        130.0,
+    )
     assert len([n for _, n in old if n <= -15]) >= 5
 
 
 def test_a_lag_that_outlasts_the_undone_readmission_is_shed_by_the_lag_rule():
-    adm, users = joined(20, width=2, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0)
+    adm, users = joined(
+        20, width=2, lag_budget_ms=50.0, sustain_s=0.5, min_shed_s=1.0, calm_s=1.0,
+        readmit_share=0.25,
+    )  # fmt: skip
     for t in (10.0, 11.0):
         steps(adm, users, t, cpu_ms=1.0, lag_ms=600.0)
         shed, _ = adm.review(t)
@@ -282,8 +292,9 @@ def test_a_user_shed_while_late_comes_back_priced_at_what_a_guided_user_costs_no
     """Shed while late, their inputs batched into fewer steps: 60 ms/s each then. Guided
     again, a user costs 90 (the dev VM: 7.3 ms/s each at 50 late users, ~10.4 at 25 calm)."""
     adm, users = joined(
-        20, width=2, cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5
-    )
+        20, width=2, cpu_budget_ms=5000.0, min_shed_s=1.0, calm_s=1.0, sustain_s=0.5,
+        readmit_share=0.25,
+    )  # fmt: skip
     for t in (10.0, 11.0):  # 20 × 60 = 1200 ms/s and late: half shed, capacity 1200
         steps(adm, users, t, cpu_ms=6.0, lag_ms=600.0)
         shed, _ = adm.review(t)

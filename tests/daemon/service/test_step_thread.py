@@ -83,10 +83,10 @@ def test_the_thread_paces_itself_a_ring_wakes_it_and_jobs_run_while_it_waits():
 def test_steps_recorded_on_worker_threads_reach_admission_only_when_the_loop_flushes():
     from daemon.service.pacing import Pacing
 
-    got: list[tuple[str, float, float, float, str]] = []
+    got: list[tuple[str, float, float, float, bool, str]] = []
     pacing = Pacing(record=lambda *a: got.append((*a, threading.current_thread().name)))
     workers = [
-        threading.Thread(target=pacing.record, args=(f"u{i}", 5.0, 0.5), name=f"plan-u{i}")
+        threading.Thread(target=pacing.record, args=(f"u{i}", 5.0, 0.5, i != 1), name=f"plan-u{i}")
         for i in range(3)
     ]
     for w in workers:
@@ -97,7 +97,8 @@ def test_steps_recorded_on_worker_threads_reach_admission_only_when_the_loop_flu
     before = time.monotonic()
     pacing.flush()
     assert sorted(u for u, *_ in got) == ["u0", "u1", "u2"]
-    assert all(lag == 5.0 and cpu == 0.5 and at <= before for _, lag, cpu, at, _ in got)
+    assert all(lag == 5.0 and cpu == 0.5 and at <= before for _, lag, cpu, at, _, _ in got)
+    assert {u: urgent for u, _, _, _, urgent, _ in got} == {"u0": True, "u1": False, "u2": True}
     assert {name for *_, name in got} == {threading.current_thread().name}
     pacing.flush()
     assert len(got) == 3  # each step once
