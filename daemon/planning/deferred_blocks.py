@@ -159,6 +159,9 @@ class DeferredBlocks(GlobalPlanner):
                 if not hits.size:
                     return None  # off P, or behind the user's last cell on it: repair
                 at += int(hits[0])
+        if at != self._at:  # the cells the user walked past leave the suffix (P stays valid)
+            self._on[flat[self._at : at]] = False
+            self._at = at
         values = np.asarray(blocked)
         if not values.all():  # a freed cell may lower g on and off the path: repair
             return None
@@ -169,9 +172,6 @@ class DeferredBlocks(GlobalPlanner):
             if self._on[cells].any():  # (c) fails: the delta cuts the suffix
                 return None
             self._pending.append(cells)
-        if at != self._at:  # the cells the user walked past leave the suffix
-            self._on[flat[self._at : at]] = False
-            self._at = at
         self.deferred_steps += 1
         assert self._path is not None
         path = self._path[at:].copy()
