@@ -186,168 +186,55 @@ def test_the_bench_walks_defer_and_read_the_reference(inner):
     np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, goal))
 
 
-# -- the rule, case by case ---------------------------------------------------------------
+@pytest.mark.gpu
+@pytest.mark.timeout(300)
+def test_a_batch_answers_deferred_steps_on_the_host_and_posts_the_others(monkeypatch):
+    """``batch.step_many`` with wrapped planners of device-served maps: a step whose blocks
+    miss the path is never posted; one whose blocks cut it posts them with what was pending;
+    every path is the reference's."""
+    if not cuda_available():
+        pytest.skip("no usable CUDA device")
+    from daemon.planning.cuda import batch, resident
 
+    monkeypatch.setattr(resident, "IDLE_MS", 60_000.0)  # slow Python references between steps
+    posted: list[int] = []
+    post_steps = batch.post_steps
 
-class Spy:
-    """Counts the inner planner's steps and updates, and keeps their deltas."""
+    def counted(posts):
+        posted.append(len(posts))
+        return post_steps(posts)
 
-    def __init__(self, inner: FastCpuPlanner) -> None:
-        self.steps: list[tuple[np.ndarray, np.ndarray]] = []
-        self.updates: list[tuple[np.ndarray, np.ndarray]] = []
-        step, update = inner.update_and_path, inner.update
-
-        def spied_step(cells, blocked, start):
-            self.steps.append((np.asarray(cells).copy(), np.asarray(blocked).copy()))
-            return step(cells, blocked, start)
-
-        def spied_update(cells, blocked):
-            self.updates.append((np.asarray(cells).copy(), np.asarray(blocked).copy()))
-            return update(cells, blocked)
-
-        inner.update_and_path = spied_step  # type: ignore[method-assign]
-        inner.update = spied_update  # type: ignore[method-assign]
-
-
-N = 20
-GOAL, USER = (1, 10), (18, 10)  # a straight column: the path is (18..1, 10)
-OFF = 5 * N + 3  # a cell far off the path
-ON = 9 * N + 10  # a cell on the path ahead of the user
-
-
-def walking() -> tuple[DeferredBlocks, Spy, np.ndarray, np.ndarray]:
-    truth = np.zeros((N, N), bool)
-    planner = DeferredBlocks(FastCpuPlanner(cut_over=1e6))
-    spy = Spy(planner.inner)  # type: ignore[arg-type]
-    planner.plan(truth, GOAL)
-    _, path = planner.update_and_path(np.empty(0, np.int64), np.empty(0, bool), USER)
-    assert len(spy.steps) == 1 and path[0].tolist() == list(USER)
-    return planner, spy, truth, path
-
-
-def reference(truth: np.ndarray, start) -> np.ndarray:
-    return reference_path(dijkstra_field(truth, GOAL), truth, start)
-
-
-def test_a_block_off_the_path_defers():
-    planner, spy, truth, path = walking()
-    user = tuple(int(v) for v in path[1])
-    stats, got = planner.update_and_path(np.array([OFF]), np.array([True]), user)
-    assert len(spy.steps) == 1 and not spy.updates  # no inner call
-    assert (stats.iterations, stats.cells_touched) == (0, 0) and stats.ms >= 0
-    assert planner.deferred_steps == 1 and planner.pending_blocks() == 1
-    np.testing.assert_array_equal(got, path[1:])
-    assert not planner.inner.blocked().reshape(-1)[OFF]  # type: ignore[attr-defined]
-    truth.reshape(-1)[OFF] = True
-    np.testing.assert_array_equal(got, reference(truth, user))
-
-
-def test_a_block_on_the_suffix_repairs_with_the_pending_blocks_merged():
-    planner, spy, truth, path = walking()
-    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
-    _stats, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[2]))
-    assert len(spy.steps) == 2 and planner.deferred_steps == 1
-    assert sorted(spy.steps[1][0].tolist()) == sorted([OFF, ON]) and spy.steps[1][1].all()
-    truth.reshape(-1)[[OFF, ON]] = True
-    np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
-    assert planner.pending_blocks() == 0
-
-
-def test_a_block_behind_the_user_defers_and_one_under_the_user_repairs():
-    planner, spy, _truth, path = walking()
-    behind = int(path[0][0]) * N + int(path[0][1])
-    planner.update_and_path(np.array([behind]), np.array([True]), tuple(path[1]))
-    assert len(spy.steps) == 1
-    under = int(path[2][0]) * N + int(path[2][1])
-    _, got = planner.update_and_path(np.array([under]), np.array([True]), tuple(path[2]))
-    assert len(spy.steps) == 2 and len(got) == 0  # the user stands in an obstacle: no path
-
-
-def test_a_free_repairs():
-    planner, spy, truth, _path = walking()
-    truth.reshape(-1)[ON] = True
-    planner.update(np.array([ON]), np.array([True]))
-    _, got = planner.update_and_path(np.array([ON]), np.array([False]), USER)
-    assert len(spy.steps) == 2 and planner.deferred_steps == 0
-    truth.reshape(-1)[ON] = False
-    np.testing.assert_array_equal(got, reference(truth, USER))
-
-
-def test_a_user_off_the_path_repairs():
-    planner, spy, truth, _path = walking()
-    _, got = planner.update_and_path(np.array([OFF]), np.array([True]), (18, 2))
-    assert len(spy.steps) == 2 and planner.deferred_steps == 0
-    truth.reshape(-1)[OFF] = True
-    np.testing.assert_array_equal(got, reference(truth, (18, 2)))
-
-
-def test_a_pending_block_freed_again_leaves_no_trace():
-    planner, spy, truth, path = walking()
-    planner.update_and_path(np.array([OFF, OFF + 1]), np.array([True, True]), tuple(path[1]))
-    _, got = planner.update_and_path(np.array([OFF]), np.array([False]), tuple(path[2]))
-    cells, values = spy.steps[1]
-    # the pending block of OFF is gone; its free reaches the inner planner as a no-op
-    assert sorted(cells.tolist()) == [OFF, OFF + 1]
-    assert dict(zip(cells.tolist(), values.tolist(), strict=True)) == {OFF: False, OFF + 1: True}
-    truth.reshape(-1)[OFF + 1] = True
-    inner = planner.inner
-    assert inner.blocked().reshape(-1)[OFF] == False  # noqa: E712
-    np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
-    np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, GOAL))
-
-
-READS: dict[str, Callable[[DeferredBlocks], object]] = {
-    "path": lambda p: p.path((18, 2)),
-    "cost_at": lambda p: p.cost_at((5, 4)),
-    "costs": lambda p: p.costs(),
-    "costs_within": lambda p: p.costs_within(3, 8, 1, 6),
-    "settle": lambda p: p.settle(),
-    "pending": lambda p: p.pending(),
-    "blocked": lambda p: p.blocked(),
-    "update": lambda p: p.update(np.array([OFF + 2]), np.array([True])),
-}
-
-
-@pytest.mark.parametrize("read", READS)
-def test_each_read_flushes_the_pending_blocks_first(read):
-    planner, _spy, truth, path = walking()
-    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
-    assert planner.pending_blocks() == 1
-    READS[read](planner)
-    assert planner.pending_blocks() == 0
-    assert planner.inner.blocked().reshape(-1)[OFF]  # type: ignore[attr-defined]
-    truth.reshape(-1)[OFF] = True
-    if read == "update":
-        truth.reshape(-1)[OFF + 2] = True
-    np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, GOAL))
-    assert planner.cost_at((5, 3)) == int(INF)
-
-
-def test_a_plan_discards_what_was_pending_and_the_path():
-    planner, spy, truth, path = walking()
-    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
-    planner.plan(truth, GOAL)  # the whole map, without OFF
-    assert planner.pending_blocks() == 0 and not spy.updates
-    planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(path[2]))
-    assert len(spy.steps) == 2  # no P after a plan: the step repairs
-    truth.reshape(-1)[OFF + 1] = True
-    np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, GOAL))
-
-
-def test_a_delta_outside_the_map_is_refused_and_keeps_what_is_pending():
-    planner, _spy, truth, path = walking()
-    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
-    with pytest.raises(IndexError):
-        planner.update_and_path(np.array([N * N]), np.array([True]), tuple(path[2]))
-    assert planner.pending_blocks() == 1
-    truth.reshape(-1)[OFF] = True
-    np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, GOAL))
-
-
-def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss():
-    # ``getattr(planner, "max_open", None)`` and ``search_stats`` at every step: class
-    # attributes, so ``__getattr__`` (and its flush) never runs for them
-    assert "max_open" in vars(DeferredBlocks) and "search_stats" in vars(DeferredBlocks)
-    planner = make_planner("eds", "cpu")
-    assert isinstance(planner, DeferredBlocks) and planner.name == "eds-cpu-fast"
-    assert not isinstance(make_planner("dss", "cpu"), DeferredBlocks)
+    monkeypatch.setattr(batch, "post_steps", counted)
+    shape, goal = (210, 200), (3, 100)
+    users = [make_planner("eds", "cuda") for _ in range(3)]
+    truths = [np.zeros(shape, bool) for _ in users]
+    starts = [(200, 100), (200, 60), (180, 150)]
+    paths = []
+    for p, truth, start in zip(users, truths, starts, strict=True):
+        assert isinstance(p, DeferredBlocks)
+        p.plan(truth, goal)
+        paths.append(p.update_and_path(np.empty(0, np.int64), np.empty(0, bool), start)[1])
+    for rnd in range(4):
+        steps, cut = [], []
+        for k, (p, truth, path) in enumerate(zip(users, truths, paths, strict=True)):
+            start = tuple(int(v) for v in path[1])
+            ahead = path[min(len(path) - 1, 20)]
+            if (k + rnd) % 2:  # blocks beside the path's end: cut it
+                cells = np.array([int(ahead[0]) * shape[1] + int(ahead[1])])
+            else:  # blocks far off every path
+                cells = np.array([(100 + rnd) * shape[1] + 5, (100 + rnd) * shape[1] + 6])
+            truth.reshape(-1)[cells] = True
+            steps.append((p, cells, np.ones(cells.size, bool), start))
+            cut.append(bool((k + rnd) % 2))
+        before = [p.deferred_steps for p in users]
+        posted.clear()
+        results = batch.step_many(steps)
+        for k, ((p, _, _, start), res) in enumerate(zip(steps, results, strict=True)):
+            assert not isinstance(res, BaseException), res
+            ref = reference_path(dijkstra_field(truths[k], goal), truths[k], start)
+            np.testing.assert_array_equal(res[1], ref)
+            assert (p.deferred_steps == before[k] + 1) == (not cut[k])
+            paths[k] = res[1]
+        assert sum(posted) == sum(cut)  # the deferred steps were never posted
+    for p, truth in zip(users, truths, strict=True):
+        np.testing.assert_array_equal(p.costs(), dijkstra_field(truth, goal))
