@@ -46,6 +46,8 @@ READS = frozenset(
 """Inner attributes that only read (or finish) the field: a lookup flushes and keeps P."""
 
 Step = tuple[UpdateStats, np.ndarray]
+_NO_CELLS = np.empty(0, dtype=np.int64)
+_NO_VALUES = np.empty(0, dtype=bool)
 
 
 class DeferredBlocks(GlobalPlanner):
@@ -61,6 +63,7 @@ class DeferredBlocks(GlobalPlanner):
         self.deferred_steps = 0
         """Steps answered without the inner planner (for tests and the bench's notes)."""
         self._pending: list[np.ndarray] = []  # flat cells blocked but not yet given to inner
+        self._is_pending = np.zeros(0, dtype=bool)  # per cell: in ``_pending`` (each once)
         self._path: np.ndarray | None = None  # P: the last path returned, (k, 2) int32
         self._flat: np.ndarray | None = None  # P's flat indices
         self._at = 0  # the user's index in P at the last step
@@ -91,12 +94,13 @@ class DeferredBlocks(GlobalPlanner):
         return self.inner.shape
 
     def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
-        self._pending = []  # the plan reads the whole map: what was pending is in it
+        self._take_pending()  # the plan reads the whole map: what was pending is in it
         self._forget()
         stats = self.inner.plan(blocked, goal)
         h, w = self.inner.shape
         if self._on.size != h * w:
             self._on = np.zeros(h * w, dtype=bool)
+            self._is_pending = np.zeros(h * w, dtype=bool)
         self._width, self._cells = w, h * w
         return stats
 
@@ -116,8 +120,19 @@ class DeferredBlocks(GlobalPlanner):
         return UpdateStats(stats.iterations, stats.cells_touched, max(ms, stats.ms)), path
 
     def path(self, start: Cell) -> np.ndarray:
-        self.flush()
-        return self.inner.path(start)
+        # The rule with an empty delta: from a cell of P's suffix, the suffix is the path
+        # (the route reads one at a step that changed nothing, the user a cell further on).
+        done = self.deferred(_NO_CELLS, _NO_VALUES, start)
+        if done is not None:
+            return done[1]
+        if self._pending:  # one step of the inner planner, not an update and then a read
+            cells, values = self.merged(_NO_CELLS, _NO_VALUES)
+            path = self.inner.update_and_path(cells, values, start)[1]
+        else:
+            self._forget()
+            path = self.inner.path(start)
+        self.kept(path)  # the reference path from ``start``: the next step may keep it
+        return path
 
     def cost_at(self, cell: Cell) -> int:
         self.flush()
@@ -171,7 +186,10 @@ class DeferredBlocks(GlobalPlanner):
                 return None  # the inner planner raises the IndexError
             if self._on[cells].any():  # (c) fails: the delta cuts the suffix
                 return None
-            self._pending.append(cells)
+            new = cells[~self._is_pending[cells]]  # a cell blocked again is pending once
+            if new.size:
+                self._is_pending[new] = True
+                self._pending.append(new)
         self.deferred_steps += 1
         assert self._path is not None
         path = self._path[at:].copy()
@@ -191,10 +209,9 @@ class DeferredBlocks(GlobalPlanner):
             # the inner planner would refuse the merged delta whole: the pending blocks stay
             raise IndexError(f"a cell index is outside the {self.shape} map")
         values = np.broadcast_to(np.asarray(blocked, dtype=bool), cells.shape)
-        pend = np.unique(np.concatenate(self._pending))
-        self._pending = []
-        if cells.size:
-            pend = pend[~np.isin(pend, cells)]
+        if cells.size:  # masks, not sorts: thousands of pending cells cost ~0.5 ms sorted
+            self._is_pending[cells] = False
+        pend = self._take_pending()
         merged = np.concatenate([pend, cells])
         return merged, np.concatenate([np.ones(pend.size, dtype=bool), values])
 
@@ -210,13 +227,22 @@ class DeferredBlocks(GlobalPlanner):
     def flush(self) -> None:
         """Give the pending blocks to the inner planner (before anything reads its field)."""
         if self._pending:
-            pend = np.unique(np.concatenate(self._pending))
-            self._pending = []
+            pend = self._take_pending()
             self.inner.update(pend, np.ones(pend.size, dtype=bool))
 
     def pending_blocks(self) -> int:
         """Cells blocked by deferred steps and not yet given to the inner planner."""
         return int(sum(p.size for p in self._pending))
+
+    def _take_pending(self) -> np.ndarray:
+        """The pending cells still marked (a new delta unmarks those it sets), cleared."""
+        if not self._pending:
+            return _NO_CELLS
+        pend = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        pend = pend[self._is_pending[pend]]
+        self._is_pending[pend] = False
+        self._pending = []
+        return pend
 
     def _forget(self) -> None:
         if self._flat is not None:

@@ -180,3 +180,17 @@ def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss():
     planner = make_planner("eds", "cpu")
     assert isinstance(planner, DeferredBlocks) and planner.name == "eds-cpu-fast"
     assert not isinstance(make_planner("dss", "cpu"), DeferredBlocks)
+
+
+def test_a_path_read_from_the_suffix_keeps_the_pending_blocks_and_one_elsewhere_is_one_step():
+    planner, spy, truth, path = walking()
+    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
+    truth.reshape(-1)[OFF] = True
+    got = planner.path(tuple(path[3]))  # the route's read at a step that changed nothing
+    np.testing.assert_array_equal(got, path[3:])
+    np.testing.assert_array_equal(got, reference(truth, tuple(path[3])))
+    assert len(spy.steps) == 1 and not spy.updates and planner.pending_blocks() == 1
+    got = planner.path((18, 2))  # off P: the pending blocks and the read in one inner step
+    assert len(spy.steps) == 2 and not spy.updates and planner.pending_blocks() == 0
+    assert spy.steps[1][0].tolist() == [OFF]
+    np.testing.assert_array_equal(got, reference(truth, (18, 2)))
