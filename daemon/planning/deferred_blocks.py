@@ -25,6 +25,14 @@ alone) before anything else reads or changes its field. A deferred step after a 
 applies the same argument to the map that includes the earlier pending blocks: P's suffix
 only shrinks as the user walks it, and each delta was checked against the suffix of its step.
 
+Where it applies: maps the device serves (the registry wraps the cuda backend's EDS; the rule
+is on when the inner planner's name says ``cuda``). There a repair step is a round trip, ~120
+µs on an H100 at 400², and the rule's check ~10 µs of the host. On the host a repair step of
+such a delta costs 20-30 µs, about what the check does, and the deltas that wait make the next
+repair longer: on the dev VM (2026-11-27, 400², 40 %, two interleaved runs each) the CPU walks
+took 0.9-1.6 × main's time with the rule, p99 up to 2 × (``docs/notes/gpu-focused-repair.md``,
+round lazy20). ``defer=True`` applies it anyway (the CPU property tests do).
+
 What the wrapper answers itself is what the route asks at every step (``max_open``,
 ``search_stats``: no ``__getattr__`` miss on the hot path); everything else comes from the
 inner planner after the pending blocks are flushed to it.
@@ -58,8 +66,14 @@ class DeferredBlocks(GlobalPlanner):
     search_stats = None
     dss = False
 
-    def __init__(self, inner: GlobalPlanner) -> None:
+    def __init__(self, inner: GlobalPlanner, defer: bool | None = None) -> None:
+        """``defer``: apply the rule (True), or pass every call through (False); None: apply
+        it where the inner planner serves the map on the device (its name says ``cuda``),
+        decided at each ``plan``, as ``SmallGridsOnCpu`` picks its planner."""
         self.inner = inner
+        self._defer = defer
+        self.defers = False
+        """Whether the rule applies to the current map."""
         self.deferred_steps = 0
         """Steps answered without the inner planner (for tests and the bench's notes)."""
         self._pending: list[np.ndarray] = []  # flat cells blocked but not yet given to inner
@@ -102,6 +116,13 @@ class DeferredBlocks(GlobalPlanner):
             self._on = np.zeros(h * w, dtype=bool)
             self._is_pending = np.zeros(h * w, dtype=bool)
         self._width, self._cells = w, h * w
+        self.defers = self._defer if self._defer is not None else "-cuda-" in self.inner.name
+        if self.defers:
+            self.__dict__.pop("update_and_path", None)
+            self.__dict__.pop("path", None)
+        else:  # the inner planner's own calls, bound here: a step pays no frame of ours
+            self.update_and_path = self.inner.update_and_path  # type: ignore[method-assign]
+            self.path = self.inner.path  # type: ignore[method-assign]
         return stats
 
     def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
@@ -158,7 +179,7 @@ class DeferredBlocks(GlobalPlanner):
         """The step's answer when it needs no repair (the rule above; the delta is then
         pending), else None and nothing changed."""
         flat = self._flat
-        if flat is None:
+        if flat is None:  # no P (or the rule is off: kept() keeps none)
             return None
         t0 = time.perf_counter() if t0 is None else t0
         r, c = int(start[0]), int(start[1])
@@ -218,7 +239,7 @@ class DeferredBlocks(GlobalPlanner):
     def kept(self, path: np.ndarray) -> None:
         """Remember ``path``, just returned by the inner planner's step, as P."""
         self._forget()
-        if len(path) == 0 or self._width == 0:
+        if len(path) == 0 or self._width == 0 or not self.defers:
             return
         flat = path[:, 0].astype(np.int64) * self._width + path[:, 1]
         self._on[flat] = True

@@ -53,10 +53,11 @@ def _field_planner(dss: bool) -> PlannerFactory:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         planner = _field_backend(dss, backend, variant)
-        if dss:  # the baseline: a full plan at every step, never skipped
+        if dss or backend != "cuda":  # DSS: the baseline, a full plan at every step
             return planner
-        # EDS: a step whose new obstacles all miss the user's path needs no repair
-        # (deferred_blocks.py states the rule and its proof); it keeps them pending.
+        # EDS on the device: a step whose new obstacles all miss the user's path needs no
+        # repair and no round trip (deferred_blocks.py: the rule, its proof, and why not on
+        # the host, where a repair step costs about what the rule's check does).
         from .deferred_blocks import DeferredBlocks
 
         return DeferredBlocks(planner)

@@ -14,7 +14,6 @@ import pytest
 
 from daemon.planning import cuda_available, make_planner
 from daemon.planning.cpu.fast import FastCpuPlanner
-from daemon.planning.deferred_blocks import DeferredBlocks
 from daemon.planning.field import FieldPlanner
 
 PLANNERS = [
@@ -41,8 +40,7 @@ def make(request) -> Callable[..., FieldPlanner]:
 
             return CudaPlanner(variant, dss=name == "dss")
         planner = make_planner(name, backend, variant)
-        # EDS comes wrapped: steps whose new obstacles miss the path skip the repair
-        assert isinstance(planner, FieldPlanner | DeferredBlocks)
-        return planner  # type: ignore[return-value]
+        assert isinstance(planner, FieldPlanner)
+        return planner
 
     return factory

@@ -46,7 +46,7 @@ ON = 9 * N + 10  # a cell on the path ahead of the user
 
 def walking() -> tuple[DeferredBlocks, Spy, np.ndarray, np.ndarray]:
     truth = np.zeros((N, N), bool)
-    planner = DeferredBlocks(FastCpuPlanner(cut_over=1e6))
+    planner = DeferredBlocks(FastCpuPlanner(cut_over=1e6), defer=True)
     spy = Spy(planner.inner)  # type: ignore[arg-type]
     planner.plan(truth, GOAL)
     _, path = planner.update_and_path(np.empty(0, np.int64), np.empty(0, bool), USER)
@@ -177,9 +177,19 @@ def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss():
     # ``getattr(planner, "max_open", None)`` and ``search_stats`` at every step: class
     # attributes, so ``__getattr__`` (and its flush) never runs for them
     assert "max_open" in vars(DeferredBlocks) and "search_stats" in vars(DeferredBlocks)
-    planner = make_planner("eds", "cpu")
-    assert isinstance(planner, DeferredBlocks) and planner.name == "eds-cpu-fast"
-    assert not isinstance(make_planner("dss", "cpu"), DeferredBlocks)
+    assert not isinstance(make_planner("eds", "cpu"), DeferredBlocks)  # the device's only
+    assert isinstance(make_planner("eds", "cuda"), DeferredBlocks)  # built before any cupy
+
+
+def test_on_the_host_by_default_every_call_is_the_inner_planners_own():
+    inner = FastCpuPlanner()
+    planner = DeferredBlocks(inner)
+    planner.plan(np.zeros((N, N), bool), GOAL)
+    assert not planner.defers and planner.name == "eds-cpu-fast"
+    assert planner.update_and_path == inner.update_and_path and planner.path == inner.path
+    _, path = planner.update_and_path(np.array([OFF]), np.array([True]), USER)
+    _, path = planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(path[1]))
+    assert planner.deferred_steps == 0 and planner.pending_blocks() == 0
 
 
 def test_a_path_read_from_the_suffix_keeps_the_pending_blocks_and_one_elsewhere_is_one_step():
