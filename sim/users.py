@@ -293,6 +293,10 @@ def kept_up(late_ms: np.ndarray, total_s: float, due_per_s: float, period_ms: fl
 def memory_per_user(planner: Any) -> dict[str, int]:
     """Bytes a user's planner holds: device memory, and page-locked host memory (cuda)."""
     out = {"device_bytes": int(getattr(planner, "device_bytes", lambda: 0)())}
+    from daemon.planning.deferred_blocks import DeferredBlocks
+
+    if isinstance(planner, DeferredBlocks):  # EDS's wrapper holds no buffers of its own
+        planner = planner.inner
     # The cuda backend's EDS wraps the planner that serves the map (small_grids.py), whose
     # private buffers its attribute lookup does not pass on.
     planner = getattr(planner, "_serving", None) or planner

@@ -52,27 +52,39 @@ def _field_planner(dss: bool) -> PlannerFactory:
     def factory(backend: str, variant: str) -> GlobalPlanner:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
-        if backend == "reference":
-            from .reference import ReferencePlanner
+        planner = _field_backend(dss, backend, variant)
+        if dss or backend != "cuda":  # DSS: the baseline, a full plan at every step
+            return planner
+        # EDS on the device: a step whose new obstacles all miss the user's path needs no
+        # repair and no round trip (deferred_blocks.py: the rule, its proof, and why not on
+        # the host, where a repair step costs about what the rule's check does).
+        from .deferred_blocks import DeferredBlocks
 
-            return ReferencePlanner(dss)
-        if backend == "cpu":
-            if variant == "paper":
-                from .cpu.paper import PaperCpuPlanner
-
-                return PaperCpuPlanner(dss)
-            from .cpu.fast import FastCpuPlanner
-
-            return FastCpuPlanner(dss)
-        if not dss and variant == "fast":  # EDS on a small grid: the host's repair is quicker
-            from .cuda.small_grids import SmallGridsOnCpu
-
-            return SmallGridsOnCpu(variant)
-        from .cuda.planner import CudaPlanner
-
-        return CudaPlanner(variant, dss=dss)
+        return DeferredBlocks(planner)
 
     return factory
+
+
+def _field_backend(dss: bool, backend: str, variant: str) -> GlobalPlanner:
+    if backend == "reference":
+        from .reference import ReferencePlanner
+
+        return ReferencePlanner(dss)
+    if backend == "cpu":
+        if variant == "paper":
+            from .cpu.paper import PaperCpuPlanner
+
+            return PaperCpuPlanner(dss)
+        from .cpu.fast import FastCpuPlanner
+
+        return FastCpuPlanner(dss)
+    if not dss and variant == "fast":  # EDS on a small grid: the host's repair is quicker
+        from .cuda.small_grids import SmallGridsOnCpu
+
+        return SmallGridsOnCpu(variant)
+    from .cuda.planner import CudaPlanner
+
+    return CudaPlanner(variant, dss=dss)
 
 
 def _astar_planner(backend: str, variant: str) -> GlobalPlanner:

@@ -12,7 +12,9 @@ A batch holds each planner once (a planner has one call in flight); a step that 
 delta outside the map, a device fault) is returned as its exception, in its place, and the
 others are still served. The cuda backend's EDS (``SmallGridsOnCpu``) is batched when its map
 is served by the device; other planners step one after another, as their own
-``update_and_path`` does.
+``update_and_path`` does. An EDS step that needs no repair (``deferred_blocks.py``: its new
+obstacles all miss the user's path) is answered on the host and never posted; the others post
+their pending blocks merged with their delta.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..deferred_blocks import DeferredBlocks
 from . import abi
 from .planner import CudaPlanner
 from .posting import batch_size, post_steps
@@ -41,8 +44,21 @@ def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
     out: list[Any] = [None] * len(steps)
     fast: list[int] = []
     posts = []
+    keeps: dict[int, DeferredBlocks] = {}
     t0 = time.perf_counter()
     for i, (p, cells, blocked, start) in enumerate(steps):
+        if isinstance(p, DeferredBlocks):
+            done = p.deferred(cells, blocked, start)
+            if done is not None:  # no repair needed: nothing to post
+                out[i] = done
+                continue
+            try:
+                cells, blocked = p.merged(cells, blocked)
+            except Exception as exc:
+                out[i] = exc
+                continue
+            keeps[i], p = p, p.inner
+        own = p
         if isinstance(p, SmallGridsOnCpu):  # the cuda backend's EDS: which one serves the map
             p = p._serving
         if isinstance(p, CudaPlanner) and p.variant == "fast":
@@ -50,11 +66,14 @@ def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
             posts.append((p, cells, blocked, start, t0))
             continue
         try:
-            out[i] = steps[i][0].update_and_path(cells, blocked, start)
+            out[i] = own.update_and_path(cells, blocked, start)
         except Exception as exc:  # one user's failure is that user's result
             out[i] = exc
     size = min(max_batch or batch_size(), abi.BATCH_MAX)
     for at in range(0, len(fast), size):
         for i, res in zip(fast[at : at + size], post_steps(posts[at : at + size]), strict=True):
             out[i] = res
+    for i, wrapper in keeps.items():  # each repaired step's path is its planner's new P
+        if not isinstance(out[i], BaseException):
+            wrapper.kept(out[i][1])
     return out

@@ -1,0 +1,272 @@
+"""EDS steps that need no repair: new obstacles off the user's path wait until something reads.
+
+EDS's contract (``cpu/fast.py``): after every step the path from the user is the reference
+Dijkstra's path of the current map, tie for tie, and g along it is exact; the whole field
+equals Dijkstra after ``settle()``. Most walking steps need no repair to keep it. The rule:
+
+    Let P be the path this planner returned at its previous step (nothing given to it since
+    but reads). If (a) the user's cell s lies on P, (b) every cell of the new delta becomes
+    blocked, and (c) no cell of the delta lies on P's suffix from s, then that suffix is the
+    step's answer: no repair, no device call, the delta kept pending.
+
+Proof, in the paper's terms. Let g0 be the exact field of the map before the delta and g1
+after it. (1) Blocking only removes edges (an edge joins two free cells; diagonals need no
+free corners, ``grid.py``), so g1 >= g0 everywhere. (2) No cell of P's suffix is blocked, so
+the suffix is still a walk to the goal of cost g0[s]; with (1), g1 = g0 on every cell of it:
+g along the path is unchanged and exact, and the suffix is still a shortest path. (3) The
+reference path leaves a cell u for the first neighbour n in ``grid.NEIGHBOUR_*`` order with
+g[n] + cost(u, n) == g[u]. For u on the suffix, g1[u] = g0[u] <= g0[n] + cost <= g1[n] + cost,
+so n satisfies the rule under g1 only if it did under g0: the candidates under g1 are a subset
+of those under g0, and P's own next cell is among them (g1 = g0 on it). The first candidate
+in the fixed order is therefore the same cell: the suffix is the reference path tie for tie.
+The inner planner's queue and stored g are untouched, so nothing it holds becomes wrong; the
+map it has is only behind by the pending cells, which reach it (merged with the next delta, or
+alone) before anything else reads or changes its field. A deferred step after a deferred step
+applies the same argument to the map that includes the earlier pending blocks: P's suffix
+only shrinks as the user walks it, and each delta was checked against the suffix of its step.
+
+Where it applies: maps the device serves (the registry wraps the cuda backend's EDS; the rule
+is on when the inner planner's name says ``cuda``). There a repair step is a round trip, ~120
+µs on an H100 at 400², and the rule's check ~10 µs of the host. On the host a repair step of
+such a delta costs 20-30 µs, about what the check does, and the deltas that wait make the next
+repair longer: on the dev VM (2026-11-27, 400², 40 %, two interleaved runs each) the CPU walks
+took 0.9-1.6 × main's time with the rule, p99 up to 2 × (``docs/notes/gpu-focused-repair.md``,
+round lazy20). ``defer=True`` applies it anyway (the CPU property tests do).
+
+What the wrapper answers itself is what the route asks at every step (``max_open``,
+``search_stats``: no ``__getattr__`` miss on the hot path); everything else comes from the
+inner planner after the pending blocks are flushed to it.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from .grid import Cell
+from .interface import GlobalPlanner, UpdateStats
+
+READS = frozenset(
+    {"costs", "costs_within", "settle", "pending", "blocked", "device_bytes", "deferred_tiles"}
+)
+"""Inner attributes that only read (or finish) the field: a lookup flushes and keeps P."""
+
+Step = tuple[UpdateStats, np.ndarray]
+_NO_CELLS = np.empty(0, dtype=np.int64)
+_NO_VALUES = np.empty(0, dtype=bool)
+
+
+class DeferredBlocks(GlobalPlanner):
+    """An EDS planner whose steps return the last path's suffix when the delta misses it."""
+
+    # The route reads both at every step (``getattr(planner, ..., None)``): answered here.
+    max_open = None
+    search_stats = None
+    dss = False
+
+    def __init__(self, inner: GlobalPlanner, defer: bool | None = None) -> None:
+        """``defer``: apply the rule (True), or pass every call through (False); None: apply
+        it where the inner planner serves the map on the device (its name says ``cuda``),
+        decided at each ``plan``, as ``SmallGridsOnCpu`` picks its planner."""
+        self.inner = inner
+        self._defer = defer
+        self.defers = False
+        """Whether the rule applies to the current map."""
+        self.deferred_steps = 0
+        """Steps answered without the inner planner (for tests and the bench's notes)."""
+        self._pending: list[np.ndarray] = []  # flat cells blocked but not yet given to inner
+        self._is_pending = np.zeros(0, dtype=bool)  # per cell: in ``_pending`` (each once)
+        self._path: np.ndarray | None = None  # P: the last path returned, (k, 2) int32
+        self._flat: np.ndarray | None = None  # P's flat indices
+        self._at = 0  # the user's index in P at the last step
+        self._on = np.zeros(0, dtype=bool)  # per cell: on P's suffix from _at
+        self._width = 0
+        self._cells = 0
+
+    # -- what the interface asks --------------------------------------------------------------
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return self.inner.name
+
+    @property
+    def backend(self) -> str:
+        return str(getattr(self.inner, "backend", ""))
+
+    @property
+    def variant(self) -> str:
+        return str(getattr(self.inner, "variant", ""))
+
+    @property
+    def goal(self) -> Cell:
+        return self.inner.goal
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.inner.shape
+
+    def plan(self, blocked: np.ndarray, goal: Cell) -> UpdateStats:
+        self._take_pending()  # the plan reads the whole map: what was pending is in it
+        self._forget()
+        stats = self.inner.plan(blocked, goal)
+        h, w = self.inner.shape
+        if self._on.size != h * w:
+            self._on = np.zeros(h * w, dtype=bool)
+            self._is_pending = np.zeros(h * w, dtype=bool)
+        self._width, self._cells = w, h * w
+        self.defers = self._defer if self._defer is not None else "-cuda-" in self.inner.name
+        if self.defers:
+            self.__dict__.pop("update_and_path", None)
+            self.__dict__.pop("path", None)
+        else:  # the inner planner's own calls, bound here: a step pays no frame of ours
+            self.update_and_path = self.inner.update_and_path  # type: ignore[method-assign]
+            self.path = self.inner.path  # type: ignore[method-assign]
+        return stats
+
+    def update(self, cells: np.ndarray, blocked: np.ndarray) -> UpdateStats:
+        cells, values = self.merged(cells, blocked)
+        return self.inner.update(cells, values)
+
+    def update_and_path(self, cells: np.ndarray, blocked: np.ndarray, start: Cell) -> Step:
+        t0 = time.perf_counter()
+        done = self.deferred(cells, blocked, start, t0)
+        if done is not None:
+            return done
+        cells, values = self.merged(cells, blocked)
+        stats, path = self.inner.update_and_path(cells, values, start)
+        self.kept(path)
+        ms = (time.perf_counter() - t0) * 1e3  # the check and the merge are the step's too
+        return UpdateStats(stats.iterations, stats.cells_touched, max(ms, stats.ms)), path
+
+    def path(self, start: Cell) -> np.ndarray:
+        # The rule with an empty delta: from a cell of P's suffix, the suffix is the path
+        # (the route reads one at a step that changed nothing, the user a cell further on).
+        done = self.deferred(_NO_CELLS, _NO_VALUES, start)
+        if done is not None:
+            return done[1]
+        if self._pending:  # one step of the inner planner, not an update and then a read
+            cells, values = self.merged(_NO_CELLS, _NO_VALUES)
+            path = self.inner.update_and_path(cells, values, start)[1]
+        else:
+            self._forget()
+            path = self.inner.path(start)
+        self.kept(path)  # the reference path from ``start``: the next step may keep it
+        return path
+
+    def cost_at(self, cell: Cell) -> int:
+        self.flush()
+        return self.inner.cost_at(cell)
+
+    def __getattr__(self, attr: str) -> Any:
+        # What only some inner planners offer (costs, costs_within, settle, pending, blocked,
+        # the cuda planner's statistics, parts): from the inner planner, once it holds the
+        # current map. A name that is not a known read may change the inner planner: P is
+        # forgotten, so the next step repairs.
+        if attr.startswith("_") or "inner" not in self.__dict__:
+            raise AttributeError(attr)
+        self.flush()
+        if attr not in READS:
+            self._forget()
+        return getattr(self.__dict__["inner"], attr)
+
+    # -- the rule -----------------------------------------------------------------------------
+
+    def deferred(
+        self, cells: np.ndarray, blocked: np.ndarray, start: Cell, t0: float | None = None
+    ) -> Step | None:
+        """The step's answer when it needs no repair (the rule above; the delta is then
+        pending), else None and nothing changed."""
+        flat = self._flat
+        if flat is None:  # no P (or the rule is off: kept() keeps none)
+            return None
+        t0 = time.perf_counter() if t0 is None else t0
+        r, c = int(start[0]), int(start[1])
+        if not (0 <= c < self._width and 0 <= r * self._width < self._cells):
+            return None
+        s = r * self._width + c
+        at = self._at
+        if flat[at] != s:  # the user walked on: usually the next cell, else look along P
+            if at + 1 < flat.size and flat[at + 1] == s:
+                at += 1
+            else:
+                hits = np.flatnonzero(flat[at:] == s)
+                if not hits.size:
+                    return None  # off P, or behind the user's last cell on it: repair
+                at += int(hits[0])
+        if at != self._at:  # the cells the user walked past leave the suffix (P stays valid)
+            self._on[flat[self._at : at]] = False
+            self._at = at
+        values = np.asarray(blocked)
+        if not values.all():  # a freed cell may lower g on and off the path: repair
+            return None
+        cells = np.asarray(cells, dtype=np.int64).reshape(-1)
+        if cells.size:
+            if int(cells.min()) < 0 or int(cells.max()) >= self._cells:
+                return None  # the inner planner raises the IndexError
+            if self._on[cells].any():  # (c) fails: the delta cuts the suffix
+                return None
+            new = cells[~self._is_pending[cells]]  # a cell blocked again is pending once
+            if new.size:
+                self._is_pending[new] = True
+                self._pending.append(new)
+        self.deferred_steps += 1
+        assert self._path is not None
+        path = self._path[at:].copy()
+        return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3), path
+
+    def merged(self, cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pending blocks and the new delta as one delta for the inner planner (pending
+        cleared, P forgotten until ``kept``). The new delta's value wins for a cell in both:
+        a pending block that it frees again is dropped, and its free reaches the inner
+        planner, which still has the cell free (its own no-op change) unless the block was a
+        no-op itself, when the free is the change it must see."""
+        self._forget()
+        if not self._pending:
+            return cells, blocked
+        cells = np.asarray(cells, dtype=np.int64).reshape(-1)
+        if cells.size and (int(cells.min()) < 0 or int(cells.max()) >= self._cells):
+            # the inner planner would refuse the merged delta whole: the pending blocks stay
+            raise IndexError(f"a cell index is outside the {self.shape} map")
+        values = np.broadcast_to(np.asarray(blocked, dtype=bool), cells.shape)
+        if cells.size:  # masks, not sorts: thousands of pending cells cost ~0.5 ms sorted
+            self._is_pending[cells] = False
+        pend = self._take_pending()
+        merged = np.concatenate([pend, cells])
+        return merged, np.concatenate([np.ones(pend.size, dtype=bool), values])
+
+    def kept(self, path: np.ndarray) -> None:
+        """Remember ``path``, just returned by the inner planner's step, as P."""
+        self._forget()
+        if len(path) == 0 or self._width == 0 or not self.defers:
+            return
+        flat = path[:, 0].astype(np.int64) * self._width + path[:, 1]
+        self._on[flat] = True
+        self._path, self._flat, self._at = path, flat, 0
+
+    def flush(self) -> None:
+        """Give the pending blocks to the inner planner (before anything reads its field)."""
+        if self._pending:
+            pend = self._take_pending()
+            self.inner.update(pend, np.ones(pend.size, dtype=bool))
+
+    def pending_blocks(self) -> int:
+        """Cells blocked by deferred steps and not yet given to the inner planner."""
+        return int(sum(p.size for p in self._pending))
+
+    def _take_pending(self) -> np.ndarray:
+        """The pending cells still marked (a new delta unmarks those it sets), cleared."""
+        if not self._pending:
+            return _NO_CELLS
+        pend = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        pend = pend[self._is_pending[pend]]
+        self._is_pending[pend] = False
+        self._pending = []
+        return pend
+
+    def _forget(self) -> None:
+        if self._flat is not None:
+            self._on[self._flat[self._at :]] = False
+        self._path = self._flat = None
+        self._at = 0
