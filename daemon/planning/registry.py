@@ -48,12 +48,19 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
+DEFER_BLOCKS_ON_DEVICE = False
+"""Wrap the cuda backend's EDS in ``DeferredBlocks`` (read when a planner is made, so a bench can
+compare the two). Off: on the H100 (400², 2026-11-27) it brought EDS's walk to 0.40-0.50 of DSS's
+but its p99 to 0.48-0.69 ms against 0.17-0.21 without it, the repair after deferred steps carrying
+every waiting block; the fixes since have not run on a device."""
+
+
 def _field_planner(dss: bool) -> PlannerFactory:
     def factory(backend: str, variant: str) -> GlobalPlanner:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; choose one of {VARIANTS}")
         planner = _field_backend(dss, backend, variant)
-        if dss or backend != "cuda":  # DSS: the baseline, a full plan at every step
+        if dss or backend != "cuda" or not DEFER_BLOCKS_ON_DEVICE:  # DSS: the full-plan baseline
             return planner
         # EDS on the device: a step whose new obstacles all miss the user's path needs no
         # repair and no round trip (deferred_blocks.py: the rule, its proof, and why not on

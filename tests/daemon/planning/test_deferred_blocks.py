@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daemon.planning import cuda_available, make_planner
+from daemon.planning import cuda_available, make_planner, registry
 from daemon.planning.cpu.fast import FastCpuPlanner
 from daemon.planning.deferred_blocks import DeferredBlocks
 from daemon.planning.dijkstra import dijkstra_field, reference_path
@@ -207,6 +207,7 @@ def test_a_batch_answers_deferred_steps_on_the_host_and_posts_the_others(monkeyp
 
     monkeypatch.setattr(batch, "post_steps", counted)
     shape, goal = (210, 200), (3, 100)
+    monkeypatch.setattr(registry, "DEFER_BLOCKS_ON_DEVICE", True)
     users = [make_planner("eds", "cuda") for _ in range(3)]
     truths = [np.zeros(shape, bool) for _ in users]
     starts = [(200, 100), (200, 60), (180, 150)]

@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from daemon.planning import make_planner
+from daemon.planning import make_planner, registry
 from daemon.planning.cpu.fast import FastCpuPlanner
 from daemon.planning.deferred_blocks import DeferredBlocks
 from daemon.planning.dijkstra import dijkstra_field, reference_path
@@ -173,10 +173,12 @@ def test_a_delta_outside_the_map_is_refused_and_keeps_what_is_pending():
     np.testing.assert_array_equal(planner.costs(), dijkstra_field(truth, GOAL))
 
 
-def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss():
+def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss(monkeypatch):
     # ``getattr(planner, "max_open", None)`` and ``search_stats`` at every step: class
     # attributes, so ``__getattr__`` (and its flush) never runs for them
     assert "max_open" in vars(DeferredBlocks) and "search_stats" in vars(DeferredBlocks)
+    assert not isinstance(make_planner("eds", "cuda"), DeferredBlocks)  # off until measured
+    monkeypatch.setattr(registry, "DEFER_BLOCKS_ON_DEVICE", True)
     assert not isinstance(make_planner("eds", "cpu"), DeferredBlocks)  # the device's only
     assert isinstance(make_planner("eds", "cuda"), DeferredBlocks)  # built before any cupy
 

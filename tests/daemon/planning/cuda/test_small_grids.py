@@ -50,10 +50,9 @@ def test_a_small_map_is_planned_by_the_cpu_repair_and_says_so():
 def test_the_rule_is_the_cuda_backends_eds_only():
     assert SMALL_CELLS == 200 * 200
     if cuda_available():
-        # EDS comes wrapped in DeferredBlocks (steps that need no repair); DSS never is
-        assert isinstance(make_planner("eds", "cuda").inner, SmallGridsOnCpu)
+        assert isinstance(make_planner("eds", "cuda"), SmallGridsOnCpu)
         assert not isinstance(make_planner("dss", "cuda"), SmallGridsOnCpu)
-        assert not isinstance(make_planner("eds", "cuda", "paper").inner, SmallGridsOnCpu)
+        assert not isinstance(make_planner("eds", "cuda", "paper"), SmallGridsOnCpu)
 
 
 @pytest.mark.gpu
