@@ -95,6 +95,15 @@ class PatternKind(StrEnum):
 
 class BeltPattern(Message):
     seq: int = Field(ge=0, lt=2**32)
+    map_seq: int = Field(
+        ge=-1,
+        lt=2**32,
+        description="the map version the pattern was decided on: the last map delta sequence "
+        "(of the map source's current epoch; a snapshot counts as its seq) the user's step had "
+        "applied when it built the pattern, as NavPath.map_seq; -1 while the user has no map of "
+        "that epoch yet. Required: every pattern comes from a user's step, which always has "
+        "this, so a pattern without it is refused whole like any other malformed message",
+    )
     kind: PatternKind
     motors: tuple[Intensity, Intensity, Intensity, Intensity] = Field(
         description="intensity 0..255 of (front, right, back, left)"

@@ -5,9 +5,9 @@ The load generator (``sim.load_generator``, one process, one zenoh session) play
 wearers against ``guidebelt run`` (another process): each has its own map (walls around a
 ``grid``² courtyard), a goal at the top and stands at the bottom, sends a fresh pose at
 ``pose_hz`` and a map delta at ``delta_hz`` that drops or lifts a small obstacle on the way
-(so every delta changes the path). It records when each delta was sent and when the belt
-pattern of the first step that applied it arrived (the step's path names the last delta
-it applied, ``map_seq``, and is published just after its belt pattern), and every status.
+(so every delta changes the path). It records when each delta was sent and when the first belt
+pattern decided on a map that holds it arrived (each pattern names the last delta its step had
+applied, ``map_seq``), and every status.
 
 Poses are always fresh here, so every ``stale_pose`` a user gets is a false safety signal;
 users the daemon cannot serve must hear ``overloaded`` instead.
@@ -35,27 +35,26 @@ __all__ = ["LoadGenerator", "LoadSpec", "run_against_daemon", "summarise", "user
 def user_latencies(trace: UserTrace) -> tuple[list[float], int]:
     """Delta→belt latency (ms) of each measured delta, and how many got no answer.
 
-    Delta i is answered by the belt pattern published just before the first path whose
-    ``map_seq`` ≥ i: exact even when the daemon coalesced several deltas into one step."""
-    if not trace.paths:
+    Delta i is answered by the first belt pattern whose ``map_seq`` ≥ i: the pattern names the
+    map it was decided on, so this is exact when the daemon coalesced several deltas into one
+    step and whatever became of the step's path (latest-wins: zenoh drops paths under load,
+    and pairing through them made a delta read one delta period late)."""
+    if not trace.belts:
         measured = [s for s in trace.sends if s >= trace.first_measured]
         return [], len(measured)
-    paths = np.array(sorted(trace.paths), dtype=np.int64)
     belts = np.array(sorted(trace.belts), dtype=np.int64)
-    # The latest map_seq seen up to each path (paths can arrive with older seqs after a
-    # resync); searchsorted needs it non-decreasing.
-    seen = np.maximum.accumulate(paths[:, 1])
+    # The newest map seen up to each pattern (a pattern after a resync may name an older
+    # map); searchsorted needs it non-decreasing.
+    seen = np.maximum.accumulate(belts[:, 1])
     lat, unanswered = [], 0
     for i, sent in trace.sends.items():
         if i < trace.first_measured:
             continue
         k = int(np.searchsorted(seen, i))
-        if k >= len(paths):
+        if k >= len(belts):
             unanswered += 1
             continue
-        b = int(np.searchsorted(belts, paths[k, 0])) - 1
-        answered_at = belts[b] if b >= 0 and belts[b] >= sent else paths[k, 0]
-        lat.append((answered_at - sent) / 1e6)
+        lat.append((belts[k, 0] - sent) / 1e6)
     return lat, unanswered
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import zenoh
-from zenoh.handlers import Callback
+from zenoh.handlers import Callback, RingChannel
 
 from protocol import codec
 from protocol import session as wire
@@ -50,9 +50,8 @@ class LoadSpec:
 class UserTrace:
     sends: dict[int, int] = field(default_factory=dict)
     """delta seq → send time (perf_counter_ns)."""
-    belts: list[int] = field(default_factory=list)
-    paths: list[tuple[int, int]] = field(default_factory=list)
-    """(arrival ns, map_seq) of each path."""
+    belts: list[tuple[int, int]] = field(default_factory=list)
+    """(arrival ns, map_seq) of each belt pattern: the map version the pattern was decided on."""
     codes: Counter = field(default_factory=Counter)
     """Status codes heard after the warm-up."""
     first_measured: int = 1 << 62
@@ -87,8 +86,12 @@ class LoadGenerator:
         self._measuring_until = 1 << 62
         self._subs = [
             wire.declare_subscriber(session, T.BELT, self._sink(self._on_belt)),
-            wire.declare_subscriber(session, T.PATH, self._sink(self._on_path)),
             wire.declare_subscriber(session, T.STATUS, self._sink(self._on_status)),
+            # The path is not read (a pattern names its map now), but a path listener is what
+            # makes the daemon put every step's pattern, not only those that differ from the
+            # last (the runner's ``paired``), and build the path as a viewer would have it.
+            # A ring of one in zenoh's own code: no path ever enters this process's Python.
+            wire.declare_subscriber(session, T.PATH, RingChannel(1)),
         ]
         self._maps: dict[str, tuple[int, np.ndarray]] = {}
         """Each user's map as published (last seq, occupancy): the snapshot a daemon that
@@ -111,12 +114,9 @@ class LoadGenerator:
         return Callback(on_sample, indirect=False)
 
     def _on_belt(self, user: str, t: int, payload: bytes) -> None:
-        self.traces[user].belts.append(t)
-
-    def _on_path(self, user: str, t: int, payload: bytes) -> None:
-        m = _MAP_SEQ.search(payload)  # a full decode per path would load this process
+        m = _MAP_SEQ.search(payload)  # a full decode per pattern would load this process
         if m is not None:
-            self.traces[user].paths.append((t, int(m.group(1))))
+            self.traces[user].belts.append((t, int(m.group(1))))
 
     def _on_status(self, user: str, t: int, payload: bytes) -> None:
         # Until shortly after the last pose: then poses stop and stale_pose is the truth.

@@ -196,7 +196,10 @@ def _pose(p: Pose | None) -> dict | None:
 def _belt(b: BeltPattern | None) -> dict | None:
     if b is None:
         return None
-    return {"kind": str(b.kind), "motors": list(b.motors), "period_ms": b.period_ms, "seq": b.seq}
+    return {
+        "kind": str(b.kind), "motors": list(b.motors), "period_ms": b.period_ms, "seq": b.seq,
+        "map_seq": b.map_seq,  # the map it was decided on: a belt behind the map shows here
+    }  # fmt: skip
 
 
 def _status(s: NavStatus | None) -> dict | None:

@@ -128,6 +128,7 @@ class Navigator:
         self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
         self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
         self._shed, self._behind = inbox.overloaded, inbox.daemon_behind or inbox.pose_unread
+        self.guidance.patterns.map_seq = self.maps.seq  # each pattern names the map it was on
         out = StepOutput()
         if self._shed:  # said first: nothing later in this step may guide
             why = "the daemon is at capacity: guidance paused"
@@ -188,7 +189,7 @@ class Navigator:
     ) -> StepOutput:
         """A STOP (or, for an idle user, OFF) pattern and its status, touching nothing else:
         the daemon's last words to a user, and what a step that failed says instead."""
-        out = StepOutput()
+        out, self.guidance.patterns.map_seq = StepOutput(), self.maps.seq
         self._reject(Rejection(code, reason, counted=False), now, out)
         return out
 
@@ -201,6 +202,7 @@ class Navigator:
     # -- map, goal, pose ------------------------------------------------------------------
 
     def _take_map(self, update: MapUpdate, now: float, out: StepOutput) -> None:
+        self.guidance.patterns.map_seq = self.maps.seq  # what this step's patterns now rest on
         for rej in update.rejections:
             self._reject(rej, now, out)
         out.want_snapshot |= update.want_snapshot
@@ -256,8 +258,7 @@ class Navigator:
         pattern keeps being refreshed) until a snapshot brings the map back."""
         if not self.session.may_guide():
             return  # this step said WAIT or STOP already
-        g = self.guidance.event(PatternKind.WAIT, now, reason="map out of date")
-        out.belt.append(g.pattern)
+        out.belt.append(self.guidance.event(PatternKind.WAIT, now, reason="stale map").pattern)
 
     def _pose_unsure(self, now: float, out: StepOutput) -> bool:
         """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; WAIT past a limit."""

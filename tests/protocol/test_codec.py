@@ -38,7 +38,9 @@ EXAMPLES = [
     Goal(target=GoalCell(row=3, col=4), stamp=NOW),
     Goal(target=GoalMetres(x=1.0, y=9.5), stamp=NOW),
     Goal(target=GoalLandmark(name="fountain"), stamp=NOW),
-    BeltPattern(seq=7, kind=PatternKind.GUIDE, motors=(200, 0, 0, 55), ttl_ms=700, stamp=NOW),
+    BeltPattern(
+        seq=7, map_seq=3, kind=PatternKind.GUIDE, motors=(200, 0, 0, 55), ttl_ms=700, stamp=NOW
+    ),
     VoiceCue(text="Turn right, 3 metres", kind="direction", stamp=NOW),
     NavStatus(state=NavState.NO_PATH, reason="walled in", code="no_path", stamp=NOW, rejected=2),
     Health(daemon_id="d", uptime_s=3.0, users=["a"], backend="cpu", rejected=0, stamp=NOW),

@@ -32,7 +32,7 @@ def belt(seq: int, motors: tuple[int, int, int, int]) -> bytes:
     from protocol import codec
     from protocol.messages import BeltPattern, PatternKind
 
-    msg = BeltPattern(seq=seq, kind=PatternKind.GUIDE, motors=motors, ttl_ms=500,
+    msg = BeltPattern(seq=seq, map_seq=0, kind=PatternKind.GUIDE, motors=motors, ttl_ms=500,
                       stamp=time.time())  # fmt: skip
     return codec.encode(msg)
 

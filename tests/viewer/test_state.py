@@ -72,13 +72,16 @@ def test_frame_places_the_goal_and_carries_the_belt_and_latency() -> None:
     path = NavPath(cells=[(9, 3), (8, 3)], cost=10, cell_m=0.2, height=10, width=12,
                    pose_stamp=100.0, stamp=100.01)  # fmt: skip
     state.fold("ann", path, received=100.05)
-    belt = BeltPattern(seq=1, kind=PatternKind.GUIDE, motors=(10, 20, 0, 0), ttl_ms=500, stamp=1)
+    belt = BeltPattern(
+        seq=1, map_seq=4, kind=PatternKind.GUIDE, motors=(10, 20, 0, 0), ttl_ms=500, stamp=1
+    )
     state.fold("ann", belt)
     user = json.loads(json.dumps(state.frame()))["users"]["ann"]
     # Row 2 of 10, 0.2 m cells: 7.5 cells up from the bottom edge; col 3: 3.5 cells east.
     assert user["goal"] == pytest.approx({"x": 0.7, "y": 1.5})
     assert user["latency_ms"] == pytest.approx(50.0)
-    assert user["belt"] == {"kind": "guide", "motors": [10, 20, 0, 0], "period_ms": 0, "seq": 1}
+    belt_seen = {"kind": "guide", "motors": [10, 20, 0, 0], "period_ms": 0, "seq": 1, "map_seq": 4}
+    assert user["belt"] == belt_seen
     assert user["path"] == [[9, 3], [8, 3]]
 
 

@@ -249,7 +249,8 @@ def test_ann_cannot_drive_bobs_belt(sessions):
     ]
     time.sleep(0.3)
     forged = BeltPattern(
-        seq=1, kind=PatternKind.GUIDE, motors=(255, 255, 255, 255), ttl_ms=5000, stamp=time.time()
+        seq=1, map_seq=0, kind=PatternKind.GUIDE, motors=(255, 255, 255, 255), ttl_ms=5000,
+        stamp=time.time(),
     )
     wire.put(ann, T.BELT, "bob", codec.encode(forged))
     # The route from the daemon to bob's belt is open: bob's own setting reaches it.

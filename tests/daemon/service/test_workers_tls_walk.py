@@ -117,7 +117,8 @@ def _attack(ann: zenoh.Session, back: tuple[int, int]) -> BeltPattern:
     far = Goal(target=GoalCell(row=back[0], col=back[1]), stamp=time.time())
     wire.put(ann, T.GOAL, USER, codec.encode(far))
     forged = BeltPattern(
-        seq=987_654, kind=PatternKind.GUIDE, motors=(201, 0, 201, 0), ttl_ms=5000, stamp=time.time()
+        seq=987_654, map_seq=0, kind=PatternKind.GUIDE, motors=(201, 0, 201, 0), ttl_ms=5000,
+        stamp=time.time(),
     )
     wire.put(ann, T.BELT, USER, codec.encode(forged))
     return forged

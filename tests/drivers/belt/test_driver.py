@@ -92,8 +92,8 @@ def test_zenoh_patterns_reach_the_belt_health_is_published_and_daemon_loss_stops
             assert await _until(lambda: service.daemons_alive == 1, 5)
             await asyncio.wait_for(service.link.connected.wait(), 3)
             wire.put(daemon_session, T.BELT, "alice", b'{"seq": "not a pattern"}')
-            pattern = BeltPattern(seq=1, kind=PatternKind.GUIDE, motors=motors, period_ms=0,
-                                  ttl_ms=5000, stamp=time.time())  # fmt: skip
+            pattern = BeltPattern(seq=1, map_seq=0, kind=PatternKind.GUIDE, motors=motors,
+                                  period_ms=0, ttl_ms=5000, stamp=time.time())  # fmt: skip
             wire.put(daemon_session, T.BELT, "alice", codec.encode(pattern))
             assert await asyncio.to_thread(belt.wait_levels, motors, 3.0)
             assert service.rejected == 1
@@ -142,7 +142,7 @@ def test_guidebelt_belt_process_drives_the_simulated_belt(belt_kind, tmp_path):
             while time.monotonic() < deadline and not (healths and healths[-1].connected):
                 time.sleep(0.05)
             assert healths and healths[-1].connected
-            pattern = BeltPattern(seq=1, kind=PatternKind.TURN_AROUND, motors=motors,
+            pattern = BeltPattern(seq=1, map_seq=0, kind=PatternKind.TURN_AROUND, motors=motors,
                                   period_ms=0, ttl_ms=5000, stamp=time.time())  # fmt: skip
             wire.put(session, T.BELT, "bob", codec.encode(pattern))
             assert belt.wait_levels(motors, 3.0) is not None
