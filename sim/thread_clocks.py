@@ -27,12 +27,19 @@ def host_clocks() -> dict[str, float]:
     tick = 1e3 / os.sysconf("SC_CLK_TCK")
     out: dict[str, float] = {}
     try:
-        for tid in os.listdir("/proc/self/task"):
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
             with open(f"/proc/self/task/{tid}/stat") as f:
                 stat = f.read()
-            comm = stat[stat.index("(") + 1 : stat.rindex(")")]
-            fields = stat[stat.rindex(")") + 2 :].split()
-            out[f"{comm}:{tid}"] = tick * (int(fields[11]) + int(fields[12]))  # utime, stime
+        except OSError:  # the thread ended since the listing: the others still count
+            continue
+        comm = stat[stat.index("(") + 1 : stat.rindex(")")]
+        fields = stat[stat.rindex(")") + 2 :].split()
+        out[f"{comm}:{tid}"] = tick * (int(fields[11]) + int(fields[12]))  # utime, stime
+    try:
         with open("/proc/stat") as f:
             cpu = f.readline().split()
         out["steal"] = tick * int(cpu[8])
