@@ -258,7 +258,7 @@ class Navigator:
         pattern keeps being refreshed) until a snapshot brings the map back."""
         if not self.session.may_guide():
             return  # this step said WAIT or STOP already
-        out.belt.append(self.guidance.event(PatternKind.WAIT, now, reason="stale map").pattern)
+        out.belt.append(self.guidance.event(PatternKind.WAIT, now, "map out of date").pattern)
 
     def _pose_unsure(self, now: float, out: StepOutput) -> bool:
         """Obstacles enlarged by ω/2 + a, a from the pose's uncertainty; WAIT past a limit."""
