@@ -62,6 +62,8 @@ class EspeakSpeaker:
         self.timeout_s = timeout_s
         self._count = itertools.count(1)
         self._proc: asyncio.subprocess.Process | None = None
+        self._speaking = False
+        """From ``speak``'s call to its return: a cue is being said, its child started or not."""
         self._cut = False
         self.spoken = 0
         self.cancelled = 0
@@ -83,25 +85,35 @@ class EspeakSpeaker:
         wav = None
         if self.wav_dir is not None:
             wav = self.wav_dir / f"cue-{next(self._count):05d}-{lang}.wav"
-        proc = await asyncio.create_subprocess_exec(
-            *self._argv(lang, wav),
-            stdin=asyncio.subprocess.PIPE,
-            stdout=asyncio.subprocess.DEVNULL,
-            stderr=asyncio.subprocess.PIPE,
-        )
-        self._proc, self._cut = proc, False
+        argv = self._argv(lang, wav)
+        # Speaking from here, before the child exists: starting it takes a while (a fork and
+        # an exec; much longer on a loaded machine), and a safety cue that comes meanwhile
+        # must still cut this one short, not wait for all of it to be said.
+        self._speaking, self._cut = True, False
         try:
-            _, err = await asyncio.wait_for(
-                proc.communicate(text.encode("utf-8")), timeout=self.timeout_s
+            proc = await asyncio.create_subprocess_exec(
+                *argv,
+                stdin=asyncio.subprocess.PIPE,
+                stdout=asyncio.subprocess.DEVNULL,
+                stderr=asyncio.subprocess.PIPE,
             )
-        except TimeoutError:
-            await self._kill(proc)
-            raise SpeechError(f"espeak-ng took longer than {self.timeout_s} s") from None
-        except asyncio.CancelledError:
-            await self._kill(proc)
-            raise
+            self._proc = proc
+            try:
+                if self._cut:  # cancelled while the child started: it says nothing
+                    await self._kill(proc)
+                    err = b""
+                else:
+                    _, err = await asyncio.wait_for(
+                        proc.communicate(text.encode("utf-8")), timeout=self.timeout_s
+                    )
+            except TimeoutError:
+                await self._kill(proc)
+                raise SpeechError(f"espeak-ng took longer than {self.timeout_s} s") from None
+            except asyncio.CancelledError:
+                await self._kill(proc)
+                raise
         finally:
-            self._proc = None
+            self._proc, self._speaking = None, False
         if self._cut:
             self.cancelled += 1
             if wav is not None:
@@ -115,11 +127,12 @@ class EspeakSpeaker:
     def cancel(self) -> bool:
         """Stop what is being said now (a safety cue pre-empts it); True if something was."""
         proc = self._proc
-        if proc is None or proc.returncode is not None:
+        if not self._speaking or (proc is not None and proc.returncode is not None):
             return False
-        self._cut = True
-        with contextlib.suppress(ProcessLookupError):
-            proc.kill()
+        self._cut = True  # a child still starting is killed as soon as it exists
+        if proc is not None:
+            with contextlib.suppress(ProcessLookupError):
+                proc.kill()
         return True
 
     @staticmethod

@@ -73,13 +73,43 @@ def test_cancel_cuts_a_cue_short(tmp_path: Path) -> None:
 
     async def main() -> None:
         task = asyncio.ensure_future(speaker.speak("the quick brown fox. " * 2000, "en"))
-        await asyncio.sleep(0.2)
+        # The child speaking (not a fixed wait: starting it may take longer on a loaded
+        # machine; a cancel before it exists has a test of its own, below).
+        deadline = time.monotonic() + 10.0
+        while speaker._proc is None:
+            assert time.monotonic() < deadline and not task.done(), "espeak-ng never started"
+            await asyncio.sleep(0.01)
         assert speaker.cancel()
         with pytest.raises(SpeechCancelled):
             await task
 
     asyncio.run(main())
     assert speaker.cancelled == 1 and not list(tmp_path.iterdir())
+
+
+@needs_espeak
+@pytest.mark.timeout(30)
+def test_a_cancel_while_the_child_is_still_starting_cuts_the_cue(tmp_path: Path) -> None:
+    """A safety cue can come while espeak-ng is being started for a routine one (a fork and
+    an exec: long on a loaded machine). cancel() then found no child and said nothing was
+    being said, so the routine cue was said to its end before the safety cue."""
+    speaker = EspeakSpeaker(wav_dir=tmp_path)
+    assert not speaker.cancel()  # nothing being said
+
+    async def main() -> None:
+        task = asyncio.ensure_future(speaker.speak("the quick brown fox. " * 2000, "en"))
+        await asyncio.sleep(0)  # speak() has begun starting its child, which is not there yet
+        assert speaker._proc is None and not task.done()
+        assert speaker.cancel()
+        with pytest.raises(SpeechCancelled):
+            await task
+        assert not speaker.cancel()  # over: the next cue is not cut by this one's cancel
+        short = await speaker.speak("stop", "en")
+        assert short is not None and wav_seconds(short) > 0.2
+
+    asyncio.run(main())
+    assert speaker.cancelled == 1 and speaker.spoken == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["cue-00002-en.wav"]
 
 
 def test_queue_orders_safety_first_and_keeps_the_newest_routine() -> None:
