@@ -70,7 +70,14 @@ def allowed_calls(unit: Path, analyze: str) -> set[str]:
 
 
 def _daemon_under(tracer: int, timeout: float = 10.0) -> int:
-    """The ``cli.app run`` process strace started (its child, found by its command line)."""
+    """The ``cli.app run`` process strace started (its child, found by its command line).
+
+    The command line must be the interpreter's own: strace forks short-lived children of its
+    own at start (its ptrace probes), whose command line is strace's and so also names
+    ``cli.app``. One listed in its moment was taken for the daemon (1 run in 5 with two busy
+    loops beside it): the SIGTERM then found no such process, and the daemon, never killed
+    by its pid, outlived the test with its workers."""
+    want = [sys.executable.encode(), b"-m", b"cli.app"]
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         for entry in Path("/proc").iterdir():
@@ -81,7 +88,7 @@ def _daemon_under(tracer: int, timeout: float = 10.0) -> int:
                 cmdline = (entry / "cmdline").read_bytes()
             except (OSError, ValueError, IndexError):  # gone meanwhile
                 continue
-            if ppid == tracer and b"cli.app" in cmdline:
+            if ppid == tracer and cmdline.split(b"\0")[:3] == want:
                 return int(entry.name)
         time.sleep(0.05)
     raise AssertionError("strace started no daemon")
