@@ -74,11 +74,16 @@ def test_poses_from_zenohs_thread_step_an_idle_user_and_a_bad_one_is_refused():
             bridge.start()
             bridge.watch("ann")
             bridge.route_poses("ann", runner.take_pose)
+            pose_pub = peer.declare_publisher(T.POSE.key("ann"))
             runner.put_delta(walls())
             runner.put_goal(goal())
-            await asyncio.sleep(0.3)  # the first step ran; the worker waits for any input
+            # The first step ran (it put what it decided) and the worker waits for any input;
+            # the bridge's subscription has reached the peer, or the pose would go nowhere.
+            # Waited for, not slept on: either can take longer on a loaded machine.
+            assert await until(lambda: bool(published))
+            assert await until(lambda: pose_pub.matching_status.matching)
             sent = pose()
-            peer.put(T.POSE.key("ann"), codec.encode(sent))
+            pose_pub.put(codec.encode(sent))
             assert await until(lambda: any(p.pose_stamp == sent.stamp for p in of("path", NavPath)))
             assert bridge.pose_heard_at("ann") is not None
             await asyncio.sleep(0.3)
@@ -159,20 +164,33 @@ def readmitted(readmitted_s_ago: float, then_a_pose: bool) -> list[tuple[str, by
         runner = UserRunner(
             Navigator("u", settings), lambda k, b: published.append((k, b)), lambda *a: None, 1.0
         )
+
+        # Each step waited for by what it puts, not for a fixed time: a loaded machine may
+        # take longer, and a step that came late would put its words after the clear below.
+        def said(leaf: str, model) -> list:
+            return [codec.decode(model, b) for k, b in list(published) if k.endswith("/" + leaf)]
+
+        def guided() -> bool:
+            return any(b.kind == PatternKind.GUIDE for b in said("belt", BeltPattern))
+
         runner.put_delta(walls())
         runner.put_goal(goal())
         runner.put_pose(pose())
-        await asyncio.sleep(0.2)  # guided
+        assert await until(guided)
         runner.shed = True  # as admission control does; its poses stop coming
         runner.tick()
-        await asyncio.sleep(0.8)
+        shed_at = time.monotonic()
+        assert await until(
+            lambda: any(s.code == StatusCode.OVERLOADED for s in said("status", NavStatus))
+        )
+        await asyncio.sleep(0.8 - (time.monotonic() - shed_at))  # the pose is past 0.4 s old
         published.clear()
         runner.readmitted_at, runner.shed = time.time() - readmitted_s_ago, False
         runner.tick()
-        await asyncio.sleep(0.2)
+        assert await until(lambda: bool(said("status", NavStatus)))  # the readmission's step
         if then_a_pose:
             runner.put_pose(pose())
-            await asyncio.sleep(0.2)
+            assert await until(guided)
         await runner.close()
 
     asyncio.run(scenario())

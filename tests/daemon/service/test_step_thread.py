@@ -64,7 +64,12 @@ def test_the_thread_paces_itself_a_ring_wakes_it_and_jobs_run_while_it_waits():
 
         worker = StepThread("plan-paced", serve)
         worker.start()
-        await asyncio.sleep(0.2)
+        # Rung once its first wait has timed out (not after a fixed 0.2 s: a thread started
+        # late on a loaded machine would be rung before that wait, and not time out).
+        deadline = time.monotonic() + 5.0
+        while not woke:
+            assert time.monotonic() < deadline, "the first wait never timed out"
+            await asyncio.sleep(0.01)
         worker.ring()
         assert await worker.run(threading.current_thread) is not threading.current_thread()
         worker.close()
