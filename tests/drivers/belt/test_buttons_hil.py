@@ -226,6 +226,10 @@ class FrameHost:
     def of(self, kind: type, after: float = 0.0) -> list:
         return [m for t, m in list(self.frames) if isinstance(m, kind) and t > after]
 
+    def last_at(self, kind: type) -> float:
+        """When the last frame of ``kind`` came (0 if none has)."""
+        return max((t for t, m in list(self.frames) if isinstance(m, kind)), default=0.0)
+
     def close(self) -> None:
         self._stop.set()
         self._thread.join(1)
@@ -250,8 +254,16 @@ def test_presses_are_debounced_repeated_until_acked_and_expire(belt):
         assert copies and {c.press for c in copies} == {1}, copies
         assert copies[0] == F.Button(1, 1, F.PressKind.SHORT)
         assert 2 <= len(copies) <= 5  # again every 100 ms while nobody acks
+        ack_sent = time.monotonic()
         host.send(lambda s: F.button_ack_frame(s, 1))
-        time.sleep(0.15)
+        # The ack has taken effect once no copy came for 250 ms (copies are 100 ms apart):
+        # waited for, not a fixed 150 ms that a loaded machine's belt may not answer within.
+        # Unacked, the copies would go on until 2 s after the release (~1.65 s from here),
+        # so the wait ends before that.
+        deadline = ack_sent + 1.2
+        while time.monotonic() - host.last_at(F.Button) < 0.25:
+            assert time.monotonic() < deadline, "copies went on after the ack"
+            time.sleep(0.02)
         acked = time.monotonic()
         time.sleep(0.3)
         assert host.of(F.Button, acked) == []  # acked: no more copies
@@ -285,9 +297,11 @@ def test_intensity_frames_scale_the_pwm_and_the_battery_reads_back(belt):
             assert belt.wait_levels(want, 1.0) is not None, (intensity, belt.levels, want)
         before = time.monotonic()
         host.send(lambda s: F.intensity_frame(s, 101))  # out of range: refused, nothing changes
-        time.sleep(0.3)
+        deadline = time.monotonic() + 3.0  # its ack waited for, not a fixed 0.3 s
+        while F.Ack(host.seq, F.ACK_REFUSED) not in host.of(F.Ack, before):
+            assert time.monotonic() < deadline, host.of(F.Ack, before)
+            time.sleep(0.02)
         assert tuple(belt.levels) == tuple(F.scale_level(m, 60) for m in motors)
-        assert F.Ack(host.seq, F.ACK_REFUSED) in host.of(F.Ack, before)
         belt.battery(3700)
         time.sleep(1.8)  # the running mean settles, then the next STATUS carries it
         status = host.of(F.Status)[-1]
