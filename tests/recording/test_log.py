@@ -51,8 +51,13 @@ def test_a_writer_that_falls_behind_drops_and_counts(tmp_path: Path) -> None:
         write = rec.log.write
         rec.log.write = lambda *a: (gate.wait(10), write(*a))  # a disk that stalls
         with rec:
-            time.sleep(0.3)
             pub = wire.declare_publisher(pub_session, T.STATUS, "ann")
+            # The recorder's subscription has reached the publisher (waited for, not a fixed
+            # 0.3 s): a put before it would be lost, and all 40 must be heard.
+            end = time.monotonic() + 10
+            while not pub.matching_status.matching:
+                assert time.monotonic() < end, "the recorder's subscription never arrived"
+                time.sleep(0.02)
             status = b'{"state": "guiding", "stamp": 1.0}'
             for _ in range(40):
                 pub.put(status)

@@ -63,9 +63,15 @@ def test_every_user_sends_poses_and_deltas_at_their_rates_and_each_delta_decodes
     ]
     gen = None
     try:
-        time.sleep(0.5)  # the sessions meet
         spec = LoadSpec(users=3, grid=60, seconds=2.0, warmup_s=0.0, join_hz=30.0)
         gen = LoadGenerator(talker, spec)
+        # The listener's subscriptions have reached the generator's publishers (waited for,
+        # not a fixed 0.5 s): delta 0 is put once, first, and a put before would be lost.
+        pubs = [*gen._pose_pubs.values(), *gen._delta_pubs.values()]
+        deadline = time.monotonic() + 10.0
+        while not all(p.matching_status.matching for p in pubs):
+            assert time.monotonic() < deadline, "the sessions never met"
+            time.sleep(0.02)
         gen.run()
     finally:
         if gen is not None:
