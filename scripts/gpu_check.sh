@@ -15,7 +15,9 @@
 # Logs and JSON go to $GPU_CHECK_OUT (default out/gpu_check). Exit status 1 if any step failed;
 # the last line names each step's exit status (124: it ran past its limit). PARTS (default
 # "tests bench dss"; also "scenarios": every scenario at 400 and 1000, and "harmonic": issue 21's
-# scripts/harmonic_check.sh into $OUT/harmonic; "users": issue 28's scripts/gpu_users_check.sh
+# scripts/harmonic_check.sh into $OUT/harmonic; "defer": the four 400² walks with EDS's
+# DeferredBlocks on, off and on again (registry.DEFER_BLOCKS_ON_DEVICE), then on at 1000² and
+# 2000², beside "bench"'s off; "users": issue 28's scripts/gpu_users_check.sh
 # without its tests, which "tests" runs, into $OUT/users; "mapper": scripts/gpu_mapper_check.sh's
 # tests and bench into $OUT/mapper) picks steps.
 set -uo pipefail
@@ -47,6 +49,23 @@ step bench_2000_cuda 150 python3 -m cli.app bench --grid 2000 --unknown 0.4 \
 has scenarios && step bench_scen_cuda 240 python3 -m cli.app bench --grid 400,1000 \
     --unknown 0.4 --scenario courtyard,explore,building,streets --backend cuda \
     --json "$OUT/bench_scen_cuda.json"
+# The bench with DeferredBlocks on or off (the first argument), the rest as sim.benchmark's.
+DEFER_BENCH='import sys
+from daemon.planning import registry
+registry.DEFER_BLOCKS_ON_DEVICE = sys.argv.pop(1) == "on"
+from sim.benchmark import main
+main(sys.argv[1:])'
+FOUR="courtyard,explore,building,streets"
+has defer && {
+for f in on off on2; do
+    step "defer_400_$f" 200 python3 -c "$DEFER_BENCH" "${f%2}" --grid 400 --unknown 0.4 \
+        --scenario "$FOUR" --backend cuda --json "$OUT/defer_400_$f.json"
+done
+step defer_1000_on 240 python3 -c "$DEFER_BENCH" on --grid 1000 --unknown 0.4 \
+    --scenario "$FOUR" --backend cuda --json "$OUT/defer_1000_on.json"
+step defer_2000_on 150 python3 -c "$DEFER_BENCH" on --grid 2000 --unknown 0.4 \
+    --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/defer_2000_on.json"
+}
 has harmonic && step harmonic 420 env GPU_CHECK_OUT="$OUT/harmonic" bash scripts/harmonic_check.sh
 has users && step users 420 env GPU_CHECK_OUT="$OUT/users" PARTS="${USERS_PARTS:-walk cuda rate}" \
     bash scripts/gpu_users_check.sh

@@ -86,6 +86,16 @@ def main() -> None:
         print(f"{'scenario':9} {'grid':>5} {'unk':>4} {'EDS p99':>7} {'target':>6} {'':>4} "
               f"{'DSS p99':>7} {'':>4} {'walk':>6} {'<=0.5':>4}")  # fmt: skip
         print("\n".join(lines))
+    defer = sorted(out.glob("defer_*.json"))
+    if defer:
+        print("\nissue 20 with DeferredBlocks (file: on/off), the same checks; idle: the walk's")
+        print("deferred blocks given between steps, ms, in no step")
+        for path in defer:
+            rows = load(path)
+            idle = {(r.get("scenario"), r["grid"]): r.get("idle_walk_ms", 0.0) for r in rows
+                    if r["mode"] == "eds"}  # fmt: skip
+            for line, key in zip(worst_step_lines(rows), idle, strict=False):
+                print(f"{path.stem:15} {line} idle {idle[key]:7.1f}")
     dss = load(out / "dss.json")
     if dss:
         print("\nDSS from scratch + path on the whole map (fused: one update_and_path call)")

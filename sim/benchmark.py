@@ -32,7 +32,7 @@ from .walk import MODES, walk
 ROW_FIELDS = (
     "scenario", "grid", "unknown", "backend", "variant", "mode", "steps", "iter_avg",
     "ms_median", "ms_mean", "ms_p95", "ms_p99", "ms_max", "walk_ms",
-    "nav_ms_median", "nav_ms_p99", "nav_ms_max", "inflate_ms_median", "device",
+    "nav_ms_median", "nav_ms_p99", "nav_ms_max", "inflate_ms_median", "idle_walk_ms", "device",
 )  # fmt: skip
 """The documented fields of every JSON row (rows carry a few more, see ``run_bench``)."""
 
@@ -168,6 +168,10 @@ def run_bench(
                 "walk_ms": float(np.median([r.step_ms.sum() for r in runs])),
                 **spread("nav_ms", np.concatenate([r.nav_ms for r in runs])),
                 "nav_walk_ms": float(np.median([r.nav_ms.sum() for r in runs])),
+                # What the planner left for after the steps (not in any step's time, nor in
+                # walk_ms): the user waits for none of it, the device still does it.
+                "idle_walk_ms": float(np.median([r.idle_ms.sum() for r in runs])),
+                "idle_ms_max": float(max(r.idle_ms.max(initial=0.0) for r in runs)),
                 "plan_ms_median": float(np.median(np.concatenate([r.plan_ms for r in runs]))),
                 "inflate_ms_median": float(
                     np.median(np.concatenate([r.inflate_ms for r in runs]))

@@ -123,6 +123,7 @@ def run_walk(
     for _ in range(max_actions):
         if map_first and inbox.deltas and inbox.goal is None:
             navigator.step(inbox, now)
+            navigator.between_steps()
             gc_policy.after_step()
             inbox = Inbox()
         inbox.pose = pose_source(world, now)
@@ -134,7 +135,8 @@ def run_walk(
         if out.belt:
             belt = out.belt[-1]
             walk.belts.append(belt)
-        gc_policy.after_step()  # as the runner does once the step's output is put
+        navigator.between_steps()  # as the runner does once the step's output is put
+        gc_policy.after_step()
         said = any(cue.kind in ANNOUNCING for cue in out.voice)
         if owed:
             walk.reroutes_announced += said

@@ -80,6 +80,8 @@ class WalkResult(WalkPicture):
     guide_ms: np.ndarray
     nav_ms: np.ndarray
     """The navigator's whole step: map, planner, guidance, status."""
+    idle_ms: np.ndarray
+    """After the step, its outputs out: the planner's work left for then (not in the step)."""
     changed: np.ndarray
     """Cells whose blocked state flipped at this step."""
     init_ms: float
@@ -150,6 +152,7 @@ def walk(
         inflate_ms=column([r.inflate_ms for r in reports], np.float64),
         guide_ms=column([r.guide_ms for r in reports], np.float64),
         nav_ms=column([r.step_ms for r in reports], np.float64),
+        idle_ms=column([r.idle_ms for r in reports], np.float64),
         changed=column([r.changed for r in reports], np.int64),
         max_open=column(
             [-1 if r.plan.max_open is None else r.plan.max_open for r in reports], np.int64

@@ -184,6 +184,12 @@ class Navigator:
         self.last.step_ms = (time.perf_counter() - t0) * 1e3
         return out
 
+    def between_steps(self) -> None:
+        """Once the step's outputs are out: what the planner left for then (``idle_ms``)."""
+        t0 = time.perf_counter()
+        self.route.between_steps()
+        self.last.idle_ms = (time.perf_counter() - t0) * 1e3
+
     def halt(
         self, now: float, code: StatusCode = StatusCode.SHUTDOWN, reason: str = "daemon stopping"
     ) -> StepOutput:
@@ -332,15 +338,9 @@ class Navigator:
             out.voice.append(g.cue)
         self._turn_xy = g.target
         out.path_cells = path
-        out.path_meta = dict(
-            cost=cost,
-            cell_m=self.settings.cell_m,
-            height=grid.shape[0],
-            width=grid.shape[1],
-            pose_stamp=self.pose.stamp,
-            stamp=now,
-            map_seq=self.maps.seq,
-        )
+        out.path_meta = dict(cost=cost, cell_m=self.settings.cell_m, height=grid.shape[0],
+                             width=grid.shape[1], pose_stamp=self.pose.stamp, stamp=now,
+                             map_seq=self.maps.seq)  # fmt: skip
         if g.pattern.kind == PatternKind.ARRIVED:
             self._set_state(NavState.ARRIVED, OK, "at the goal", now, out)
             self.goal, self.goal_cell = None, None  # done: stay quiet until the next goal

@@ -122,6 +122,17 @@ class Route:
             self._kept = None
             self._guarded(lambda p: self._record(p.update(*self._take())), retry=False)
 
+    def between_steps(self) -> None:
+        """The planner's work left for after the step's outputs (a device error: the CPU).
+        Any other failure leaves what the planner holds unknown: the next path plans afresh."""
+        if not self._planned:
+            return
+        try:
+            self._guarded(lambda p: p.between_steps(), retry=False)
+        except Exception:
+            self.invalidate()
+            raise
+
     def path_from(
         self,
         blocked: np.ndarray,

@@ -47,3 +47,5 @@ class StepReport:
     guide_ms: float = 0.0
     step_ms: float = 0.0
     """The whole step, inputs to outputs."""
+    idle_ms: float = 0.0
+    """After the step, its outputs out: the planner's work left for then (``between_steps``)."""

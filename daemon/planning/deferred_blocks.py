@@ -20,18 +20,22 @@ so n satisfies the rule under g1 only if it did under g0: the candidates under g
 of those under g0, and P's own next cell is among them (g1 = g0 on it). The first candidate
 in the fixed order is therefore the same cell: the suffix is the reference path tie for tie.
 The inner planner's queue and stored g are untouched, so nothing it holds becomes wrong; the
-map it has is only behind by the pending cells, which reach it (merged with the next delta, or
-alone) before anything else reads or changes its field. A deferred step after a deferred step
+map it has is only behind by the pending cells, which reach it once the user has the step's
+answer (``between_steps``: the daemon's runner calls it after publishing, the walks after each
+step), or merged with the next delta, or before anything reads its field. Given between
+steps, they keep P (nothing is pending then) and leave every repair the size of its own delta:
+a repair that carried every block deferred since the last one put the H100's p99 at 0.33-0.54
+ms at 400² where the plain walk's was 0.14-0.25. A deferred step after a deferred step
 applies the same argument to the map that includes the earlier pending blocks: P's suffix
 only shrinks as the user walks it, and each delta was checked against the suffix of its step.
 
 Where it applies: maps the device serves (the registry wraps the cuda backend's EDS; the rule
 is on when the inner planner's name says ``cuda``). There a repair step is a round trip, ~120
 µs on an H100 at 400², and the rule's check ~10 µs of the host. On the host a repair step of
-such a delta costs 20-30 µs, about what the check does, and the deltas that wait make the next
-repair longer: on the dev VM (2026-11-27, 400², 40 %, two interleaved runs each) the CPU walks
-took 0.9-1.6 × main's time with the rule, p99 up to 2 × (``docs/notes/gpu-focused-repair.md``,
-round lazy20). ``defer=True`` applies it anyway (the CPU property tests do).
+such a delta costs 20-30 µs, about what the check does: on the dev VM (2026-11-27, 400², 40 %,
+two interleaved runs each) the CPU walks took 0.9-1.6 × their time without the rule, the
+pending blocks then carried by the next repair. ``defer=True`` applies it anyway (the CPU
+property tests do).
 
 What the wrapper answers itself is what the route asks at every step (``max_open``,
 ``search_stats``: no ``__getattr__`` miss on the hot path); everything else comes from the
@@ -244,6 +248,12 @@ class DeferredBlocks(GlobalPlanner):
         flat = path[:, 0].astype(np.int64) * self._width + path[:, 1]
         self._on[flat] = True
         self._path, self._flat, self._at = path, flat, 0
+
+    def between_steps(self) -> None:
+        """The step's answer is out: the blocks it deferred go to the inner planner now, so
+        the next repair carries only its own delta. P stays the path: with nothing pending
+        the inner planner's field is the current map's, and P crossed none of them."""
+        self.flush()
 
     def flush(self) -> None:
         """Give the pending blocks to the inner planner (before anything reads its field)."""

@@ -2,10 +2,11 @@
 
 Five calls, as Nav2's ``GlobalPlanner`` has: ``plan`` a map and goal, ``update`` after a
 change, ``path`` and ``cost_at`` from a cell, and ``update_and_path`` (one replanning step,
-which a device backend serves in one round trip). The planners of the other papers register
-behind the same interface (``registry.register``), so it stays this small; what only the
-EDS/DSS backends offer (a host copy of ``g``, the blocked map, per-call statistics of their
-own) lives on those classes.
+which a device backend serves in one round trip); and ``between_steps``, where a planner may
+do what its steps left for later, once the user has their answer. The planners of the other
+papers register behind the same interface (``registry.register``), so it stays this small;
+what only the EDS/DSS backends offer (a host copy of ``g``, the blocked map, per-call
+statistics of their own) lives on those classes.
 
 Terms follow Díaz-Toro et al. 2022: ``g`` is the cost-to-goal field. For the EDS and DSS
 planners, after every call ``g`` equals ``dijkstra.dijkstra_field`` cell for cell, and
@@ -73,6 +74,10 @@ class GlobalPlanner(ABC):
         path = self.path(start)
         ms = (time.perf_counter() - t0) * 1e3
         return UpdateStats(stats.iterations, stats.cells_touched, ms), path
+
+    def between_steps(self) -> None:  # noqa: B027 (a hook: most planners leave nothing)
+        """Work that may wait until the step's answer is out (the user's outputs published):
+        none, for most planners."""
 
     @property
     @abstractmethod

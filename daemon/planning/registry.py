@@ -50,9 +50,11 @@ def resolve_backend(backend: str) -> str:
 
 DEFER_BLOCKS_ON_DEVICE = False
 """Wrap the cuda backend's EDS in ``DeferredBlocks`` (read when a planner is made, so a bench can
-compare the two). Off: on the H100 (400², 2026-11-27) it brought EDS's walk to 0.40-0.50 of DSS's
-but its p99 to 0.48-0.69 ms against 0.17-0.21 without it, the repair after deferred steps carrying
-every waiting block; the fixes since have not run on a device."""
+compare the two). Off until a device shows its tail: on the H100 (400², 2026-11-27) the rule
+brought EDS's walk to 0.36-0.44 of DSS's but its p99 to 0.33-0.54 ms against 0.14-0.25 without
+it, each repair then carrying every block deferred since the last. The deferred blocks now go
+to the device between steps (``between_steps``), so each repair is the plain walk's (cell for
+cell on the CPU walks); not yet run on a device."""
 
 
 def _field_planner(dss: bool) -> PlannerFactory:

@@ -256,8 +256,20 @@ class UserRunner:
             )
             inbox.pose_unread = back or (heard is not None and heard > self._pose_read_at)
             cpu_ms = self._step(inbox)
-            gc_policy.after_step()  # the output is out: collect between steps
-        return (time.monotonic() - (urgent_at or started)) * 1e3, cpu_ms, urgent_at is not None
+            lag_ms = (time.monotonic() - (urgent_at or started)) * 1e3  # the output is out
+            cpu_ms += self._between_steps()
+            gc_policy.after_step()  # collect between steps
+        return lag_ms, cpu_ms, urgent_at is not None
+
+    def _between_steps(self) -> float:
+        """On the worker, the step's output out: the planner's work left for now. Returns its
+        CPU milliseconds (the user's cost as much as the step's)."""
+        cpu0 = time.thread_time()
+        try:
+            self.navigator.between_steps()
+        except Exception:  # the route plans afresh at the next step (``Route.between_steps``)
+            log.exception("planner failed between steps", extra={"fields": {"user": self.user}})
+        return (time.thread_time() - cpu0) * 1e3
 
     def _gather(self) -> bool:
         """On the worker: wait for inputs. Urgent ones (map, goal, refusal, button) step at

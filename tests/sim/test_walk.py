@@ -77,3 +77,37 @@ def test_heading_follows_the_path_ahead():
     path = np.array([[10, 10], [9, 10], [8, 10], [7, 11]])
     assert heading_along(path, 2, 0.0) == pytest.approx(np.pi / 2)
     assert heading_along(path[:1], 2, 1.25) == 1.25
+
+
+@pytest.mark.parametrize("name", ["courtyard", "explore"])
+def test_a_walk_whose_steps_defer_blocks_walks_the_same_cells_and_gives_them_between_steps(name):
+    """EDS with ``DeferredBlocks`` on (as on the device): the walk is the plain one, cell for
+    cell; the blocks its steps deferred reach the planner between steps, so the repairing
+    steps do exactly the plain walk's work."""
+    from daemon.navigation import Navigator
+    from daemon.planning import make_planner
+    from daemon.planning.deferred_blocks import DeferredBlocks
+    from daemon.planning.dijkstra import dijkstra_field
+    from sim.scenarios import make_scenario
+    from sim.walk import paper_settings
+
+    scenario = make_scenario(name, 100, 0.4, 0)
+    made: list[DeferredBlocks] = []
+
+    def deferring(backend: str) -> DeferredBlocks:
+        made.append(DeferredBlocks(make_planner("eds", backend), defer=True))
+        return made[-1]
+
+    settings = paper_settings(scenario, "eds", "cpu", "fast")
+    nav = Navigator("walk", settings, planner_factory=deferring)
+    deferred = walk(scenario, backend="cpu", mode="eds", navigator=nav)
+    plain = walk(scenario, backend="cpu", mode="eds")
+    assert deferred.arrived and np.array_equal(deferred.walked, plain.walked)
+    wrapper = made[-1]
+    assert wrapper.deferred_steps > 0
+    wrapper.settle()  # what is still pending (the walk ended before its idle) goes first
+    grid = nav.maps.map
+    assert grid is not None and wrapper.pending_blocks() == 0
+    np.testing.assert_array_equal(wrapper.costs(), dijkstra_field(grid.blocked, scenario.goal))
+    repaired = deferred.iterations > 0  # the steps that reached the planner's repair
+    np.testing.assert_array_equal(deferred.cells_touched[repaired], plain.cells_touched[repaired])

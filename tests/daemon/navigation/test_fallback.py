@@ -63,23 +63,29 @@ def pose(cell: tuple[int, int], stamp: float | None = None) -> Pose:
 
 def walk(s: Navigator) -> list[NavState]:
     """Plan, repair with the path, read a path alone, take a change with no path read (the
-    pose has gone stale), then guide again: each planner call a step makes, once."""
+    pose has gone stale), then guide again: each planner call a step makes, once; and after
+    each step the planner's work between steps, as the runner asks for it."""
     now = time.time()
     states = []
-    s.step(Inbox(deltas=[delta(0, [])], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
-                 pose=pose((26, 15))), now)  # fmt: skip
-    states.append(s.state)
-    s.step(Inbox(deltas=[delta(1, WALL[:10])], pose=pose((26, 15))), time.time())
-    states.append(s.state)
-    s.step(Inbox(pose=pose((25, 15))), time.time())
-    states.append(s.state)
-    s.step(Inbox(deltas=[delta(2, WALL[10:])], pose=pose((25, 15), stamp=now - 5)), time.time())
-    s.step(Inbox(pose=pose((25, 15))), time.time())
-    states.append(s.state)
+    inboxes = [
+        Inbox(deltas=[delta(0, [])], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
+              pose=pose((26, 15))),
+        Inbox(deltas=[delta(1, WALL[:10])], pose=pose((26, 15))),
+        Inbox(pose=pose((25, 15))),
+        Inbox(deltas=[delta(2, WALL[10:])], pose=pose((25, 15), stamp=now - 5)),
+        Inbox(pose=pose((25, 15))),
+    ]  # fmt: skip
+    for i, inbox in enumerate(inboxes):
+        s.step(inbox, time.time())
+        if i != 3:  # the stale pose's step guides nobody
+            states.append(s.state)
+        s.between_steps()
     return states
 
 
-@pytest.mark.parametrize("method", ["plan", "update_and_path", "path", "update"])
+@pytest.mark.parametrize(
+    "method", ["plan", "update_and_path", "path", "update", "between_steps"]
+)
 def test_a_device_error_in_any_call_moves_the_user_to_the_cpu(method, caplog):
     s = navigator(method, DeviceFault("injected: an illegal memory access was encountered"))
     assert s.route.name == "cuda-stand-in"
@@ -100,3 +106,18 @@ def test_a_failure_that_is_not_the_devices_is_not_swallowed():
     with pytest.raises(IndexError):
         walk(s)
     assert s.route.name == "cuda-stand-in" and s.route.fallback_reason is None
+
+
+def test_a_failure_between_steps_that_is_not_the_devices_plans_afresh_at_the_next_step():
+    """What the planner holds is unknown after it: raised to the runner (which logs it), and
+    the next path is planned from the navigator's map, every change in it."""
+    s = navigator("between_steps", RuntimeError("a bug between steps"))
+    now = time.time()
+    s.step(Inbox(deltas=[delta(0, [])], goal=Goal(target=GoalCell(row=3, col=15), stamp=now),
+                 pose=pose((26, 15))), now)  # fmt: skip
+    with pytest.raises(RuntimeError):
+        s.between_steps()
+    s.step(Inbox(deltas=[delta(1, WALL)], pose=pose((26, 15))), time.time())
+    assert s.state == NavState.REROUTING and s.route.name == "cuda-stand-in"
+    assert s.route.report.planned  # from scratch
+    assert np.array_equal(s.route.planner.costs(), dijkstra_field(s.maps.map.blocked, GOAL))

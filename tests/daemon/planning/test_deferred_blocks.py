@@ -131,6 +131,9 @@ def walk_and_check(planner: DeferredBlocks, world, data, twin: DeferredBlocks | 
         if twin is not None:
             _, twin_path = twin.update_and_path(cells, values, user)
             np.testing.assert_array_equal(twin_path, path)
+        if data.draw(st.booleans(), label="idle"):  # the answer out: the pending blocks go
+            planner.between_steps()
+            assert planner.pending_blocks() == 0
         if data.draw(st.integers(0, 5), label="read") == 0:  # a read flushes what is pending
             cell = (data.draw(st.integers(0, truth.shape[0] - 1), label="rr"),
                     data.draw(st.integers(0, truth.shape[1] - 1), label="rc"))  # fmt: skip

@@ -82,6 +82,24 @@ def test_a_block_on_the_suffix_repairs_with_the_pending_blocks_merged():
     assert planner.pending_blocks() == 0
 
 
+def test_between_steps_the_pending_blocks_go_and_the_path_stays_for_the_next_step():
+    planner, spy, truth, path = walking()
+    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
+    planner.between_steps()
+    assert planner.pending_blocks() == 0 and spy.updates[0][0].tolist() == [OFF]
+    assert planner.inner.blocked().reshape(-1)[OFF]  # type: ignore[attr-defined]
+    _, got = planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(path[2]))
+    assert len(spy.steps) == 1 and planner.deferred_steps == 2  # P kept: it defers again
+    truth.reshape(-1)[[OFF, OFF + 1]] = True
+    np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[3]))
+    assert spy.steps[1][0].tolist() == [OFF + 1, ON]  # the repair carries one step's blocks
+    truth.reshape(-1)[ON] = True
+    np.testing.assert_array_equal(got, reference(truth, tuple(path[3])))
+    planner.between_steps()  # nothing pending: no call
+    assert len(spy.updates) == 1
+
+
 def test_a_block_behind_the_user_defers_and_one_under_the_user_repairs():
     planner, spy, _truth, path = walking()
     behind = int(path[0][0]) * N + int(path[0][1])

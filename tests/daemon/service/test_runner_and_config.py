@@ -110,6 +110,45 @@ def test_a_step_that_raises_stops_the_user_and_says_why():
     assert statuses[0].code == StatusCode.INTERNAL and "a bug in the step" in statuses[0].reason
 
 
+def test_the_planners_work_between_steps_comes_after_the_output_and_outside_the_lag():
+    """The runner asks for ``between_steps`` once the step's output is published; the step's
+    lag is measured before it (an input that comes meanwhile waits for it, and its lag says so),
+    and a failure there is logged while the user is still served."""
+    events: list[str] = []
+    lags: list[float] = []
+
+    class Idle(Navigator):
+        def between_steps(self) -> None:
+            events.append("between")
+            time.sleep(1.0)  # far longer than a 30 x 30 step
+            events.append("done")
+            if events.count("done") == 2:
+                raise RuntimeError("a bug between steps")
+
+    async def scenario():
+        navigator = Idle("u", DaemonConfig(backend="cpu").navigator_settings())
+        pacing = Pacing()
+        pacing.record = lambda user, lag, cpu, urgent=True: lags.append(lag)  # type: ignore
+        runner = UserRunner(navigator, lambda k, b: events.append(k.rsplit("/", 1)[1]),
+                            lambda *a: None, 1.0, pacing=pacing)  # fmt: skip
+        runner.put_delta(delta(0, [], []))
+        runner.put_goal(goal(3, 15))
+        runner.put_pose(pose((20, 3)))
+        for seq in (1, 2):  # map changes step at once: each once the work between is done
+            while events.count("done") < seq:
+                await asyncio.sleep(0.01)
+            runner.put_delta(delta(seq, [5 * 30 + seq], [1]))
+        while len(lags) < 3:
+            await asyncio.sleep(0.01)
+        assert runner.serving
+        await runner.close()
+
+    asyncio.run(scenario())
+    first = events.index("between")
+    assert "belt" in events[:first] and "status" in events[:first]  # the answer went first
+    assert events.count("between") >= 3 and max(lags) < 1000.0
+
+
 def test_config_file_environment_and_arguments_in_that_order(tmp_path, monkeypatch):
     path = tmp_path / "g.toml"
     path.write_text('backend = "reference"\nlang = "es"\n[zenoh]\nlisten = ["tcp/127.0.0.1:1"]\n')
