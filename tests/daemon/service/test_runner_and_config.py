@@ -127,13 +127,15 @@ def test_the_planners_work_between_steps_comes_after_the_output_and_outside_the_
 
     async def scenario():
         navigator = Idle("u", DaemonConfig(backend="cpu").navigator_settings())
-        pacing = Pacing()
+        pacing = Pacing(slots=1)
         pacing.record = lambda user, lag, cpu, urgent=True: lags.append(lag)  # type: ignore
         runner = UserRunner(navigator, lambda k, b: events.append(k.rsplit("/", 1)[1]),
                             lambda *a: None, 1.0, pacing=pacing)  # fmt: skip
-        runner.put_delta(delta(0, [], []))
-        runner.put_goal(goal(3, 15))
-        runner.put_pose(pose((20, 3)))
+        with pacing.slots:  # the first step takes all three: it guides
+            runner.put_delta(delta(0, [], []))
+            runner.put_goal(goal(3, 15))
+            runner.put_pose(pose((20, 3)))
+            await asyncio.sleep(0.05)
         for seq in (1, 2):  # map changes step at once: each once the work between is done
             while events.count("done") < seq:
                 await asyncio.sleep(0.01)
