@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from protocol.messages import BeltPattern, PatternKind
@@ -154,10 +155,10 @@ class PatternMaker:
 
     def __init__(self) -> None:
         self.seq = 0
-        self.map_seq = -1
-        """The map version every pattern built now names (``BeltPattern.map_seq``). The user's
-        step sets it as it applies its map (``Navigator.step``), so a pattern names the map it
-        was decided on, and whoever measures delta→belt (``sim.load``) needs nothing else."""
+        self.map_seq: Callable[[], int] = lambda: -1
+        """The map version a pattern built now names (``BeltPattern.map_seq``): the user's map
+        as it stands (the navigator points it at its ``MapKeeper``), so a pattern names the map
+        it was decided on, and whoever measures delta→belt (``sim.load``) needs nothing else."""
 
     def _next(self) -> int:
         self.seq = (self.seq + 1) % 2**32
@@ -166,7 +167,7 @@ class PatternMaker:
     def guide(self, cw: float, clearance_m: float | None, now: float) -> BeltPattern:
         return BeltPattern(
             seq=self._next(),
-            map_seq=self.map_seq,
+            map_seq=self.map_seq(),
             kind=PatternKind.GUIDE,
             motors=blend(cw),
             period_ms=pulse_period_ms(clearance_m),
@@ -184,7 +185,7 @@ class PatternMaker:
         motors[side] = 255
         return BeltPattern(
             seq=self._next(),
-            map_seq=self.map_seq,
+            map_seq=self.map_seq(),
             kind=PatternKind.TURN_AROUND,
             motors=(motors[0], motors[1], motors[2], motors[3]),
             period_ms=300,
@@ -201,7 +202,7 @@ class PatternMaker:
         motors[motor] = strength
         return BeltPattern(
             seq=self._next(),
-            map_seq=self.map_seq,
+            map_seq=self.map_seq(),
             kind=PatternKind.OBSTACLE,
             motors=(motors[0], motors[1], motors[2], motors[3]),
             period_ms=OBSTACLE_PULSE_MS,
@@ -215,7 +216,7 @@ class PatternMaker:
         shape = EVENT_SHAPES[kind]
         return BeltPattern(
             seq=self._next(),
-            map_seq=self.map_seq,
+            map_seq=self.map_seq(),
             kind=kind,
             motors=shape.motors,
             period_ms=shape.period_ms,

@@ -82,6 +82,7 @@ class Navigator:
         )  # fmt: skip
         # Smoothing (when guidance is asked for it) takes the model of the planner in use.
         self.guidance.planner = lambda: self.route.planner
+        self.guidance.patterns.map_seq = lambda: self.maps.seq  # each names the map it was on
         self.goal: Goal | None = None
         self.goal_cell: Cell | None = None
         self.pose: Pose | None = None
@@ -128,7 +129,6 @@ class Navigator:
         self.session.begin_step()  # a STOP or WAIT of this step is not undone by this step
         self._taken_at = inbox.taken_at if inbox.taken_at is not None else now
         self._shed, self._behind = inbox.overloaded, inbox.daemon_behind or inbox.pose_unread
-        self.guidance.patterns.map_seq = self.maps.seq  # each pattern names the map it was on
         out = StepOutput()
         if self._shed:  # said first: nothing later in this step may guide
             why = "the daemon is at capacity: guidance paused"
@@ -195,7 +195,7 @@ class Navigator:
     ) -> StepOutput:
         """A STOP (or, for an idle user, OFF) pattern and its status, touching nothing else:
         the daemon's last words to a user, and what a step that failed says instead."""
-        out, self.guidance.patterns.map_seq = StepOutput(), self.maps.seq
+        out = StepOutput()
         self._reject(Rejection(code, reason, counted=False), now, out)
         return out
 
@@ -208,7 +208,6 @@ class Navigator:
     # -- map, goal, pose ------------------------------------------------------------------
 
     def _take_map(self, update: MapUpdate, now: float, out: StepOutput) -> None:
-        self.guidance.patterns.map_seq = self.maps.seq  # what this step's patterns now rest on
         for rej in update.rejections:
             self._reject(rej, now, out)
         out.want_snapshot |= update.want_snapshot

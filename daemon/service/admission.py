@@ -57,9 +57,9 @@ from collections import deque
 import numpy as np
 
 from .admission_settings import AdmissionSettings
-from .memory_budget import BYTES_PER_CELL, map_too_big
 
-__all__ = ["BYTES_PER_CELL", "Admission", "AdmissionSettings", "map_too_big"]
+__all__ = ["Admission", "AdmissionSettings"]
+
 
 class Admission:
     def __init__(self, settings: AdmissionSettings | None = None) -> None:
@@ -75,10 +75,10 @@ class Admission:
         """Each user's CPU ms per second over the last window (kept while shed)."""
         self._quiet_until = 0.0
         self._decided_at = -math.inf
+        """When users were last shed."""
         self._joined_at = -math.inf
         """When a user was last admitted: their first steps (a whole map, a whole plan) are a
         burst, not what the machine gives steady guidance."""
-        """When users were last shed."""
         self._capacity: tuple[float, float] | None = None
         """(CPU ms per second the guided users' steps took when the lag last forced a
         shedding, when): the machine's measured capacity for them, for readmission."""

@@ -32,10 +32,11 @@ from protocol.messages import Health, NavState, NavStatus, StatusCode
 from protocol.session import open_session
 from protocol.topics import Topic
 
-from .admission import Admission, AdmissionSettings, map_too_big
+from .admission import Admission, AdmissionSettings
 from .bridge import Bridge
 from .config import DaemonConfig
 from .map_cells import MapCells
+from .memory_budget import map_too_big
 from .persistence import Persistence
 from .queries import QueryAnswers, daemon_health, say_who_may_connect
 from .runner import Pacing, UserRunner

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from daemon.navigation import Navigator
-from daemon.service.admission import BYTES_PER_CELL
 from daemon.service.config import DaemonConfig
 from daemon.service.daemon import Daemon
 from daemon.service.map_cells import MapCells
+from daemon.service.memory_budget import BYTES_PER_CELL
 from protocol import codec
 from protocol import session as wire
 from protocol import topics as T

@@ -64,9 +64,9 @@ def test_a_33_byte_delta_declaring_a_huge_map_is_refused_and_allocates_nothing(d
 
 
 def test_the_memory_budget_counts_every_users_map():
-    from daemon.service.admission import BYTES_PER_CELL
     from daemon.service.config import DaemonConfig
     from daemon.service.daemon import Daemon
+    from daemon.service.memory_budget import BYTES_PER_CELL
 
     d = Daemon(DaemonConfig(memory_budget_mb=100 * BYTES_PER_CELL / 2**20 * 1.5))
     assert d._map_too_big("a", 100) is None  # 100 cells fit, 1.5× that is the budget
