@@ -124,11 +124,13 @@ class Replay:
         return None
 
     def step(self, op: tuple) -> float:
-        """The step's call; its wall clock in ms."""
+        """The step's call; its wall clock in ms. Then the planner's work left for between
+        steps, untimed, as the daemon's runner does it once a step's output is out."""
         t0 = time.perf_counter()
         _, path = self.p.update_and_path(op[1], op[2], op[3])
         ms = (time.perf_counter() - t0) * 1e3
         self.check(path, op[4])
+        self.p.between_steps()
         return ms
 
     def check(self, path: np.ndarray, want: np.ndarray) -> None:
@@ -165,11 +167,17 @@ def round_robin(users: list[Replay]) -> dict[str, Any]:
 
 
 def at_rate(
-    users: list[Replay], hz: float, seconds: float, batch: Callable[[list], list] | None = None
+    users: list[Replay],
+    hz: float,
+    seconds: float,
+    batch: Callable[[list], list] | None = None,
+    between: Callable[[list], list] | None = None,
 ) -> dict[str, Any]:
     """Every user steps at ``hz`` for ``seconds``; latency from due to done. With ``batch``
     (``cuda.batch.step_many``), the steps due when the host comes round go to it together
-    (their latency ends when the batch returns); else one after another."""
+    (their latency ends when the batch returns), then their planners' work for between steps
+    to ``between`` (``cuda.batch.between_steps_many``; default: each planner's own); else one
+    after another."""
     n = len(users)
     period = 1.0 / hz
     # (due, user): the users' phases spread over a period; a heap, since a scan of 1,000
@@ -207,6 +215,11 @@ def at_rate(
                 users[k].check(res[1], ops[k][4])
                 late.append((done - t0 - when) * 1e3)
                 own.append((done - b0) * 1e3)
+            # after the batch's answers, as the daemon after its outputs: posted together
+            planners = [users[k].p for _, k, _ in due]
+            for res in between(planners) if between else [p.between_steps() for p in planners]:
+                if isinstance(res, BaseException):
+                    raise res
             sizes.append(len(due))
         for _, k, j in due:
             ops[k] = users[k].until_step()
@@ -259,6 +272,7 @@ def at_rate_threads(users: list[Replay], hz: float, seconds: float) -> dict[str,
                 u.check(path, op[4])
                 late[k].append((done - t0 - due) * 1e3)
                 own[k].append((done - b0) * 1e3)
+                u.p.between_steps()
                 op = u.until_step()
         except BaseException as exc:
             failed.append(exc)
@@ -370,10 +384,10 @@ def run_users(
             row["batch_mean"] = (after[1] - before[1]) / max(row["batches"], 1)
     else:
         row["mode"] = "rate" if backend != "cuda" else "rate batched"
-        step_many = None
+        step_many = between_steps_many = None
         if backend == "cuda":
-            from daemon.planning.cuda.batch import step_many
-        row.update(at_rate(replays, hz, seconds, step_many))
+            from daemon.planning.cuda.batch import between_steps_many, step_many
+        row.update(at_rate(replays, hz, seconds, step_many, between_steps_many))
     return row
 
 

@@ -30,11 +30,12 @@ applies the same argument to the map that includes the earlier pending blocks: P
 only shrinks as the user walks it, and each delta was checked against the suffix of its step.
 
 Where it applies: maps the device serves (the registry wraps the cuda backend's EDS; the rule
-is on when the inner planner's name says ``cuda``). There a repair step is a round trip, ~120
-µs on an H100 at 400², and the rule's check ~10 µs of the host. On the host a repair step of
-such a delta costs 20-30 µs, about what the check does: on the dev VM (2026-11-27, 400², 40 %,
-two interleaved runs each) the CPU walks took 0.9-1.6 × their time without the rule, the
-pending blocks then carried by the next repair. ``defer=True`` applies it anyway (the CPU
+is on when the inner planner's name says ``cuda``). There a repair step is a round trip, ~140
+µs on an H100 at 400², and the wrapper adds ~15 µs to it (the check ~9, measured inside the
+walk, where the host's caches are cold: the same calls in a loop take 5). On the host a repair
+step of such a delta costs 20-30 µs, about what the check does: on the dev VM (2026-11-27,
+400², 40 %, two interleaved runs each) the CPU walks took 0.9-1.6 × their time without the
+rule, the pending blocks then carried by the next repair. ``defer=True`` applies it anyway (the CPU
 property tests do).
 
 What the wrapper answers itself is what the route asks at every step (``max_open``,
@@ -48,6 +49,7 @@ import time
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .grid import Cell
 from .interface import GlobalPlanner, UpdateStats
@@ -60,6 +62,8 @@ READS = frozenset(
 Step = tuple[UpdateStats, np.ndarray]
 _NO_CELLS = np.empty(0, dtype=np.int64)
 _NO_VALUES = np.empty(0, dtype=bool)
+PENDING_START = 4096
+"""Room for pending cells at first (it doubles when a step's delta does not fit)."""
 
 
 class DeferredBlocks(GlobalPlanner):
@@ -80,12 +84,20 @@ class DeferredBlocks(GlobalPlanner):
         """Whether the rule applies to the current map."""
         self.deferred_steps = 0
         """Steps answered without the inner planner (for tests and the bench's notes)."""
-        self._pending: list[np.ndarray] = []  # flat cells blocked but not yet given to inner
-        self._is_pending = np.zeros(0, dtype=bool)  # per cell: in ``_pending`` (each once)
+        # Flat cells blocked but not yet given to inner: the first ``_count`` of ``_pending``
+        # (grown as needed), each once (``_is_pending``).
+        self._pending = np.empty(PENDING_START, dtype=np.int64)
+        self._count = 0
+        self._is_pending = np.zeros(0, dtype=bool)
         self._path: np.ndarray | None = None  # P: the last path returned, (k, 2) int32
         self._flat: np.ndarray | None = None  # P's flat indices
         self._at = 0  # the user's index in P at the last step
-        self._on = np.zeros(0, dtype=bool)  # per cell: on P's suffix from _at
+        self._on = np.zeros(0, dtype=bool)  # per cell: on P's suffix from _at (once marked)
+        # A repairing step's own bookkeeping waits for ``between_steps`` (or the next check):
+        # the path just returned, not yet marked in ``_on``, and a forgotten P's marks not yet
+        # cleared. Marking ~500 cells and clearing as many cost a repair step 10-20 µs.
+        self._fresh: np.ndarray | None = None
+        self._stale: np.ndarray | None = None
         self._width = 0
         self._cells = 0
 
@@ -119,6 +131,7 @@ class DeferredBlocks(GlobalPlanner):
         if self._on.size != h * w:
             self._on = np.zeros(h * w, dtype=bool)
             self._is_pending = np.zeros(h * w, dtype=bool)
+            self._stale = None  # marks of the old map's array
         self._width, self._cells = w, h * w
         self.defers = self._defer if self._defer is not None else "-cuda-" in self.inner.name
         if self.defers:
@@ -138,9 +151,13 @@ class DeferredBlocks(GlobalPlanner):
         done = self.deferred(cells, blocked, start, t0)
         if done is not None:
             return done
-        cells, values = self.merged(cells, blocked)
-        stats, path = self.inner.update_and_path(cells, values, start)
-        self.kept(path)
+        if self._count:
+            cells, blocked = self.merged(cells, blocked)
+        else:
+            self._forget()
+        stats, path = self.inner.update_and_path(cells, blocked, start)
+        if self.defers and len(path):  # kept(path), P already forgotten
+            self._fresh = path
         ms = (time.perf_counter() - t0) * 1e3  # the check and the merge are the step's too
         return UpdateStats(stats.iterations, stats.cells_touched, max(ms, stats.ms)), path
 
@@ -150,7 +167,7 @@ class DeferredBlocks(GlobalPlanner):
         done = self.deferred(_NO_CELLS, _NO_VALUES, start)
         if done is not None:
             return done[1]
-        if self._pending:  # one step of the inner planner, not an update and then a read
+        if self._count:  # one step of the inner planner, not an update and then a read
             cells, values = self.merged(_NO_CELLS, _NO_VALUES)
             path = self.inner.update_and_path(cells, values, start)[1]
         else:
@@ -173,7 +190,10 @@ class DeferredBlocks(GlobalPlanner):
         self.flush()
         if attr not in READS:
             self._forget()
-        return getattr(self.__dict__["inner"], attr)
+        value = getattr(self.__dict__["inner"], attr)
+        if attr == "parts":  # the warm-up's: each part behind the rule, so its check runs too
+            return lambda: [DeferredBlocks(part, defer=True) for part in value()]
+        return value
 
     # -- the rule -----------------------------------------------------------------------------
 
@@ -182,43 +202,39 @@ class DeferredBlocks(GlobalPlanner):
     ) -> Step | None:
         """The step's answer when it needs no repair (the rule above; the delta is then
         pending), else None and nothing changed."""
+        t0 = time.perf_counter() if t0 is None else t0
+        if self._fresh is not None or self._stale is not None:
+            self._mark()
         flat = self._flat
         if flat is None:  # no P (or the rule is off: kept() keeps none)
             return None
-        t0 = time.perf_counter() if t0 is None else t0
         r, c = int(start[0]), int(start[1])
         if not (0 <= c < self._width and 0 <= r * self._width < self._cells):
             return None
-        s = r * self._width + c
-        at = self._at
-        if flat[at] != s:  # the user walked on: usually the next cell, else look along P
-            if at + 1 < flat.size and flat[at + 1] == s:
-                at += 1
-            else:
-                hits = np.flatnonzero(flat[at:] == s)
-                if not hits.size:
-                    return None  # off P, or behind the user's last cell on it: repair
-                at += int(hits[0])
-        if at != self._at:  # the cells the user walked past leave the suffix (P stays valid)
-            self._on[flat[self._at : at]] = False
-            self._at = at
-        values = np.asarray(blocked)
-        if not values.all():  # a freed cell may lower g on and off the path: repair
+        try:
+            if self._count + len(cells) > self._pending.size:  # room for the delta's cells
+                grown = np.empty(2 * (self._count + len(cells)), dtype=np.int64)
+                grown[: self._count] = self._pending[: self._count]
+                self._pending = grown
+            at, self._count = _defer_step(
+                flat, self._at, r * self._width + c, self._on, cells, blocked,
+                self._is_pending, self._pending, self._count,
+            )  # fmt: skip
+        except TypeError:  # not the route's form, the only one compiled: made so
+            at = -2
+        if at == -2:  # (or one value for every cell)
+            cells = np.array(cells, dtype=np.int64).reshape(-1)
+            values = np.asarray(blocked, dtype=np.bool_)
+            if values.size == cells.size:
+                values = values.reshape(-1)
+            blocked = np.array(np.broadcast_to(values, cells.shape))
+            return self.deferred(cells, blocked, start, t0)
+        if at < 0:
             return None
-        cells = np.asarray(cells, dtype=np.int64).reshape(-1)
-        if cells.size:
-            if int(cells.min()) < 0 or int(cells.max()) >= self._cells:
-                return None  # the inner planner raises the IndexError
-            if self._on[cells].any():  # (c) fails: the delta cuts the suffix
-                return None
-            new = cells[~self._is_pending[cells]]  # a cell blocked again is pending once
-            if new.size:
-                self._is_pending[new] = True
-                self._pending.append(new)
+        self._at = at
         self.deferred_steps += 1
         assert self._path is not None
-        path = self._path[at:].copy()
-        return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3), path
+        return UpdateStats(0, 0, (time.perf_counter() - t0) * 1e3), self._path[at:].copy()
 
     def merged(self, cells: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The pending blocks and the new delta as one delta for the inner planner (pending
@@ -227,7 +243,7 @@ class DeferredBlocks(GlobalPlanner):
         planner, which still has the cell free (its own no-op change) unless the block was a
         no-op itself, when the free is the change it must see."""
         self._forget()
-        if not self._pending:
+        if not self._count:
             return cells, blocked
         cells = np.asarray(cells, dtype=np.int64).reshape(-1)
         if cells.size and (int(cells.min()) < 0 or int(cells.max()) >= self._cells):
@@ -241,42 +257,139 @@ class DeferredBlocks(GlobalPlanner):
         return merged, np.concatenate([np.ones(pend.size, dtype=bool), values])
 
     def kept(self, path: np.ndarray) -> None:
-        """Remember ``path``, just returned by the inner planner's step, as P."""
+        """Remember ``path``, just returned by the inner planner's step, as P (marked in
+        ``_on`` by ``_mark``, once the step's answer is out)."""
         self._forget()
-        if len(path) == 0 or self._width == 0 or not self.defers:
-            return
-        flat = path[:, 0].astype(np.int64) * self._width + path[:, 1]
-        self._on[flat] = True
-        self._path, self._flat, self._at = path, flat, 0
+        if len(path) and self._width and self.defers:
+            self._fresh = path
 
     def between_steps(self) -> None:
         """The step's answer is out: the blocks it deferred go to the inner planner now, so
         the next repair carries only its own delta. P stays the path: with nothing pending
-        the inner planner's field is the current map's, and P crossed none of them."""
-        self.flush()
+        the inner planner's field is the current map's, and P crossed none of them. Given as
+        a step from the user's cell (``pending_step``): on the device it is posted with the
+        steps other users' threads call meanwhile (``cuda/combine.py``), not alone. While
+        the device is shared (``shared_now``: other threads' steps met ours lately) they stay
+        pending and ride with the next repair instead: a post of their own for every deferred
+        step took a 16-core H100 host from 7,600 steps/s to 4,800 (1,000 users at 10 Hz)."""
+        if not self._count:
+            return
+        shared = getattr(self.inner, "shared_now", None)
+        if shared is not None and shared():
+            return
+        step = self.pending_step()
+        if step is not None:
+            inner, cells, blocked, start = step
+            inner.update_and_path(cells, blocked, start)
+        else:
+            self.flush()
+
+    def pending_step(self) -> tuple[GlobalPlanner, np.ndarray, np.ndarray, Cell] | None:
+        """The pending blocks, taken, as a step of the inner planner from the user's cell on
+        P, for a caller that posts it (with others': ``cuda/batch.between_steps_many``); its
+        path is P's suffix from there (the rule's proof). None when nothing is pending or
+        there is no P. A caller whose step fails must have the planner plan afresh, as the
+        route does (the blocks are no longer pending)."""
+        self._mark()
+        if not self._count or self._flat is None:
+            return None
+        cells = self._take_pending()
+        r, c = divmod(int(self._flat[self._at]), self._width)
+        return self.inner, cells, np.ones(cells.size, dtype=bool), (r, c)
 
     def flush(self) -> None:
         """Give the pending blocks to the inner planner (before anything reads its field)."""
-        if self._pending:
+        if self._count:
             pend = self._take_pending()
             self.inner.update(pend, np.ones(pend.size, dtype=bool))
 
     def pending_blocks(self) -> int:
         """Cells blocked by deferred steps and not yet given to the inner planner."""
-        return int(sum(p.size for p in self._pending))
+        return self._count
 
     def _take_pending(self) -> np.ndarray:
         """The pending cells still marked (a new delta unmarks those it sets), cleared."""
-        if not self._pending:
+        if not self._count:
             return _NO_CELLS
-        pend = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        pend = self._pending[: self._count]
         pend = pend[self._is_pending[pend]]
         self._is_pending[pend] = False
-        self._pending = []
+        self._count = 0
         return pend
 
     def _forget(self) -> None:
+        """No P: its marks are cleared by ``_mark`` (a step's reads of ``_on`` all follow it)."""
+        self._fresh = None
         if self._flat is not None:
-            self._on[self._flat[self._at :]] = False
+            if self._stale is not None:
+                self._on[self._stale] = False
+            self._stale = self._flat[self._at :]
         self._path = self._flat = None
         self._at = 0
+
+    def _mark(self) -> None:
+        """Bring ``_on`` up to date: a forgotten P's suffix cleared, a kept path marked as P."""
+        if self._stale is not None:
+            self._on[self._stale] = False
+            self._stale = None
+        path = self._fresh
+        if path is not None:
+            self._fresh = None
+            flat = path[:, 0].astype(np.int64) * self._width + path[:, 1]
+            self._on[flat] = True
+            self._path, self._flat, self._at = path, flat, 0
+
+
+_FLAGS = "boolean[::1]"
+_CELLS = "int64[::1]"
+
+
+@njit(
+    f"UniTuple(int64, 2)({_CELLS}, int64, int64, {_FLAGS}, {_CELLS}, {_FLAGS}, {_FLAGS}, {_CELLS},"
+    " int64)",
+    cache=True,
+    nogil=True,
+)  # one signature, compiled at import: a delta of another form is a TypeError, never a compile
+def _defer_step(  # pragma: no cover - compiled
+    flat: np.ndarray,
+    at: int,
+    s: int,
+    on: np.ndarray,
+    cells: np.ndarray,
+    blocked: np.ndarray,
+    is_pending: np.ndarray,
+    pending: np.ndarray,
+    count: int,
+) -> tuple[int, int]:
+    """The rule for a step from cell ``s`` with the delta ``cells``/``blocked``, against P's
+    flat cells ``flat`` (the user last at ``at``) and its suffix's marks ``on``.
+
+    Holds: returns the user's index in P and the new count of ``pending``, where the delta's
+    cells not already pending were added. Fails: ``(-1, count)``, nothing added (``-2``:
+    ``blocked`` is not one value a cell). Either way
+    the cells the user walked past are unmarked (they left the suffix; P stays valid). A cell
+    outside the map fails the rule (the inner planner's step raises the IndexError). One
+    compiled pass: the same checks as numpy calls cost a walking step ~15 µs on a GPU host,
+    a tenth of its time there."""
+    if blocked.shape[0] != cells.shape[0]:
+        return -2, count  # not one value a cell: the caller's to make so
+    k = flat.shape[0]
+    j = at
+    while j < k and flat[j] != s:  # (a) usually at or one further on
+        j += 1
+    if j == k:
+        return -1, count  # off P, or behind the user's last cell on it
+    for i in range(at, j):
+        on[flat[i]] = False
+    n = on.shape[0]
+    for i in range(cells.shape[0]):  # (b) every cell blocked, (c) none on the suffix
+        cell = cells[i]
+        if not blocked[i] or cell < 0 or cell >= n or on[cell]:
+            return -1, count
+    for i in range(cells.shape[0]):
+        cell = cells[i]
+        if not is_pending[cell]:  # a cell blocked again is pending once
+            is_pending[cell] = True
+            pending[count] = cell
+            count += 1
+    return j, count

@@ -42,6 +42,11 @@ def exercise(planner: GlobalPlanner, steps: int = 40, seed: int = 0) -> None:
     user: Cell = (2, SIDE // 2)
     planner.plan(inflated.blocked, goal)
     path = planner.path(user)
+    # A block in a corner, far from the path: the step a device planner answers without a
+    # repair (``deferred_blocks.py``, whose compiled check runs only then).
+    flipped, now = inflated.apply(np.array([0], dtype=np.int64), np.array([OCCUPIED], np.uint8))
+    user = (int(path[1][0]), int(path[1][1]))
+    _stats, path = planner.update_and_path(flipped, now, user)
     for i in range(steps):
         # Runs of eight cells, closed twice and opened once in three: repairs of both signs.
         row = int(rng.integers(RADIUS + 1, SIDE - RADIUS - 1))

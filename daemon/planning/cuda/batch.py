@@ -14,7 +14,8 @@ others are still served. The cuda backend's EDS (``SmallGridsOnCpu``) is batched
 is served by the device; other planners step one after another, as their own
 ``update_and_path`` does. An EDS step that needs no repair (``deferred_blocks.py``: its new
 obstacles all miss the user's path) is answered on the host and never posted; the others post
-their pending blocks merged with their delta.
+their pending blocks merged with their delta; the blocks it deferred are posted between steps,
+every user's together (``between_steps_many``).
 """
 
 from __future__ import annotations
@@ -76,4 +77,29 @@ def step_many(steps: Sequence[Step], max_batch: int | None = None) -> list[Any]:
     for i, wrapper in keeps.items():  # each repaired step's path is its planner's new P
         if not isinstance(out[i], BaseException):
             wrapper.kept(out[i][1])
+    return out
+
+
+def between_steps_many(planners: Sequence[Any], max_batch: int | None = None) -> list[Any]:
+    """Every planner's work for between steps (``GlobalPlanner.between_steps``), the deferred
+    blocks of the cuda backend's EDS posted together (``step_many``) rather than one round trip
+    each. The exception a planner's work raised, in its place, else None; a planner whose
+    deferred blocks failed must plan afresh (``DeferredBlocks.pending_step``)."""
+    out: list[Any] = [None] * len(planners)
+    steps: list[Step] = []
+    where: list[int] = []
+    for i, p in enumerate(planners):
+        try:
+            step = p.pending_step() if isinstance(p, DeferredBlocks) else None
+            if step is None:
+                p.between_steps()
+                continue
+        except Exception as exc:  # one user's failure is that user's result
+            out[i] = exc
+            continue
+        steps.append(step)
+        where.append(i)
+    for i, res in zip(where, step_many(steps, max_batch), strict=True):
+        if isinstance(res, BaseException):
+            out[i] = res
     return out

@@ -110,6 +110,16 @@ class SmallGridsOnCpu(GlobalPlanner):
     def shape(self) -> tuple[int, int]:
         return self._serving.shape if self._serving else (0, 0)
 
+    def shared_now(self) -> bool:
+        """Whether other threads' steps have met this process's on the device lately
+        (``combine.py``): work that can wait had better ride with a later step than make a
+        post of its own (``DeferredBlocks.between_steps``)."""
+        if self._serving is None or self._serving is not self._cuda:
+            return False
+        from .posting import STEPS
+
+        return STEPS.contended
+
     def __getattr__(self, attr: str):
         # What only some planners offer (costs, costs_within, settle, pending, blocked, the
         # cuda planner's statistics) comes from the one serving the map: a caller that asks

@@ -241,5 +241,11 @@ def test_a_batch_answers_deferred_steps_on_the_host_and_posts_the_others(monkeyp
             assert (p.deferred_steps == before[k] + 1) == (not cut[k])
             paths[k] = res[1]
         assert sum(posted) == sum(cut)  # the deferred steps were never posted
+        if rnd % 2:  # the blocks deferred, given between steps: every user's in one post
+            posted.clear()
+            waiting = sum(p.pending_blocks() > 0 for p in users)
+            assert batch.between_steps_many(users) == [None] * len(users)
+            assert [p.pending_blocks() for p in users] == [0] * len(users)
+            assert posted == ([waiting] if waiting else [])
     for p, truth in zip(users, truths, strict=True):
         np.testing.assert_array_equal(p.costs(), dijkstra_field(truth, goal))

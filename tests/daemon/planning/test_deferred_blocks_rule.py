@@ -86,18 +86,36 @@ def test_between_steps_the_pending_blocks_go_and_the_path_stays_for_the_next_ste
     planner, spy, truth, path = walking()
     planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
     planner.between_steps()
-    assert planner.pending_blocks() == 0 and spy.updates[0][0].tolist() == [OFF]
+    # a step of the inner planner from the user's cell (the device posts it with others')
+    assert planner.pending_blocks() == 0 and not spy.updates and len(spy.steps) == 2
+    assert spy.steps[1][0].tolist() == [OFF] and spy.steps[1][1].all()
     assert planner.inner.blocked().reshape(-1)[OFF]  # type: ignore[attr-defined]
     _, got = planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(path[2]))
-    assert len(spy.steps) == 1 and planner.deferred_steps == 2  # P kept: it defers again
+    assert len(spy.steps) == 2 and planner.deferred_steps == 2  # P kept: it defers again
     truth.reshape(-1)[[OFF, OFF + 1]] = True
     np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
     _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[3]))
-    assert spy.steps[1][0].tolist() == [OFF + 1, ON]  # the repair carries one step's blocks
+    assert spy.steps[2][0].tolist() == [OFF + 1, ON]  # the repair carries one step's blocks
     truth.reshape(-1)[ON] = True
     np.testing.assert_array_equal(got, reference(truth, tuple(path[3])))
     planner.between_steps()  # nothing pending: no call
-    assert len(spy.updates) == 1
+    assert len(spy.steps) == 3 and not spy.updates
+
+
+def test_the_pending_step_is_taken_from_the_users_cell_on_the_path():
+    planner, spy, truth, path = walking()
+    assert planner.pending_step() is None  # nothing pending
+    planner.update_and_path(np.array([OFF, OFF + 1]), np.array([True, True]), tuple(path[2]))
+    step = planner.pending_step()
+    assert step is not None and planner.pending_blocks() == 0
+    inner, cells, blocked, start = step
+    assert inner is planner.inner and sorted(cells.tolist()) == [OFF, OFF + 1]
+    assert blocked.all() and start == tuple(int(v) for v in path[2])
+    _, got = inner.update_and_path(cells, blocked, start)
+    np.testing.assert_array_equal(got, path[2:])  # the rule's proof: P's suffix
+    truth.reshape(-1)[[OFF, OFF + 1]] = True
+    np.testing.assert_array_equal(got, reference(truth, start))
+    assert len(spy.steps) == 2
 
 
 def test_a_block_behind_the_user_defers_and_one_under_the_user_repairs():
@@ -195,10 +213,10 @@ def test_the_routes_per_step_reads_are_answered_without_a_lookup_miss(monkeypatc
     # ``getattr(planner, "max_open", None)`` and ``search_stats`` at every step: class
     # attributes, so ``__getattr__`` (and its flush) never runs for them
     assert "max_open" in vars(DeferredBlocks) and "search_stats" in vars(DeferredBlocks)
-    assert not isinstance(make_planner("eds", "cuda"), DeferredBlocks)  # off until measured
-    monkeypatch.setattr(registry, "DEFER_BLOCKS_ON_DEVICE", True)
-    assert not isinstance(make_planner("eds", "cpu"), DeferredBlocks)  # the device's only
     assert isinstance(make_planner("eds", "cuda"), DeferredBlocks)  # built before any cupy
+    assert not isinstance(make_planner("eds", "cpu"), DeferredBlocks)  # the device's only
+    monkeypatch.setattr(registry, "DEFER_BLOCKS_ON_DEVICE", False)  # a bench's comparison
+    assert not isinstance(make_planner("eds", "cuda"), DeferredBlocks)
 
 
 def test_on_the_host_by_default_every_call_is_the_inner_planners_own():
@@ -224,3 +242,75 @@ def test_a_path_read_from_the_suffix_keeps_the_pending_blocks_and_one_elsewhere_
     assert len(spy.steps) == 2 and not spy.updates and planner.pending_blocks() == 0
     assert spy.steps[1][0].tolist() == [OFF]
     np.testing.assert_array_equal(got, reference(truth, (18, 2)))
+
+
+def test_deltas_of_any_array_form_defer_alike_through_one_compiled_check():
+    from daemon.planning import deferred_blocks
+
+    planner, spy, _truth, path = walking()
+    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
+    compiled = list(deferred_blocks._defer_step.signatures)
+    assert len(compiled) == 1  # the route's form: int64 cells, bool values, both writeable
+    readonly = np.array([OFF + 1])
+    readonly.flags.writeable = False
+    strided = np.array([OFF + 2, -1, OFF + 3])[::2]
+    forms = [
+        (np.array([OFF + 4], dtype=np.int32), np.array([True])),
+        (readonly, np.array([True])),
+        (strided, np.array([True, True])),
+        ([OFF + 5], True),  # a list and one value for every cell
+        (np.array([[OFF + 6]]), np.ones((1, 1), dtype=np.uint8)),
+    ]
+    for step, (cells, values) in enumerate(forms, start=2):
+        _stats, got = planner.update_and_path(cells, values, tuple(path[step]))
+        np.testing.assert_array_equal(got, path[step:])
+    assert len(spy.steps) == 1 and planner.deferred_steps == 1 + len(forms)
+    assert planner.pending_blocks() == 1 + 1 + 1 + 2 + 1 + 1
+    assert list(deferred_blocks._defer_step.signatures) == compiled  # nothing compiled in a step
+    # the same forms with a cell on the suffix repair
+    _stats, got = planner.update_and_path([ON], True, tuple(path[7]))
+    assert len(spy.steps) == 2
+
+
+def test_the_warm_up_runs_the_compiled_check_with_the_routes_array_form(monkeypatch):
+    from daemon.planning import deferred_blocks
+    from daemon.planning.warm import exercise
+
+    seen: list[tuple] = []
+    check = deferred_blocks._defer_step
+
+    def spied(*args):
+        seen.append(tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.writeable)
+                          for a in args if isinstance(a, np.ndarray)))  # fmt: skip
+        return check(*args)
+
+    class TwoParts(FastCpuPlanner):  # as the cuda backend's EDS lists its planners
+        def parts(self) -> list[FastCpuPlanner]:
+            return [FastCpuPlanner(), FastCpuPlanner()]
+
+    monkeypatch.setattr(deferred_blocks, "_defer_step", spied)
+    exercise(DeferredBlocks(FastCpuPlanner(), defer=True))
+    alone = len(seen)
+    assert alone > 0
+    exercise(DeferredBlocks(TwoParts()))  # each part is exercised behind the rule
+    assert len(seen) == 3 * alone
+    flag, index = (np.dtype(bool), 1, True, True), (np.dtype(np.int64), 1, True, True)
+    # P's cells, its marks, the delta's cells and values, the pending marks and cells
+    assert set(seen) == {(index, flag, index, flag, flag, index)}
+
+
+def test_while_the_device_is_shared_the_blocks_wait_for_the_next_repair():
+    planner, spy, truth, path = walking()
+    shared = [True]
+    planner.inner.shared_now = lambda: shared[0]  # type: ignore[attr-defined]
+    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
+    planner.between_steps()  # other users' steps meet ours: no post of its own
+    assert planner.pending_blocks() == 1 and len(spy.steps) == 1 and not spy.updates
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[2]))
+    assert spy.steps[1][0].tolist() == [OFF, ON]  # with the next repair
+    truth.reshape(-1)[[OFF, ON]] = True
+    np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
+    shared[0] = False
+    planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
+    planner.between_steps()  # the device alone again: given now
+    assert planner.pending_blocks() == 0 and spy.steps[2][0].tolist() == [OFF + 1]
