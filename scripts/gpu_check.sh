@@ -16,8 +16,8 @@
 # the last line names each step's exit status (124: it ran past its limit). PARTS (default
 # "tests bench dss"; also "scenarios": every scenario at 400 and 1000, and "harmonic": issue 21's
 # scripts/harmonic_check.sh into $OUT/harmonic; "defer": the four 400² walks with EDS's
-# DeferredBlocks on, off and on again (registry.DEFER_BLOCKS_ON_DEVICE), then on at 1000² and
-# 2000², beside "bench"'s off; "users": issue 28's scripts/gpu_users_check.sh
+# DeferredBlocks on (as shipped), off and on again (registry.DEFER_BLOCKS_ON_DEVICE), then on
+# and off at 1000², on at 2000²; "users": issue 28's scripts/gpu_users_check.sh
 # without its tests, which "tests" runs, into $OUT/users; "mapper": scripts/gpu_mapper_check.sh's
 # tests and bench into $OUT/mapper) picks steps.
 set -uo pipefail
@@ -61,8 +61,10 @@ for f in on off on2; do
     step "defer_400_$f" 200 python3 -c "$DEFER_BENCH" "${f%2}" --grid 400 --unknown 0.4 \
         --scenario "$FOUR" --backend cuda --json "$OUT/defer_400_$f.json"
 done
-step defer_1000_on 240 python3 -c "$DEFER_BENCH" on --grid 1000 --unknown 0.4 \
-    --scenario "$FOUR" --backend cuda --json "$OUT/defer_1000_on.json"
+for f in on off; do
+    step "defer_1000_$f" 240 python3 -c "$DEFER_BENCH" "$f" --grid 1000 --unknown 0.4 \
+        --scenario "$FOUR" --backend cuda --json "$OUT/defer_1000_$f.json"
+done
 step defer_2000_on 150 python3 -c "$DEFER_BENCH" on --grid 2000 --unknown 0.4 \
     --backend cuda --max-steps "$BIG_STEPS" --json "$OUT/defer_2000_on.json"
 }

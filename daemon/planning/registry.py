@@ -48,13 +48,12 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-DEFER_BLOCKS_ON_DEVICE = False
+DEFER_BLOCKS_ON_DEVICE = True
 """Wrap the cuda backend's EDS in ``DeferredBlocks`` (read when a planner is made, so a bench can
-compare the two). Off until a device shows its tail: on the H100 (400², 2026-11-27) the rule
-brought EDS's walk to 0.36-0.44 of DSS's but its p99 to 0.33-0.54 ms against 0.14-0.25 without
-it, each repair then carrying every block deferred since the last. The deferred blocks now go
-to the device between steps (``between_steps``), so each repair is the plain walk's (cell for
-cell on the CPU walks); not yet run on a device."""
+compare the two). On the H100 (2026-11-27, 400², four scenarios, the rule on / off in one call):
+EDS's walk 0.24-0.34 of DSS's against 0.45-0.60 off, its p99 within the spread of the plain
+walk's (0.15-0.27 ms both), each repair the plain walk's delta (the deferred blocks go to the
+device between steps, ``between_steps``)."""
 
 
 def _field_planner(dss: bool) -> PlannerFactory:
