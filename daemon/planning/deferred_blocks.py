@@ -35,8 +35,8 @@ is on when the inner planner's name says ``cuda``). There a repair step is a rou
 walk, where the host's caches are cold: the same calls in a loop take 5). On the host a repair
 step of such a delta costs 20-30 µs, about what the check does: on the dev VM (2026-11-27,
 400², 40 %, two interleaved runs each) the CPU walks took 0.9-1.6 × their time without the
-rule, the pending blocks then carried by the next repair. ``defer=True`` applies it anyway (the CPU
-property tests do).
+rule, the pending blocks then carried by the next repair. ``defer=True`` applies it anyway
+(the CPU property tests do).
 
 What the wrapper answers itself is what the route asks at every step (``max_open``,
 ``search_stats``: no ``__getattr__`` miss on the hot path); everything else comes from the
@@ -272,6 +272,7 @@ class DeferredBlocks(GlobalPlanner):
         the device is shared (``shared_now``: other threads' steps met ours lately) they stay
         pending and ride with the next repair instead: a post of their own for every deferred
         step took a 16-core H100 host from 7,600 steps/s to 4,800 (1,000 users at 10 Hz)."""
+        self._mark()  # the last step's P, marked now rather than in the next step
         if not self._count:
             return
         shared = getattr(self.inner, "shared_now", None)
@@ -365,12 +366,11 @@ def _defer_step(  # pragma: no cover - compiled
     flat cells ``flat`` (the user last at ``at``) and its suffix's marks ``on``.
 
     Holds: returns the user's index in P and the new count of ``pending``, where the delta's
-    cells not already pending were added. Fails: ``(-1, count)``, nothing added (``-2``:
-    ``blocked`` is not one value a cell). Either way
-    the cells the user walked past are unmarked (they left the suffix; P stays valid). A cell
-    outside the map fails the rule (the inner planner's step raises the IndexError). One
-    compiled pass: the same checks as numpy calls cost a walking step ~15 µs on a GPU host,
-    a tenth of its time there."""
+    cells not already pending were added. Fails: ``(-1, count)``, nothing added; the cells the
+    user walked past are unmarked either way (they left the suffix; P stays valid). ``-2``:
+    ``blocked`` is not one value a cell, nothing done. A cell outside the map fails the rule
+    (the inner planner's step raises the IndexError). One compiled pass: as numpy calls the
+    same checks cost a walking step ~15 µs more on a GPU host, a tenth of its time there."""
     if blocked.shape[0] != cells.shape[0]:
         return -2, count  # not one value a cell: the caller's to make so
     k = flat.shape[0]

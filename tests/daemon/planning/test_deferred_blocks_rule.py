@@ -314,3 +314,12 @@ def test_while_the_device_is_shared_the_blocks_wait_for_the_next_repair():
     planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
     planner.between_steps()  # the device alone again: given now
     assert planner.pending_blocks() == 0 and spy.steps[2][0].tolist() == [OFF + 1]
+
+
+def test_between_steps_marks_the_path_a_repair_returned_so_the_next_step_need_not():
+    planner, _spy, _truth, path = walking()
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[1]))
+    assert planner._fresh is not None  # P's marks wait for the answer to be out
+    planner.between_steps()  # nothing pending: only the marks
+    assert planner._fresh is None and planner._flat is not None
+    assert planner._on.reshape(-1)[planner._flat].all() and planner._on.sum() == len(got)
