@@ -2,7 +2,8 @@
 
 Both drive the daemon's ``Navigator`` with the same world: in process directly, over zenoh
 through a real daemon on loopback with the sim node publishing the world's deltas and poses.
-On one seeded courtyard they must stand on the same cells and feel the same belt patterns.
+On one seeded courtyard they must stand on the same cells and feel the same belt patterns,
+the node acting only on paths that reflect every delta it has sent (``LockStepNode``).
 The daemon's clock tick is pushed out of the walk (it would add guidance steps at times of
 its own choosing), and the world is one where the hold-instead-of-detour timer (real time on
 the daemon, simulated in process) never starts.
@@ -30,6 +31,27 @@ from sim.world import World
 pytestmark = pytest.mark.timeout(120)
 
 
+class LockStepNode(SimNode):
+    """A sim node that acts only on a path reflecting every delta it has sent: asked again,
+    the same pose meets them. The node sends its first deltas and first pose on two keys
+    without waiting between them (later deltas wait for their path, ``SimNode._sense``), and
+    the daemon may plan that pose first: a step order the in-process walk never takes."""
+
+    ASKS = 50
+
+    def _put_delta(self, delta) -> None:
+        self.sent = delta.seq
+        super()._put_delta(delta)
+
+    def _wait_for_path(self, stamp, stop):
+        path = super()._wait_for_path(stamp, stop)
+        for _ in range(self.ASKS):
+            if path is None or path.map_seq >= self.sent:
+                break
+            path = super()._wait_for_path(self._send_pose(), stop)
+        return path
+
+
 def felt(pattern) -> tuple:
     return (str(pattern.kind), tuple(pattern.motors), pattern.period_ms)
 
@@ -51,7 +73,7 @@ def test_the_in_process_walk_and_the_daemon_walk_the_same_cells_with_the_same_be
                         stamp=time.time())  # fmt: skip
             wire.put(client, T.GOAL, "same", codec.encode(goal))
             time.sleep(0.2)  # the goal is the daemon's before the world's first delta
-            there = SimNode(session, "same", scenario, walker="path").run(
+            there = LockStepNode(session, "same", scenario, walker="path").run(
                 stop=threading.Event(), timeout_s=90.0
             )
         finally:
