@@ -151,12 +151,14 @@ class DeferredBlocks(GlobalPlanner):
         done = self.deferred(cells, blocked, start, t0)
         if done is not None:
             return done
+        # merged() and kept() written out for the common case (nothing pending, P forgotten
+        # once): inside a walk every frame and attribute a repair step touches is cold.
         if self._count:
             cells, blocked = self.merged(cells, blocked)
         else:
             self._forget()
         stats, path = self.inner.update_and_path(cells, blocked, start)
-        if self.defers and len(path):  # kept(path), P already forgotten
+        if self.defers and len(path):
             self._fresh = path
         ms = (time.perf_counter() - t0) * 1e3  # the check and the merge are the step's too
         return UpdateStats(stats.iterations, stats.cells_touched, max(ms, stats.ms)), path
@@ -201,7 +203,7 @@ class DeferredBlocks(GlobalPlanner):
         self, cells: np.ndarray, blocked: np.ndarray, start: Cell, t0: float | None = None
     ) -> Step | None:
         """The step's answer when it needs no repair (the rule above; the delta is then
-        pending), else None and nothing changed."""
+        pending), else None: nothing pending changed, and the caller repairs (P forgotten)."""
         t0 = time.perf_counter() if t0 is None else t0
         if self._fresh is not None or self._stale is not None:
             self._mark()

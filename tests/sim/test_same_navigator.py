@@ -38,6 +38,8 @@ class LockStepNode(SimNode):
     the daemon may plan that pose first: a step order the in-process walk never takes."""
 
     ASKS = 50
+    sent = -1
+    """The last delta this node published (its seq)."""
 
     def _put_delta(self, delta) -> None:
         self.sent = delta.seq
