@@ -219,28 +219,33 @@ def test_a_batch_answers_deferred_steps_on_the_host_and_posts_the_others(monkeyp
         assert isinstance(p, DeferredBlocks)
         p.plan(truth, goal)
         paths.append(p.update_and_path(np.empty(0, np.int64), np.empty(0, bool), start)[1])
-    for rnd in range(4):
+    was_cut = [False] * len(users)
+    for rnd in range(6):
         steps, cut = [], []
         for k, (p, truth, path) in enumerate(zip(users, truths, paths, strict=True)):
             start = tuple(int(v) for v in path[1])
             ahead = path[min(len(path) - 1, 20)]
-            if (k + rnd) % 2:  # blocks beside the path's end: cut it
+            if (k + rnd) % 3 == 0:  # blocks beside the path's end: cut it
                 cells = np.array([int(ahead[0]) * shape[1] + int(ahead[1])])
             else:  # blocks far off every path
                 cells = np.array([(100 + rnd) * shape[1] + 5, (100 + rnd) * shape[1] + 6])
             truth.reshape(-1)[cells] = True
             steps.append((p, cells, np.ones(cells.size, bool), start))
-            cut.append(bool((k + rnd) % 2))
-        before = [p.deferred_steps for p in users]
+            cut.append((k + rnd) % 3 == 0)
+        # right after a cut a step repairs unchecked; the one after checks, and defers
+        defers = [not c and not w for c, w in zip(cut, was_cut, strict=True)]
+        before = [(p.deferred_steps, p.unchecked_steps) for p in users]
         posted.clear()
         results = batch.step_many(steps)
         for k, ((p, _, _, start), res) in enumerate(zip(steps, results, strict=True)):
             assert not isinstance(res, BaseException), res
             ref = reference_path(dijkstra_field(truths[k], goal), truths[k], start)
             np.testing.assert_array_equal(res[1], ref)
-            assert (p.deferred_steps == before[k] + 1) == (not cut[k])
+            assert p.deferred_steps == before[k][0] + defers[k]
+            assert p.unchecked_steps == before[k][1] + was_cut[k]
             paths[k] = res[1]
-        assert sum(posted) == sum(cut)  # the deferred steps were never posted
+        assert sum(posted) == defers.count(False)  # the deferred steps were never posted
+        was_cut = cut
         if rnd % 2:  # the blocks deferred, given between steps: every user's in one post
             posted.clear()
             waiting = sum(p.pending_blocks() > 0 for p in users)

@@ -245,11 +245,11 @@ def test_a_path_read_from_the_suffix_keeps_the_pending_blocks_and_one_elsewhere_
 
 
 def test_deltas_of_any_array_form_defer_alike_through_one_compiled_check():
-    from daemon.planning import deferred_blocks
+    from daemon.planning import deferred_check
 
     planner, spy, _truth, path = walking()
     planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
-    compiled = list(deferred_blocks._defer_step.signatures)
+    compiled = list(deferred_check.defer_step.signatures)
     assert len(compiled) == 1  # the route's form: int64 cells, bool values, both writeable
     readonly = np.array([OFF + 1])
     readonly.flags.writeable = False
@@ -266,29 +266,34 @@ def test_deltas_of_any_array_form_defer_alike_through_one_compiled_check():
         np.testing.assert_array_equal(got, path[step:])
     assert len(spy.steps) == 1 and planner.deferred_steps == 1 + len(forms)
     assert planner.pending_blocks() == 1 + 1 + 1 + 2 + 1 + 1
-    assert list(deferred_blocks._defer_step.signatures) == compiled  # nothing compiled in a step
+    assert list(deferred_check.defer_step.signatures) == compiled  # nothing compiled in a step
     # the same forms with a cell on the suffix repair
     _stats, got = planner.update_and_path([ON], True, tuple(path[7]))
     assert len(spy.steps) == 2
 
 
 def test_the_warm_up_runs_the_compiled_check_with_the_routes_array_form(monkeypatch):
-    from daemon.planning import deferred_blocks
+    from daemon.planning import deferred_blocks, deferred_check
     from daemon.planning.warm import exercise
 
     seen: list[tuple] = []
-    check = deferred_blocks._defer_step
+    learned: list[tuple] = []
 
-    def spied(*args):
-        seen.append(tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.writeable)
-                          for a in args if isinstance(a, np.ndarray)))  # fmt: skip
-        return check(*args)
+    def spy_on(check, into):
+        def spied(*args):
+            into.append(tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.writeable)
+                              for a in args if isinstance(a, np.ndarray)))  # fmt: skip
+            return check(*args)
+
+        return spied
 
     class TwoParts(FastCpuPlanner):  # as the cuda backend's EDS lists its planners
         def parts(self) -> list[FastCpuPlanner]:
             return [FastCpuPlanner(), FastCpuPlanner()]
 
-    monkeypatch.setattr(deferred_blocks, "_defer_step", spied)
+    monkeypatch.setattr(deferred_blocks, "defer_step", spy_on(deferred_check.defer_step, seen))
+    learn = spy_on(deferred_check.misses_suffix, learned)
+    monkeypatch.setattr(deferred_blocks, "misses_suffix", learn)
     exercise(DeferredBlocks(FastCpuPlanner(), defer=True))
     alone = len(seen)
     assert alone > 0
@@ -297,6 +302,8 @@ def test_the_warm_up_runs_the_compiled_check_with_the_routes_array_form(monkeypa
     flag, index = (np.dtype(bool), 1, True, True), (np.dtype(np.int64), 1, True, True)
     # P's cells, its marks, the delta's cells and values, the pending marks and cells
     assert set(seen) == {(index, flag, index, flag, flag, index)}
+    # and, after a step that repaired unchecked: P's suffix, its marks, the delta
+    assert learned and set(learned) == {(index, flag, index, flag)}
 
 
 def test_while_the_device_is_shared_the_blocks_wait_for_the_next_repair():
@@ -312,8 +319,12 @@ def test_while_the_device_is_shared_the_blocks_wait_for_the_next_repair():
     np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
     shared[0] = False
     planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
+    assert len(spy.steps) == 3  # right after a repair: repaired, unchecked
+    planner.between_steps()  # it would have held: the next step checks
+    planner.update_and_path(np.array([OFF + 2]), np.array([True]), tuple(got[2]))
+    assert planner.pending_blocks() == 1 and len(spy.steps) == 3
     planner.between_steps()  # the device alone again: given now
-    assert planner.pending_blocks() == 0 and spy.steps[2][0].tolist() == [OFF + 1]
+    assert planner.pending_blocks() == 0 and spy.steps[3][0].tolist() == [OFF + 2]
 
 
 def test_between_steps_marks_the_path_a_repair_returned_so_the_next_step_need_not():
@@ -323,3 +334,61 @@ def test_between_steps_marks_the_path_a_repair_returned_so_the_next_step_need_no
     planner.between_steps()  # nothing pending: only the marks
     assert planner._fresh is None and planner._flat is not None
     assert planner._on.reshape(-1)[planner._flat].all() and planner._on.sum() == len(got)
+
+
+def cut_then(planner: DeferredBlocks, path: np.ndarray) -> np.ndarray:
+    """A repair (a block on P's suffix) and its answer out: the new path."""
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[1]))
+    planner.between_steps()
+    return got
+
+
+def test_after_a_repair_a_step_repairs_unchecked_and_the_next_checks_if_it_would_have_held(
+    monkeypatch,
+):
+    from daemon.planning import deferred_blocks
+
+    planner, spy, truth, path = walking()
+    got = cut_then(planner, path)
+    checks: list[int] = []
+    check = deferred_blocks.defer_step
+    monkeypatch.setattr(deferred_blocks, "defer_step", lambda *a: checks.append(1) or check(*a))
+    _, got = planner.update_and_path(np.array([OFF]), np.array([True]), tuple(got[1]))
+    assert not checks and len(spy.steps) == 3 and planner.unchecked_steps == 1
+    truth.reshape(-1)[[ON, OFF]] = True
+    np.testing.assert_array_equal(got, reference(truth, tuple(got[0])))
+    planner.between_steps()  # OFF missed the path: the next step checks, and defers
+    _, later = planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
+    assert checks == [1] and len(spy.steps) == 3 and planner.deferred_steps == 1
+    np.testing.assert_array_equal(later, got[1:])
+
+
+def test_an_unchecked_step_that_cut_the_path_leaves_the_next_unchecked_too():
+    planner, spy, truth, path = walking()
+    got = cut_then(planner, path)
+    ahead = int(got[3][0]) * N + int(got[3][1])  # on the path that went round ON
+    _, got = planner.update_and_path(np.array([ahead]), np.array([True]), tuple(got[1]))
+    planner.between_steps()
+    _, got = planner.update_and_path(np.array([OFF]), np.array([True]), tuple(got[1]))
+    assert len(spy.steps) == 4 and planner.unchecked_steps == 2 and planner.deferred_steps == 0
+    truth.reshape(-1)[[ON, ahead, OFF]] = True
+    np.testing.assert_array_equal(got, reference(truth, tuple(got[0])))
+
+
+def test_without_between_steps_the_next_step_still_learns_whether_to_check():
+    planner, spy, _truth, path = walking()
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[1]))
+    _, got = planner.update_and_path(np.array([OFF]), np.array([True]), tuple(got[1]))
+    assert len(spy.steps) == 3 and planner.unchecked_steps == 1
+    _, later = planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
+    assert len(spy.steps) == 3 and planner.deferred_steps == 1
+    np.testing.assert_array_equal(later, got[1:])
+
+
+def test_a_plan_makes_the_next_step_check_again():
+    planner, _spy, truth, path = walking()
+    cut_then(planner, path)
+    planner.plan(truth, GOAL)
+    _, path = planner.update_and_path(np.empty(0, np.int64), np.empty(0, bool), USER)
+    planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
+    assert planner.deferred_steps == 1 and planner.unchecked_steps == 0
