@@ -97,6 +97,8 @@ class DeferredBlocks(GlobalPlanner):
         """Steps that repaired without the check (after a repair: see ``deferred``)."""
         self._check = True
         """Whether the next step with a delta runs the check (False after a repair)."""
+        self._shared = False
+        """Whether other threads' steps met ours on the device lately (``between_steps``)."""
         self._unchecked: tuple[Any, Any, Cell] | None = None
         """The last unchecked step's delta and cell, until ``_mark`` asks whether the check
         would have held (then the next step checks)."""
@@ -164,6 +166,10 @@ class DeferredBlocks(GlobalPlanner):
         return self.inner.update(cells, values)
 
     def update_and_path(self, cells: np.ndarray, blocked: np.ndarray, start: Cell) -> Step:
+        if self._shared:  # the inner planner's own step, with what was pending (between_steps)
+            if self._count:
+                cells, blocked = self.merged(cells, blocked)
+            return self.inner.update_and_path(cells, blocked, start)
         t0 = time.perf_counter()
         done = self.deferred(cells, blocked, start, t0)
         if done is not None:
@@ -297,15 +303,21 @@ class DeferredBlocks(GlobalPlanner):
         the next repair carries only its own delta. P stays the path: with nothing pending
         the inner planner's field is the current map's, and P crossed none of them. Given as
         a step from the user's cell (``pending_step``): on the device it is posted with the
-        steps other users' threads call meanwhile (``cuda/combine.py``), not alone. While
-        the device is shared (``shared_now``: other threads' steps met ours lately) they stay
-        pending and ride with the next repair instead: a post of their own for every deferred
-        step took a 16-core H100 host from 7,600 steps/s to 4,800 (1,000 users at 10 Hz)."""
+        steps other users' threads call meanwhile (``cuda/combine.py``), not alone.
+
+        While the device is shared (``shared_now``: other threads' steps met ours lately)
+        they ride with the next step, and every step is the inner planner's own, P forgotten:
+        the host, not the device, then limits the steps a second, and the rule's check and
+        marks are host work the threads share one interpreter for (1,000 users at 10 Hz, a
+        thread each, an H100 host: 7,332 steps/s with them, 9,440 without the rule). Once the
+        device is no longer shared, the next repair's path is P again."""
         self._mark()  # the last step's P, marked now rather than in the next step
-        if not self._count:
-            return
         shared = getattr(self.inner, "shared_now", None)
-        if shared is not None and shared():
+        self._shared = shared is not None and bool(shared())
+        if self._shared:
+            self._forget()
+            return
+        if not self._count:
             return
         step = self.pending_step()
         if step is not None:

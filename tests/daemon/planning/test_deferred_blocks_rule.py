@@ -306,25 +306,33 @@ def test_the_warm_up_runs_the_compiled_check_with_the_routes_array_form(monkeypa
     assert learned and set(learned) == {(index, flag, index, flag)}
 
 
-def test_while_the_device_is_shared_the_blocks_wait_for_the_next_repair():
+def test_while_the_device_is_shared_every_step_is_the_inner_planners_own(monkeypatch):
+    from daemon.planning import deferred_blocks
+
     planner, spy, truth, path = walking()
     shared = [True]
     planner.inner.shared_now = lambda: shared[0]  # type: ignore[attr-defined]
     planner.update_and_path(np.array([OFF]), np.array([True]), tuple(path[1]))
     planner.between_steps()  # other users' steps meet ours: no post of its own
     assert planner.pending_blocks() == 1 and len(spy.steps) == 1 and not spy.updates
-    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(path[2]))
-    assert spy.steps[1][0].tolist() == [OFF, ON]  # with the next repair
-    truth.reshape(-1)[[OFF, ON]] = True
-    np.testing.assert_array_equal(got, reference(truth, tuple(path[2])))
+    checks: list[int] = []
+    check = deferred_blocks.defer_step
+    monkeypatch.setattr(deferred_blocks, "defer_step", lambda *a: checks.append(1) or check(*a))
+    user = tuple(path[2])
+    _, got = planner.update_and_path(np.array([OFF + 1]), np.array([True]), user)
+    assert spy.steps[1][0].tolist() == [OFF, OFF + 1] and not checks  # no rule: a step
+    truth.reshape(-1)[[OFF, OFF + 1]] = True
+    np.testing.assert_array_equal(got, reference(truth, user))
     shared[0] = False
-    planner.update_and_path(np.array([OFF + 1]), np.array([True]), tuple(got[1]))
-    assert len(spy.steps) == 3  # right after a repair: repaired, unchecked
-    planner.between_steps()  # it would have held: the next step checks
-    planner.update_and_path(np.array([OFF + 2]), np.array([True]), tuple(got[2]))
-    assert planner.pending_blocks() == 1 and len(spy.steps) == 3
-    planner.between_steps()  # the device alone again: given now
+    planner.between_steps()  # the device alone again: the next repair's path is P
+    _, got = planner.update_and_path(np.array([ON]), np.array([True]), tuple(got[1]))
+    planner.between_steps()
+    assert len(spy.steps) == 3 and checks == []  # no P to check against
+    _, later = planner.update_and_path(np.array([OFF + 2]), np.array([True]), tuple(got[1]))
+    assert checks == [1] and planner.deferred_steps == 2 and len(spy.steps) == 3
+    planner.between_steps()
     assert planner.pending_blocks() == 0 and spy.steps[3][0].tolist() == [OFF + 2]
+    np.testing.assert_array_equal(later, got[1:])
 
 
 def test_between_steps_marks_the_path_a_repair_returned_so_the_next_step_need_not():
