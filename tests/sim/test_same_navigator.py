@@ -35,7 +35,10 @@ class LockStepNode(SimNode):
     """A sim node that acts only on a path reflecting every delta it has sent: asked again,
     the same pose meets them. The node sends its first deltas and first pose on two keys
     without waiting between them (later deltas wait for their path, ``SimNode._sense``), and
-    the daemon may plan that pose first: a step order the in-process walk never takes."""
+    the daemon may plan that pose first: a step order the in-process walk never takes. So
+    before the walk it asks from the start until the daemon has the first map, and its
+    guidance starts from that path: a path planned on part of the map, then replaced, would
+    make the walk's first pattern a reroute."""
 
     ASKS = 50
     sent = -1
@@ -44,6 +47,13 @@ class LockStepNode(SimNode):
     def _put_delta(self, delta) -> None:
         self.sent = delta.seq
         super()._put_delta(delta)
+
+    def _start_map(self) -> None:
+        super()._start_map()
+        stop = threading.Event()
+        path = self._wait_for_path(self._send_pose(), stop)
+        assert path is not None and path.map_seq >= self.sent, "the daemon never had the map"
+        self._wait_for_belt(path.stamp, stop)
 
     def _wait_for_path(self, stamp, stop):
         path = super()._wait_for_path(stamp, stop)
