@@ -311,12 +311,12 @@ class DeferredBlocks(GlobalPlanner):
         marks are host work the threads share one interpreter for (1,000 users at 10 Hz, a
         thread each, an H100 host: 7,332 steps/s with them, 9,440 without the rule). Once the
         device is no longer shared, the next repair's path is P again."""
-        self._mark()  # the last step's P, marked now rather than in the next step
         shared = getattr(self.inner, "shared_now", None)
         self._shared = shared is not None and bool(shared())
-        if self._shared:
+        if self._shared:  # no P to mark: it would only be cleared again
             self._forget()
             return
+        self._mark()  # the last step's P, marked now rather than in the next step
         if not self._count:
             return
         step = self.pending_step()

@@ -14,6 +14,29 @@ _FLAGS = "boolean[::1]"
 _CELLS = "int64[::1]"
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rule_holds(  # pragma: no cover - compiled
+    flat: np.ndarray, at: int, s: int, on: np.ndarray, cells: np.ndarray, blocked: np.ndarray
+) -> int:
+    """The rule's conditions for a step from cell ``s`` against P's flat cells ``flat`` (the
+    user last at ``at``; the suffix marked in ``on``): the user's index in P if they hold,
+    else -1. The cells the user walked past are unmarked either way (they left the suffix)."""
+    k = flat.shape[0]
+    j = at
+    while j < k and flat[j] != s:  # (a) usually at or one further on
+        j += 1
+    if j == k:
+        return -1  # off P, or behind the user's last cell on it
+    for i in range(at, j):
+        on[flat[i]] = False
+    n = on.shape[0]
+    for i in range(cells.shape[0]):  # (b) every cell blocked, (c) none on the suffix
+        cell = cells[i]
+        if not blocked[i] or cell < 0 or cell >= n or on[cell]:
+            return -1
+    return j
+
+
 @njit(
     f"UniTuple(int64, 2)({_CELLS}, int64, int64, {_FLAGS}, {_CELLS}, {_FLAGS}, {_FLAGS}, {_CELLS},"
     " int64)",
@@ -41,19 +64,9 @@ def defer_step(  # pragma: no cover - compiled
     (the inner planner's step raises the IndexError)."""
     if blocked.shape[0] != cells.shape[0]:
         return -2, count  # not one value a cell: the caller's to make so
-    k = flat.shape[0]
-    j = at
-    while j < k and flat[j] != s:  # (a) usually at or one further on
-        j += 1
-    if j == k:
-        return -1, count  # off P, or behind the user's last cell on it
-    for i in range(at, j):
-        on[flat[i]] = False
-    n = on.shape[0]
-    for i in range(cells.shape[0]):  # (b) every cell blocked, (c) none on the suffix
-        cell = cells[i]
-        if not blocked[i] or cell < 0 or cell >= n or on[cell]:
-            return -1, count
+    j = _rule_holds(flat, at, s, on, cells, blocked)
+    if j < 0:
+        return -1, count
     for i in range(cells.shape[0]):
         cell = cells[i]
         if not is_pending[cell]:  # a cell blocked again is pending once
@@ -73,17 +86,4 @@ def misses_suffix(  # pragma: no cover - compiled
     ``defer_step`` does: the caller clears the rest of the suffix's marks next."""
     if blocked.shape[0] != cells.shape[0]:
         return False
-    k = suffix.shape[0]
-    j = 0
-    while j < k and suffix[j] != s:
-        j += 1
-    if j == k:
-        return False
-    for i in range(j):
-        on[suffix[i]] = False
-    n = on.shape[0]
-    for i in range(cells.shape[0]):
-        cell = cells[i]
-        if not blocked[i] or cell < 0 or cell >= n or on[cell]:
-            return False
-    return True
+    return _rule_holds(suffix, 0, s, on, cells, blocked) >= 0
