@@ -10,7 +10,7 @@ import numpy as np
 from daemon.guidance.clearance import forward_clearance_m
 from daemon.guidance.hold import _direction
 from daemon.guidance.route_watch import _nearest_m
-from daemon.guidance.turning_points import segment_clear, segment_free, turning_points
+from daemon.guidance.turning_points import is_core, segment_clear, segment_free, turning_points
 from daemon.planning.registry import make_planner
 from daemon.planning.warm import exercise
 
@@ -29,6 +29,7 @@ def _warm_guidance() -> None:
     segment_free(blocked, a[0], a[1], b[0], b[1])
     segment_clear(blocked, a[0], a[1], b[0], b[1], 1)
     forward_clearance_m(blocked, a, 0.5, 0.1)
+    is_core(blocked, 6, 6, 1)  # the guide's "user in the margin" test, a user on a blocked cell
     # The route watch's and the hold's distances, with the types the guide passes.
     pts = np.array(path, dtype=np.float64)
     _nearest_m(pts[:3], pts, 0.1)
