@@ -4,15 +4,19 @@ A cuda step is a round trip — the host posts the change into the resident loop
 the device's blocks pick it up, settle, extract the path and write it back, the host sees
 the done word — of 0.06–0.08 ms at its median on an H200 host at 100² and 200², whatever the
 change. The CPU repair (``cpu/repair.py``: a walking step's change, repair and path in one
-compiled call) does the whole step in 0.03–0.05 ms there and its worst ones in 0.07–0.20, and
-the GPU's DSS, against which EDS is measured, stays on the device. Measured on the H200 host
-(2026-11-26): at 100² and 200² the CPU's EDS walks in 0.27–0.49 of the device DSS's time,
-where the device's EDS took 0.58–0.79; at 400² the device's worst step (0.20–0.26 ms) beats
-the CPU's (0.31–0.48), so the limit is 200² (``SMALL_CELLS``). The cuda backend's EDS plans a
-map of at most ``SMALL_CELLS`` cells with ``FastCpuPlanner`` and a larger one with
-``CudaPlanner``; the choice is made at each ``plan`` (a new map), never in the middle of a
-walk. Both compute the same exact field and read the same path, tie for tie, so the rule
-changes what a step costs, never where the user is led. Only EDS (``fast``) is switched.
+compiled call) does the whole step in 0.03–0.05 ms there. The GPU's DSS, against which EDS is
+measured, stays on the device. The cuda backend's EDS plans a map of at most ``SMALL_CELLS``
+cells with ``FastCpuPlanner`` and a larger one with ``CudaPlanner``; the choice is made at each
+``plan`` (a new map), never in the middle of a walk. Both compute the same exact field and read
+the same path, tie for tie, so the rule changes what a step costs, never where the user is led.
+Only EDS (``fast``) is switched.
+
+The limit, measured on H100 hosts (2026-11-27; four scenarios at 20/40/60 %): at 200², the
+limit at 200² and at 100² interleaved three times on one host, the CPU repair's p99 came above
+the device DSS's in 8 of 36 walks (up to 2.05 ×), the device's EDS (``deferred_blocks.py`` in
+front of it) failed in 2 of 36 (a p99 0.170 against 0.161 ms, a walk 0.51 of DSS's); at 100²,
+on another host, the device's EDS walked more than half DSS's time in 12 of 24 walks (up to
+0.67). So the limit is 100² (200² before the device's EDS answered steps on the host).
 
 ``name`` is the planner that serves the current map (``eds-cpu-fast`` on a small one), so a
 bench row or a log line says which one ran. ``parts`` lists both, for the warm-up: the kernels
@@ -32,7 +36,7 @@ from ..interface import GlobalPlanner, UpdateStats
 if TYPE_CHECKING:
     from .planner import CudaPlanner
 
-SMALL_CELLS = 200 * 200
+SMALL_CELLS = 100 * 100
 """Grids of at most this many cells are planned on the CPU (the module's measurements)."""
 
 

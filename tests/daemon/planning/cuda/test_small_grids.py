@@ -48,7 +48,7 @@ def test_a_small_map_is_planned_by_the_cpu_repair_and_says_so():
 
 
 def test_the_rule_is_the_cuda_backends_eds_only():
-    assert SMALL_CELLS == 200 * 200
+    assert SMALL_CELLS == 100 * 100
     if cuda_available():
         assert isinstance(make_planner("eds", "cuda"), SmallGridsOnCpu)
         assert not isinstance(make_planner("dss", "cuda"), SmallGridsOnCpu)
