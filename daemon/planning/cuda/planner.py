@@ -67,8 +67,8 @@ call gives the repair up (the cut-over, cut_over.cuh): the limit is ``CUT_OVER *
 cells, or ``CUT_OVER_AREA`` of the cells where that is more. A plan from scratch costs about as
 many tile visits in a row as the map is tiles across, a raise about as many as the cells it
 raises. On the H100 0.5 gave the lowest p99 at 400² and 1000² without raising the 2000² median;
-again 2026-11-27 (four scenarios, 0.5 / 0.25 / 0.35 twice each), 0.25 and 0.35 gave no lower
-400² p99, and 100² explore walked past half of DSS's time. Read when a planner is made."""
+again 2026-11-27 (400², four scenarios, 0.5 / 0.25 / 0.35 twice each on one host), 0.25 and
+0.35 gave no lower p99 and no shorter walk. Read when a planner is made."""
 CUT_OVER_AREA = 0.001
 """The least limit of an EDS repair's raise, as a share of the map's cells (see ``CUT_OVER``):
 4,000 cells at 2000², the limit measured best there; below ``CUT_OVER * (h + w)`` up to 1000²."""
