@@ -389,8 +389,8 @@ class DeferredBlocks(GlobalPlanner):
             self._path, self._flat, self._at = path, flat, 0
 
     def _missed(self, suffix: np.ndarray, cells: Any, blocked: Any, start: Cell) -> bool:
-        """``misses_suffix`` for a delta of any form (True where in doubt: the next step
-        then checks, which is always right)."""
+        """``misses_suffix`` for a delta of any form (True where the compiled form does not
+        fit: the next step then checks; either answer is safe, a wrong one costs a repair)."""
         s = int(start[0]) * self._width + int(start[1])
         try:
             return bool(misses_suffix(suffix, s, self._on, cells, blocked))

@@ -34,7 +34,9 @@ from ..grid import Cell
 from ..interface import GlobalPlanner, UpdateStats
 
 if TYPE_CHECKING:
+    from .combine import Combiner
     from .planner import CudaPlanner
+    from .posting import Post
 
 SMALL_CELLS = 100 * 100
 """Grids of at most this many cells are planned on the CPU (the module's measurements)."""
@@ -58,6 +60,7 @@ class SmallGridsOnCpu(GlobalPlanner):
         self._cpu: FastCpuPlanner | None = None
         self._cuda: CudaPlanner | None = None
         self._serving: GlobalPlanner | None = None
+        self._steps: Combiner[Post] | None = None  # the device's step combiner, once cuda() ran
 
     @property
     def name(self) -> str:  # type: ignore[override]
@@ -71,8 +74,10 @@ class SmallGridsOnCpu(GlobalPlanner):
     def cuda(self) -> CudaPlanner:
         if self._cuda is None:  # imported here: a host without cupy plans small maps all the same
             from .planner import CudaPlanner
+            from .posting import STEPS
 
             self._cuda = CudaPlanner(self.variant)
+            self._steps = STEPS  # read by shared_now between every step: no import there
         return self._cuda
 
     def parts(self) -> list[GlobalPlanner]:
@@ -118,11 +123,8 @@ class SmallGridsOnCpu(GlobalPlanner):
         """Whether other threads' steps have met this process's on the device lately
         (``combine.py``): work that can wait had better ride with a later step than make a
         post of its own (``DeferredBlocks.between_steps``)."""
-        if self._serving is None or self._serving is not self._cuda:
-            return False
-        from .posting import STEPS
-
-        return STEPS.contended
+        steps = self._steps  # set with the cuda planner: serving it means it is there
+        return steps is not None and self._serving is self._cuda and steps.contended
 
     def __getattr__(self, attr: str):
         # What only some planners offer (costs, costs_within, settle, pending, blocked, the
